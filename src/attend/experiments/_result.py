@@ -1,0 +1,107 @@
+"""The common result contract of every reproduction experiment.
+
+`attend reproduce NAME --out DIR` writes ``DIR/NAME.json`` holding::
+
+    {"experiment": NAME,
+     "metrics": [{"name": ..., "value": ..., "published": ... or null, "unit": ...}],
+     "settings": {...}}
+
+so that reproduced and published values stand side by side, plus PNG figures in DIR.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One reproduced figure, with the published value it is compared to (or None)."""
+
+    name: str
+    value: float
+    unit: str
+    published: float | None = None
+
+    def relative_difference(self) -> float | None:
+        """|value - published| / |published|, or None when nothing was published."""
+        if self.published is None or self.published == 0:
+            return None
+        return abs(self.value - self.published) / abs(self.published)
+
+
+@dataclass
+class ExperimentResult:
+    """Metrics, settings and figure files of one experiment run."""
+
+    experiment: str
+    metrics: list[Metric] = field(default_factory=list)
+    settings: dict[str, Any] = field(default_factory=dict)
+    figures: list[str] = field(default_factory=list)
+    data: dict[str, Any] = field(default_factory=dict)
+
+    def add(self, name: str, value: float, unit: str, published: float | None = None) -> None:
+        self.metrics.append(Metric(name, float(value), unit, published))
+
+    def metric(self, name: str) -> Metric:
+        for metric in self.metrics:
+            if metric.name == name:
+                return metric
+        raise KeyError(f"experiment {self.experiment!r} has no metric {name!r}")
+
+    def to_json_dict(self) -> dict[str, Any]:
+        return {
+            "experiment": self.experiment,
+            "metrics": [
+                {
+                    "name": m.name,
+                    "value": _finite_or_none(m.value),
+                    "published": m.published,
+                    "unit": m.unit,
+                }
+                for m in self.metrics
+            ],
+            "settings": _jsonable(self.settings),
+            "figures": list(self.figures),
+        }
+
+    def write(self, out_dir: str | Path) -> Path:
+        """Write ``out_dir/<experiment>.json`` and return its path."""
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        path = out / f"{self.experiment}.json"
+        path.write_text(json.dumps(self.to_json_dict(), indent=2) + "\n")
+        return path
+
+    def table(self) -> str:
+        """A plain-text table: name, reproduced, published, unit."""
+        rows = [("metric", "reproduced", "published", "unit")]
+        for m in self.metrics:
+            published = "-" if m.published is None else f"{m.published:.6g}"
+            rows.append((m.name, f"{m.value:.6g}", published, m.unit))
+        widths = [max(len(r[i]) for r in rows) for i in range(4)]
+        return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows)
+
+
+def _finite_or_none(value: float) -> float | None:
+    return value if math.isfinite(value) else None
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

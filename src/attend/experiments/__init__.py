@@ -1,0 +1,36 @@
+"""Reproduction experiments, one module per paper figure.
+
+Each module has ``run(quick=True, out_dir=None, progress=True) -> ExperimentResult``; the CLI's
+``attend reproduce NAME`` calls it and writes ``NAME.json`` and PNG figures.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+
+#: experiment name -> (module, one-line description)
+EXPERIMENTS: dict[str, tuple[str, str]] = {
+    "fig2": ("attend.experiments.fig2", "state/input SSE vs embedding order p, DEM vs Kalman filter (paper Fig. 2)"),
+    "quadrotor": ("attend.experiments.quadrotor", "real quadrotor flights in wind: roll-rate and motor-input estimation (Bos et al. 2022)"),
+    "fig3": ("attend.experiments.fig3", "system identification of the mass-spring-damper with precision learning (paper Fig. 3)"),
+    "fig4": ("attend.experiments.fig4", "parameter error vs prior parameter precision: exploration vs exploitation (paper Fig. 4)"),
+    "fig5": ("attend.experiments.fig5", "over-exposed vs biased learner across sensor noise; noise-precision learning (paper Fig. 5)"),
+    "ipp": ("attend.experiments.ipp", "UAV search and rescue: informative path planning with precision maps (paper Figs. 6-9)"),
+}
+
+
+def available() -> dict[str, str]:
+    """Experiments whose module is present in this installation: name -> description."""
+    names = {}
+    for name, (module, description) in EXPERIMENTS.items():
+        if importlib.util.find_spec(module) is not None:
+            names[name] = description
+    return names
+
+
+def load(name: str):
+    """The module of experiment ``name``."""
+    if name not in EXPERIMENTS:
+        raise KeyError(name)
+    return importlib.import_module(EXPERIMENTS[name][0])

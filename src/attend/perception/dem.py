@@ -162,7 +162,8 @@ class DEMObserver:
         block = np.zeros((size + width, size + width))
         block[:size, :size] = A_obs * self.dt
         block[:size, size:] = B_obs * self.dt
-        exponential = expm(block)
+        with np.errstate(over="ignore", invalid="ignore"):
+            exponential = expm(block)
         transition, gain = exponential[:size, :size], exponential[:size, size:]
         if not np.all(np.isfinite(exponential)):
             raise AttendInputError(

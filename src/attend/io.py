@@ -1,0 +1,320 @@
+"""Model files (TOML) and logs (CSV) with validation; CSV output of estimates.
+
+Model file (all times in seconds)::
+
+    [model]
+    A = [[0, 1], [0, 0]]            # continuous-time state matrix [1/s]
+    B = [[0], [0.37]]               # input matrix
+    C = [[1, 0]]                    # output matrix
+    states = ["phi", "phi_dot"]     # optional names (default x1, x2, ...)
+    dt = 0.008333                   # optional; must match the log's sample time
+
+    [outputs]
+    columns = ["meas_phi"]          # CSV columns holding the outputs, one per row of C
+
+    [[inputs]]                      # one table per column of B, in order
+    name = "motor_1"
+    column = "motor_1"              # known input: measured in this CSV column
+    operating_point = 170.0         # optional: subtracted from the column (linearisation point)
+    [[inputs]]
+    name = "wind"
+    prior_mean = 0.0                # unknown input: prior mean eta ...
+    prior_precision = 1.0           # ... and prior precision P_v [1/unit^2]
+
+    [observer]
+    kernel_width = 0.006            # s, Gaussian noise kernel width
+    embedding_order = 6             # p
+    input_order = 2                 # d
+    sensor_precision = 1.2e8        # Pi_z: scalar, per-output list, or matrix
+    process_precision = [1e3, 1e2]  # Pi_w: scalar, per-state list, or matrix
+    precision_convention = "size"   # "size" (SPM) or "max" (Meera)
+    known_input_precision = 7.9e13  # prior precision given to measured inputs when some
+                                    # inputs are unknown (default exp(32))
+
+    [log]
+    time_column = "t"               # CSV column with time stamps [s], uniform spacing
+
+Log file: CSV with a header row; the time column, the output columns and the known-input
+columns named in the model file (other columns are ignored).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from attend._validation import AttendInputError, require_finite
+from attend.perception.dem import DEMEstimate, DEMObserver
+from attend.systems import LinearSystem
+
+KNOWN_INPUT_PRECISION = math.exp(32)
+
+_SECTIONS = {
+    "model": {"A", "B", "C", "states", "dt"},
+    "outputs": {"columns"},
+    "inputs": None,  # array of tables, checked separately
+    "observer": {
+        "kernel_width", "embedding_order", "input_order", "sensor_precision",
+        "process_precision", "precision_convention", "known_input_precision",
+    },
+    "log": {"time_column"},
+}
+_INPUT_KEYS = {"name", "column", "operating_point", "prior_mean", "prior_precision"}
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """One input: measured in ``column`` (known) or estimated with a Gaussian prior."""
+
+    name: str
+    column: str | None
+    prior_mean: float = 0.0
+    prior_precision: float = 1.0
+    operating_point: float = 0.0
+
+    @property
+    def known(self) -> bool:
+        return self.column is not None
+
+
+@dataclass(frozen=True)
+class ModelFile:
+    """A parsed model file: the system, its CSV mapping and the observer settings."""
+
+    system: LinearSystem
+    dt: float | None
+    output_columns: tuple[str, ...]
+    inputs: tuple[InputSpec, ...]
+    kernel_width: float
+    embedding_order: int
+    input_order: int
+    sensor_precision: object
+    process_precision: object
+    precision_convention: str
+    known_input_precision: float
+    time_column: str
+    path: str = ""
+
+    def observer(self, dt: float) -> DEMObserver:
+        """The DEM observer the file describes, for logs sampled every ``dt`` seconds.
+
+        All inputs measured: the known-input observer. Otherwise inputs are unknowns; measured
+        ones get their measurement as prior mean with precision ``known_input_precision``.
+        """
+        all_known = all(spec.known for spec in self.inputs)
+        prior = None if all_known else np.array(
+            [self.known_input_precision if s.known else s.prior_precision for s in self.inputs]
+        )
+        return DEMObserver(
+            self.system, dt, self.kernel_width, self.sensor_precision, self.process_precision,
+            prior, self.embedding_order, self.input_order, known_inputs=all_known,
+            precision_convention=self.precision_convention,
+        )
+
+
+def _check_keys(table: dict, allowed: set[str], where: str, path: str) -> None:
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise AttendInputError(
+            f"{path}: unknown key{'s' if len(unknown) > 1 else ''} {', '.join(map(repr, unknown))} "
+            f"in [{where}]; expected one of {', '.join(sorted(allowed))}"
+        )
+
+
+def read_model(path: str | Path) -> ModelFile:
+    """Parse and validate a model TOML file (format in the module docstring)."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise AttendInputError(f"model file: {path} does not exist") from None
+    except tomllib.TOMLDecodeError as error:
+        raise AttendInputError(f"{path}: not valid TOML ({error})") from None
+    unknown = sorted(set(data) - set(_SECTIONS))
+    if unknown:
+        raise AttendInputError(
+            f"{path}: unknown section or key {', '.join(map(repr, unknown))}; "
+            f"expected the sections {', '.join('[' + s + ']' for s in _SECTIONS)}"
+        )
+    for section, allowed in _SECTIONS.items():
+        if allowed is not None and not isinstance(data.get(section, {}), dict):
+            raise AttendInputError(f"{path}: [{section}] must be a table")
+        if allowed is not None:
+            _check_keys(data.get(section, {}), allowed, section, str(path))
+    model = data.get("model", {})
+    for key in ("A", "B", "C"):
+        if key not in model:
+            raise AttendInputError(f"{path}: [model] needs {key} (a matrix as a list of rows)")
+    try:
+        system = LinearSystem(
+            model["A"], model["B"], model["C"],
+            state_names=tuple(model.get("states", ())),
+            input_names=tuple(spec.get("name", f"u{i + 1}") for i, spec in enumerate(data.get("inputs", []))),
+        )
+    except AttendInputError as error:
+        raise AttendInputError(f"{path}: [model] {error}") from None
+    raw_inputs = data.get("inputs", [])
+    if not isinstance(raw_inputs, list) or len(raw_inputs) != system.n_inputs:
+        raise AttendInputError(
+            f"{path}: expected {system.n_inputs} [[inputs]] tables (one per column of B), "
+            f"got {len(raw_inputs) if isinstance(raw_inputs, list) else 'a non-list'}"
+        )
+    inputs = []
+    for i, spec in enumerate(raw_inputs):
+        _check_keys(spec, _INPUT_KEYS, f"inputs {i + 1}", str(path))
+        name = spec.get("name", f"u{i + 1}")
+        if "column" in spec and ("prior_mean" in spec or "prior_precision" in spec):
+            raise AttendInputError(
+                f"{path}: input {name!r} has both a column (known input) and a prior (unknown input); give one"
+            )
+        precision = float(spec.get("prior_precision", 1.0))
+        if not math.isfinite(precision) or precision < 0:
+            raise AttendInputError(f"{path}: input {name!r} prior_precision: expected a finite number >= 0")
+        if "operating_point" in spec and "column" not in spec:
+            raise AttendInputError(f"{path}: input {name!r} has an operating_point but no column (only measured inputs have one)")
+        inputs.append(InputSpec(
+            name, spec.get("column"), float(spec.get("prior_mean", 0.0)), precision,
+            float(spec.get("operating_point", 0.0)),
+        ))
+    outputs = data.get("outputs", {}).get("columns")
+    if outputs is None or len(outputs) != system.n_outputs:
+        raise AttendInputError(
+            f"{path}: [outputs] columns: expected {system.n_outputs} column names (one per row of C), got {outputs!r}"
+        )
+    observer = data.get("observer", {})
+    for key in ("kernel_width", "sensor_precision", "process_precision"):
+        if key not in observer:
+            raise AttendInputError(f"{path}: [observer] needs {key}")
+    kernel_width = observer["kernel_width"]
+    if not isinstance(kernel_width, (int, float)) or not kernel_width > 0 or not math.isfinite(kernel_width):
+        raise AttendInputError(f"{path}: [observer] kernel_width: expected a number > 0 (seconds), got {kernel_width!r}")
+    dt = model.get("dt")
+    if dt is not None and (not isinstance(dt, (int, float)) or not dt > 0):
+        raise AttendInputError(f"{path}: [model] dt: expected a number > 0 (seconds), got {dt!r}")
+    return ModelFile(
+        system=system,
+        dt=dt,
+        output_columns=tuple(outputs),
+        inputs=tuple(inputs),
+        kernel_width=float(kernel_width),
+        embedding_order=observer.get("embedding_order", 6),
+        input_order=observer.get("input_order", 2),
+        sensor_precision=observer["sensor_precision"],
+        process_precision=observer["process_precision"],
+        precision_convention=observer.get("precision_convention", "size"),
+        known_input_precision=float(observer.get("known_input_precision", KNOWN_INPUT_PRECISION)),
+        time_column=data.get("log", {}).get("time_column", "t"),
+        path=str(path),
+    )
+
+
+@dataclass(frozen=True)
+class Log:
+    """A CSV log: time [s] (N,), and named columns."""
+
+    time: np.ndarray
+    columns: dict[str, np.ndarray]
+    path: str = ""
+
+    @property
+    def dt(self) -> float:
+        return float((self.time[-1] - self.time[0]) / (len(self.time) - 1))
+
+    def matrix(self, names) -> np.ndarray:
+        """Columns ``names`` side by side as an (N, len(names)) array."""
+        missing = [name for name in names if name not in self.columns]
+        if missing:
+            raise AttendInputError(
+                f"{self.path}: CSV is missing the declared column{'s' if len(missing) > 1 else ''} "
+                f"{', '.join(map(repr, missing))}; it has {', '.join(self.columns)}"
+            )
+        return np.column_stack([self.columns[name] for name in names]) if names else np.zeros((len(self.time), 0))
+
+
+def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: float = 1e-4) -> Log:
+    """Read a CSV log with a header; check the time column is present, finite and uniform.
+
+    Time stamps count as uniform when every step is within ``relative_tolerance`` of the mean step.
+    """
+    path = Path(path)
+    try:
+        with path.open(newline="") as handle:
+            reader = csv.reader(handle)
+            header = next(reader, None)
+            rows = [row for row in reader if row]
+    except FileNotFoundError:
+        raise AttendInputError(f"log: {path} does not exist") from None
+    if header is None:
+        raise AttendInputError(f"{path}: the CSV is empty (expected a header row and samples)")
+    header = [name.strip() for name in header]
+    if not rows:
+        raise AttendInputError(f"{path}: the CSV has a header but no samples")
+    if time_column not in header:
+        raise AttendInputError(f"{path}: CSV is missing the time column {time_column!r}; it has {', '.join(header)}")
+    try:
+        values = np.array(rows, dtype=float)
+    except ValueError:
+        for line, row in enumerate(rows, start=2):
+            if len(row) != len(header):
+                raise AttendInputError(f"{path}: line {line} has {len(row)} fields, the header has {len(header)}") from None
+            for name, cell in zip(header, row):
+                try:
+                    float(cell)
+                except ValueError:
+                    raise AttendInputError(f"{path}: line {line}, column {name!r}: expected a number, got {cell!r}") from None
+        raise
+    columns = {name: values[:, j] for j, name in enumerate(header)}
+    time = columns[time_column]
+    require_finite(time, f"{path}: column {time_column!r}")
+    if len(time) >= 2:
+        steps = np.diff(time)
+        mean_step = (time[-1] - time[0]) / (len(time) - 1)
+        if mean_step <= 0:
+            raise AttendInputError(f"{path}: column {time_column!r}: time stamps must increase")
+        worst = int(np.argmax(np.abs(steps - mean_step)))
+        if abs(steps[worst] - mean_step) > relative_tolerance * mean_step:
+            raise AttendInputError(
+                f"{path}: column {time_column!r}: non-uniform time stamps (step {steps[worst]:.6g} s at row "
+                f"{worst + 2}, mean step {mean_step:.6g} s); resample the log to a uniform rate first"
+            )
+    return Log(time, columns, str(path))
+
+
+def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEstimate]:
+    """Run the model file's observer on the log (checks columns, finiteness and sample time)."""
+    if len(log.time) < 2:
+        raise AttendInputError(f"{log.path}: expected at least 2 samples, got {len(log.time)}")
+    dt = log.dt
+    if model.dt is not None and abs(model.dt - dt) > 1e-4 * dt:
+        raise AttendInputError(
+            f"{model.path}: [model] dt = {model.dt} s but the log {log.path} is sampled every {dt:.6g} s"
+        )
+    outputs = log.matrix(model.output_columns)
+    require_finite(outputs, f"{log.path}: output columns {', '.join(model.output_columns)}")
+    signals = np.zeros((len(log.time), model.system.n_inputs))
+    for j, spec in enumerate(model.inputs):
+        if spec.known:
+            column = log.matrix([spec.column])[:, 0]
+            require_finite(column, f"{log.path}: input column {spec.column!r}")
+            signals[:, j] = column - spec.operating_point
+        else:
+            signals[:, j] = spec.prior_mean
+    observer = model.observer(dt)
+    return observer, observer.estimate(outputs, signals)
+
+
+def write_estimates(path: str | Path, log: Log, system: LinearSystem, estimate: DEMEstimate) -> Path:
+    """CSV with time, each state and input estimate, and their standard deviations."""
+    path = Path(path)
+    header = ["t"]
+    header += list(system.state_names) + list(system.input_names)
+    header += [f"{name}_std" for name in system.state_names] + [f"{name}_std" for name in system.input_names]
+    table = np.column_stack([log.time, estimate.states, estimate.inputs, estimate.state_std, estimate.input_std])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savetxt(path, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+    return path

@@ -1,0 +1,31 @@
+"""Plots shared by the CLI and the experiments (matplotlib, Agg backend, PNG files)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def plot_estimates(path, time, system, estimate) -> Path:
+    """One panel per state and input: estimate with a +-2 standard-deviation band."""
+    names = list(system.state_names) + list(system.input_names)
+    means = np.column_stack([estimate.states, estimate.inputs])
+    stds = np.column_stack([estimate.state_std, estimate.input_std])
+    fig, axes = plt.subplots(len(names), 1, figsize=(8, 1.8 * len(names)), sharex=True, squeeze=False)
+    for j, (axis, name) in enumerate(zip(axes[:, 0], names)):
+        axis.plot(time, means[:, j], lw=1.0, label="DEM estimate")
+        axis.fill_between(time, means[:, j] - 2 * stds[:, j], means[:, j] + 2 * stds[:, j], alpha=0.3, label="±2 std")
+        axis.set_ylabel(name)
+    axes[0, 0].legend(loc="upper right", fontsize=8)
+    axes[-1, 0].set_xlabel("time [s]")
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path

@@ -1,0 +1,177 @@
+"""DEM observer: the flow and precision against the free energy written out independently,
+batch = online, invariance to the time unit, accuracy, and bad input."""
+
+import numpy as np
+import pytest
+
+from attend._validation import AttendInputError
+from attend.generalized import embed
+from attend.perception.dem import DEMObserver
+from attend.perception.recurrence import _sequential, linear_recurrence
+from attend.systems import LinearSystem, convolution_model, mass_spring_damper, simulate
+
+
+def _observer(**overrides):
+    settings = dict(system=convolution_model(), dt=0.1, kernel_width=0.5, sensor_precision=np.exp(8),
+                    process_precision=np.exp(6), input_prior_precision=np.exp(-2), embedding_order=3,
+                    input_order=2)
+    settings.update(overrides)
+    return DEMObserver(**settings)
+
+
+def _free_energy(observer, X, y_tilde, eta_tilde):
+    """F = -1/2 e' Pi e with the errors of spec §5, written without the observer's matrices."""
+    system, p, d = observer.system, observer.embedding_order, observer.input_order
+    n, r, m = system.n_states, system.n_inputs, system.n_outputs
+    x = X[: n * (p + 1)].reshape(p + 1, n)
+    v = X[n * (p + 1):].reshape(d + 1, r)
+    v_padded = np.zeros((p + 1, r))
+    v_padded[: min(p, d) + 1] = v[: min(p, d) + 1]
+    e_y = (y_tilde.reshape(p + 1, m) - x @ system.C.T).ravel()
+    e_v = (v - eta_tilde.reshape(d + 1, r)).ravel()
+    x_next = np.vstack([x[1:], np.zeros((1, n))])
+    e_x = (x_next - x @ system.A.T - v_padded @ system.B.T).ravel()
+    mats = observer.generalized_matrices()
+    return -0.5 * (e_y @ mats["Vy"] @ e_y + e_v @ mats["Vv"] @ e_v + e_x @ mats["W"] @ e_x)
+
+
+def test_flow_is_shift_plus_free_energy_gradient():
+    observer = _observer()
+    mats = observer.generalized_matrices()
+    rng = np.random.default_rng(0)
+    X = rng.standard_normal(mats["A_obs"].shape[0])
+    y_tilde = rng.standard_normal(4 * 4)
+    eta_tilde = rng.standard_normal(3)
+    step = 1e-6
+    gradient = np.array([
+        (_free_energy(observer, X + step * e, y_tilde, eta_tilde)
+         - _free_energy(observer, X - step * e, y_tilde, eta_tilde)) / (2 * step)
+        for e in np.eye(len(X))
+    ])
+    D_X = np.zeros_like(mats["A_obs"])
+    D_X[:8, :8] = mats["Dx"]
+    D_X[8:, 8:] = mats["Dv"]
+    flow = mats["A_obs"] @ X + mats["B_obs"] @ np.concatenate([y_tilde, eta_tilde])
+    np.testing.assert_allclose(flow, D_X @ X + gradient, rtol=1e-6, atol=1e-6 * np.abs(gradient).max())
+
+
+def test_conditional_precision_is_negative_hessian():
+    observer = _observer(embedding_order=2, input_order=1)
+    mats = observer.generalized_matrices()
+    size = mats["Pi_X"].shape[0]
+    rng = np.random.default_rng(1)
+    y_tilde, eta_tilde = rng.standard_normal(12), rng.standard_normal(2)
+    step = 1e-3
+    hessian = np.empty((size, size))
+    base = np.zeros(size)
+    for i, ei in enumerate(np.eye(size)):
+        for j, ej in enumerate(np.eye(size)):
+            hessian[i, j] = (
+                _free_energy(observer, base + step * (ei + ej), y_tilde, eta_tilde)
+                - _free_energy(observer, base + step * (ei - ej), y_tilde, eta_tilde)
+                - _free_energy(observer, base - step * (ei - ej), y_tilde, eta_tilde)
+                + _free_energy(observer, base - step * (ei + ej), y_tilde, eta_tilde)
+            ) / (4 * step**2)
+    np.testing.assert_allclose(-hessian, mats["Pi_X"], rtol=1e-5, atol=1e-5 * np.abs(hessian).max())
+
+
+def test_discretisation_is_the_exact_solution_of_the_flow():
+    """One step of X[k] = Phi X + Gamma Y equals integrating dX/dt = A_obs X + B_obs Y finely."""
+    from scipy.integrate import solve_ivp
+
+    observer = _observer(embedding_order=2, input_order=1, sensor_precision=10.0, process_precision=5.0)
+    mats = observer.generalized_matrices()
+    rng = np.random.default_rng(2)
+    X0, Y = rng.standard_normal(mats["A_obs"].shape[0]), rng.standard_normal(mats["B_obs"].shape[1])
+    solution = solve_ivp(lambda t, X: mats["A_obs"] @ X + mats["B_obs"] @ Y, (0, 0.1), X0,
+                         method="Radau", rtol=1e-11, atol=1e-12)
+    np.testing.assert_allclose(mats["transition"] @ X0 + mats["gain"] @ Y, solution.y[:, -1], rtol=1e-7, atol=1e-9)
+
+
+def test_folded_window_gain_equals_embedding_then_gain():
+    observer = _observer()
+    mats = observer.generalized_matrices()
+    rng = np.random.default_rng(3)
+    y, eta = rng.standard_normal((50, 4)), rng.standard_normal((50, 1))
+    k = 20
+    Y = np.concatenate([embed(y, 4, 0.1)[k], embed(eta, 3, 0.1)[k]])
+    window = observer._raw_windows(np.hstack([y, eta]), k, k + 1)[0]
+    np.testing.assert_allclose(mats["window_gain"] @ window, mats["gain"] @ Y, rtol=1e-10, atol=1e-10)
+
+
+def test_blocked_recurrence_equals_sequential():
+    rng = np.random.default_rng(4)
+    M = rng.standard_normal((9, 9))
+    transition = 0.98 * M / np.abs(np.linalg.eigvals(M)).max()
+    for n_samples in (1, 63, 64, 65, 1000, 4097):
+        drive, start = rng.standard_normal((n_samples, 9)), rng.standard_normal(9)
+        np.testing.assert_allclose(linear_recurrence(transition, drive, start),
+                                   _sequential(transition, drive, start), atol=1e-11)
+
+
+@pytest.mark.parametrize("known_inputs", [False, True])
+def test_online_equals_batch(known_inputs):
+    system = convolution_model()
+    t = np.arange(200) * 0.1
+    u = np.exp(-0.25 * (t - 12) ** 2)[:, None]
+    log = simulate(system, u, 0.1, kernel_width=0.5, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=5)
+    observer = _observer(embedding_order=6, known_inputs=known_inputs,
+                         input_prior_precision=None if known_inputs else np.exp(-8))
+    signal = u if known_inputs else np.full_like(u, 0.5)
+    batch = observer.estimate(log.outputs, signal, segment=64)
+    online = observer.online()
+    results = [online.step(y, s) for y, s in zip(log.outputs, signal)]
+    assert all(r is None for r in results[: observer.delay])
+    results = [r for r in results if r is not None] + online.finish()
+    np.testing.assert_allclose(np.array([r[0] for r in results]), batch.states, atol=1e-10)
+    np.testing.assert_allclose(np.array([r[1] for r in results]), batch.inputs, atol=1e-10)
+
+
+def test_overflowing_precisions_give_a_clear_error():
+    """A flow so stiff that expm overflows is reported, not returned as NaN estimates."""
+    with pytest.raises(AttendInputError, match="could not be discretised"):
+        _observer(sensor_precision=1e300, process_precision=1e300)
+
+
+def test_more_embedding_orders_help_under_coloured_noise():
+    """The paper's Fig. 2 claim on its mass-spring-damper: input SSE at p = 3 below p = 0 (5 seeds)."""
+    system = mass_spring_damper()
+    t = np.arange(320) * 0.1
+    u = np.exp(-0.25 * (t - 12) ** 2)[:, None]
+    wins = 0
+    for seed in range(5):
+        log = simulate(system, u, 0.1, kernel_width=0.5, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=seed)
+        sse = []
+        for p in (0, 3):
+            est = DEMObserver(system, 0.1, 0.5, np.exp(8), np.exp(8), np.exp(-8), p, 2).estimate(log.outputs)
+            sse.append(np.sum((est.inputs[8:-8] - u[8:-8]) ** 2))
+        wins += sse[1] < sse[0]
+    assert wins == 5
+
+
+def test_standard_deviations_shrink_with_sensor_precision():
+    loose = _observer(sensor_precision=1.0).estimate(np.zeros((20, 4)))
+    tight = _observer(sensor_precision=1e4).estimate(np.zeros((20, 4)))
+    assert np.all(tight.state_std[0] < loose.state_std[0])
+
+
+def test_bad_input_names_the_field():
+    observer = _observer()
+    with pytest.raises(AttendInputError, match="outputs: expected finite"):
+        observer.estimate(np.full((30, 4), np.nan))
+    with pytest.raises(AttendInputError, match="outputs: expected 4 columns"):
+        observer.estimate(np.zeros((30, 3)))
+    with pytest.raises(AttendInputError, match="at least 4 samples"):
+        observer.estimate(np.zeros((3, 4)))
+    with pytest.raises(AttendInputError, match="input_prior: expected shape"):
+        observer.estimate(np.zeros((30, 4)), np.zeros((29, 1)))
+    with pytest.raises(AttendInputError, match="kernel_width"):
+        _observer(kernel_width=0.0)
+    with pytest.raises(AttendInputError, match="sensor_precision: expected non-negative"):
+        _observer(sensor_precision=-1.0)
+    with pytest.raises(AttendInputError, match="process_precision: expected finite"):
+        _observer(process_precision=np.inf)
+    with pytest.raises(AttendInputError, match="input_prior_precision: required"):
+        _observer(input_prior_precision=None)
+    with pytest.raises(AttendInputError, match="embedding_order"):
+        _observer(embedding_order=2.5)

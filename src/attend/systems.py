@@ -50,12 +50,12 @@ class LinearSystem:
         object.__setattr__(self, "A", A)
         object.__setattr__(self, "B", B)
         object.__setattr__(self, "C", C)
-        for field, names, size in (
-            ("state_names", self.state_names, n),
-            ("input_names", self.input_names, B.shape[1]),
-            ("output_names", self.output_names, C.shape[0]),
+        for field, names, size, letter in (
+            ("state_names", self.state_names, n, "x"),
+            ("input_names", self.input_names, B.shape[1], "u"),
+            ("output_names", self.output_names, C.shape[0], "y"),
         ):
-            names = tuple(names) or tuple(f"{field[0]}{i + 1}" for i in range(size))
+            names = tuple(names) or tuple(f"{letter}{i + 1}" for i in range(size))
             if len(names) != size:
                 raise AttendInputError(f"{field}: expected {size} names, got {len(names)}")
             object.__setattr__(self, field, names)

@@ -1,0 +1,233 @@
+"""Downward camera and person detector with altitude-dependent errors.
+
+Footprint of a nadir camera at altitude h with field of view (fov_x, fov_y), axes aligned with
+the field (fixed yaw):  width_x = 2 h tan(fov_x / 2),  width_y = 2 h tan(fov_y / 2)
+(8.3 m x 11.5 m at h = 10 m for 45 deg x 60 deg). A cell is observed when its centre lies in the
+footprint and the line of sight from the camera to the cell centre misses every obstacle.
+
+Measurement per observed cell i:  z_i = 1 if the detector fires on the cell, else 0.05,
+with noise variance  sigma^2(h) = 1 - exp(-c h),  c = 0.05 / m  (0.39 at 10 m, 0.73 at 26 m).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from attend.action.errors import ActionInputError
+from attend.action.field import Grid, Obstacle, SearchField
+
+DETECTED_VALUE = 1.0
+NOT_DETECTED_VALUE = 0.05
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Nadir camera: ``fov_x_deg`` x ``fov_y_deg`` full field of view in degrees (each in (0, 180))."""
+
+    fov_x_deg: float = 45.0
+    fov_y_deg: float = 60.0
+
+    def __post_init__(self) -> None:
+        for name in ("fov_x_deg", "fov_y_deg"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and np.isfinite(value) and 0 < value < 180):
+                raise ActionInputError(f"{name}: expected a field of view in (0, 180) degrees, got {value!r}")
+
+    def footprint_m(self, altitude_m: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Footprint (width_x, width_y) in m: 2 h tan(fov / 2)."""
+        h = np.asarray(altitude_m, dtype=float)
+        return (
+            2 * h * np.tan(np.radians(self.fov_x_deg) / 2),
+            2 * h * np.tan(np.radians(self.fov_y_deg) / 2),
+        )
+
+    def visible_cells(self, poses_m: np.ndarray, grid: Grid, obstacles: Sequence[Obstacle] = ()) -> np.ndarray:
+        """Boolean mask (k, n) of the cells each of k poses (x, y, z) m observes."""
+        poses = np.atleast_2d(np.asarray(poses_m, dtype=float))
+        centres = grid.cell_centres()
+        width_x, width_y = self.footprint_m(poses[:, 2])
+        inside = (np.abs(centres[None, :, 0] - poses[:, None, 0]) <= width_x[:, None] / 2) & (
+            np.abs(centres[None, :, 1] - poses[:, None, 1]) <= width_y[:, None] / 2
+        )
+        if obstacles:
+            inside &= ~line_of_sight_blocked(poses, centres, obstacles, candidates=inside)
+        return inside
+
+
+def line_of_sight_blocked(
+    poses_m: np.ndarray, ground_points_m: np.ndarray, obstacles: Sequence[Obstacle], candidates: np.ndarray | None = None
+) -> np.ndarray:
+    """(k, n) mask: the segment from pose k to ground point (x, y, 0) passes through a box
+    (slab test; a point under a box counts as blocked)."""
+    poses = np.atleast_2d(poses_m)
+    k, n = len(poses), len(ground_points_m)
+    blocked = np.zeros((k, n), dtype=bool)
+    rows, cols = np.nonzero(candidates) if candidates is not None else np.indices((k, n)).reshape(2, -1)
+    if len(rows) == 0:
+        return blocked
+    start = poses[rows]
+    end = np.column_stack([ground_points_m[cols], np.zeros(len(cols))])
+    hit = np.zeros(len(rows), dtype=bool)
+    for box in obstacles:
+        hit |= segments_hit_box(start, end, box.bounds)
+    blocked[rows, cols] = hit
+    return blocked
+
+
+def segments_hit_box(start: np.ndarray, end: np.ndarray, bounds: Sequence[float], margin_m: float = 0.0) -> np.ndarray:
+    """Whether each segment start->end (arrays (m, 3)) intersects the box (slab method)."""
+    x0, x1, y0, y1, z0, z1 = bounds
+    low = np.array([x0 - margin_m, y0 - margin_m, z0 - margin_m])
+    high = np.array([x1 + margin_m, y1 + margin_m, z1 + margin_m])
+    direction = end - start
+    t_enter = np.zeros(len(start))
+    t_exit = np.ones(len(start))
+    for axis in range(3):
+        d = direction[:, axis]
+        parallel = np.abs(d) < 1e-12
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ta = (low[axis] - start[:, axis]) / d
+            tb = (high[axis] - start[:, axis]) / d
+        t_near = np.where(parallel, -np.inf, np.minimum(ta, tb))
+        t_far = np.where(parallel, np.inf, np.maximum(ta, tb))
+        outside_slab = parallel & ((start[:, axis] < low[axis]) | (start[:, axis] > high[axis]))
+        t_enter = np.maximum(t_enter, t_near)
+        t_exit = np.minimum(t_exit, t_far)
+        t_exit = np.where(outside_slab, -np.inf, t_exit)
+    return t_enter <= t_exit
+
+
+def noise_variance(altitude_m: float | np.ndarray, rate_per_m: float = 0.05) -> np.ndarray:
+    """Measurement noise variance sigma^2(h) = 1 - exp(-rate h) (dimensionless, h in m)."""
+    return 1.0 - np.exp(-rate_per_m * np.asarray(altitude_m, dtype=float))
+
+
+@dataclass(frozen=True)
+class Detector:
+    """Per-cell person detector with altitude-dependent rates.
+
+    True-positive rate, best at ``best_altitude_m`` and down to the false-positive rate at
+    ``useless_altitude_m``:
+        tpr(h) = fpr(h) + (tpr_max - fpr(h)) * q(h),
+        q(h) = max(0, 1 - ((h - h_best) / (h_useless - h_best))^2)  for h >= h_best,
+        q(h) = 1 - low_altitude_loss * ((h_best - h) / h_best)^2     for h <  h_best
+    (people only partly in view from very low). False-positive rate per cell
+        fpr(h) = fpr_min + (fpr_max - fpr_min) * clip((h - h_best) / (h_useless - h_best), 0, 1)^2.
+    detection_unit "person" (default): each person in view is detected as a whole with
+    probability tpr(h) * min(1, 2 * visible fraction of the person), and all its visible cells
+    read 1 (a detector outputs boxes around people); "cell": each person cell fires alone with
+    tpr(h). Other cells fire with fpr(h) each.
+    Clutter: a Poisson number (mean ``clutter_rate_per_image``) of person-sized false blobs
+    (2 x 3 cells) per image at random places in the footprint.
+    """
+
+    max_true_positive_rate: float = 0.95
+    min_false_positive_rate: float = 0.002
+    max_false_positive_rate: float = 0.04
+    best_altitude_m: float = 10.0
+    useless_altitude_m: float = 26.0
+    low_altitude_loss: float = 0.5
+    clutter_rate_per_image: float = 0.0
+    noise_rate_per_m: float = 0.05
+    detection_unit: str = "person"
+
+    def __post_init__(self) -> None:
+        if self.detection_unit not in ("person", "cell"):
+            raise ActionInputError(f"detection_unit: expected 'person' or 'cell', got {self.detection_unit!r}")
+        if not 0 < self.best_altitude_m < self.useless_altitude_m:
+            raise ActionInputError(
+                "best_altitude_m, useless_altitude_m: expected 0 < best < useless (m), "
+                f"got {self.best_altitude_m!r}, {self.useless_altitude_m!r}"
+            )
+        if self.clutter_rate_per_image < 0:
+            raise ActionInputError(f"clutter_rate_per_image: expected >= 0, got {self.clutter_rate_per_image!r}")
+
+    def false_positive_rate(self, altitude_m: float | np.ndarray) -> np.ndarray:
+        h = np.asarray(altitude_m, dtype=float)
+        ramp = np.clip((h - self.best_altitude_m) / (self.useless_altitude_m - self.best_altitude_m), 0, 1)
+        return self.min_false_positive_rate + (self.max_false_positive_rate - self.min_false_positive_rate) * ramp**2
+
+    def true_positive_rate(self, altitude_m: float | np.ndarray) -> np.ndarray:
+        h = np.asarray(altitude_m, dtype=float)
+        above = np.maximum(0.0, 1 - ((h - self.best_altitude_m) / (self.useless_altitude_m - self.best_altitude_m)) ** 2)
+        below = 1 - self.low_altitude_loss * ((self.best_altitude_m - h) / self.best_altitude_m) ** 2
+        quality = np.where(h >= self.best_altitude_m, above, np.clip(below, 0, 1))
+        fpr = self.false_positive_rate(h)
+        return fpr + (self.max_true_positive_rate - fpr) * quality
+
+    def noise_variance(self, altitude_m: float | np.ndarray) -> np.ndarray:
+        return noise_variance(altitude_m, self.noise_rate_per_m)
+
+
+@dataclass(frozen=True)
+class Image:
+    """One processed image: pose (x, y, z) m, time s, observed cell indices, measurements z,
+    noise variance sigma^2(h), and the cells of injected or clutter false blobs (for logging)."""
+
+    pose_m: np.ndarray
+    time_s: float
+    cells: np.ndarray
+    measurements: np.ndarray
+    noise_variance: float
+    clutter_cells: np.ndarray
+
+
+def take_image(
+    field: SearchField,
+    camera: Camera,
+    detector: Detector,
+    pose_m: Sequence[float],
+    time_s: float,
+    rng: np.random.Generator,
+    inject_false_blob: bool = False,
+) -> Image:
+    """Simulate one image at ``pose_m``: per-cell detections with tpr(h) on person cells and
+    fpr(h) elsewhere, plus clutter blobs (and one injected blob when asked)."""
+    pose = np.asarray(pose_m, dtype=float)
+    visible = camera.visible_cells(pose[None], field.grid, field.obstacles)[0]
+    cells = np.flatnonzero(visible)
+    h = pose[2]
+    detected = rng.random(len(cells)) < detector.false_positive_rate(h)
+    if detector.detection_unit == "cell":
+        on_person = field.truth[cells] > 0.5
+        detected[on_person] = rng.random(int(on_person.sum())) < detector.true_positive_rate(h)
+    else:
+        for person in field.person_cells:
+            seen = np.isin(cells, person)
+            fraction = seen.sum() / max(len(person), 1)
+            if fraction == 0:
+                continue
+            detected[seen] = rng.random() < detector.true_positive_rate(h) * min(1.0, 2 * fraction)
+    n_blobs = rng.poisson(detector.clutter_rate_per_image) if detector.clutter_rate_per_image > 0 else 0
+    n_blobs += int(inject_false_blob)
+    clutter = _false_blobs(field, cells, n_blobs, rng)
+    detected |= np.isin(cells, clutter)
+    z = np.where(detected, DETECTED_VALUE, NOT_DETECTED_VALUE)
+    return Image(pose, float(time_s), cells, z, float(detector.noise_variance(h)), clutter)
+
+
+def _false_blobs(field: SearchField, cells: np.ndarray, n_blobs: int, rng: np.random.Generator) -> np.ndarray:
+    """Cells of ``n_blobs`` 2 x 3-cell false blobs on visible, person-free cells."""
+    if n_blobs == 0 or len(cells) == 0:
+        return np.zeros(0, dtype=int)
+    side = field.grid.cells_per_side
+    truth = field.truth
+    visible = np.zeros(field.grid.n_cells, dtype=bool)
+    visible[cells] = True
+    chosen: list[np.ndarray] = []
+    for _ in range(n_blobs):
+        for _attempt in range(50):
+            anchor = rng.choice(cells)
+            iy, ix = divmod(int(anchor), side)
+            tall = rng.random() < 0.5
+            dy, dx = (3, 2) if tall else (2, 3)
+            if iy + dy > side or ix + dx > side:
+                continue
+            blob = np.array([(iy + a) * side + ix + b for a in range(dy) for b in range(dx)])
+            if visible[blob].all() and truth[blob].max() == 0:
+                chosen.append(blob)
+                break
+    return np.unique(np.concatenate(chosen)) if chosen else np.zeros(0, dtype=int)

@@ -1,0 +1,151 @@
+"""Episode runner: plan, fly (images at 0.15 Hz along the path), fuse, replan, until the flight
+budget is spent; every metric of metrics.map_metrics logged at every image."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from attend.action.belief import OccupancyMap
+from attend.action.camera import take_image
+from attend.action.errors import ActionInputError
+from attend.action.field import validate_pose
+from attend.action.metrics import map_metrics
+from attend.action.planners import Planner
+
+
+@dataclass
+class EpisodeLog:
+    """Everything logged in one mission.
+
+    times_s (m,): image times; poses_m (m, 3): image poses; metrics: name -> (m,) per image
+    (entry 0 is the prior at t = 0, before any image); planner_times_s: wall time per replan;
+    waypoints_m (w, 3): the flown waypoints (start first); means / variances (m + 1, n): map
+    after each image (entry 0 the prior); clutter_cells: false blobs per image; people_total.
+    """
+
+    planner: str
+    seed: int
+    budget_s: float
+    people_total: int
+    times_s: list[float] = field(default_factory=list)
+    poses_m: list[np.ndarray] = field(default_factory=list)
+    metrics: dict[str, list[float]] = field(default_factory=dict)
+    planner_times_s: list[float] = field(default_factory=list)
+    waypoints_m: list[np.ndarray] = field(default_factory=list)
+    means: list[np.ndarray] = field(default_factory=list)
+    variances: list[np.ndarray] = field(default_factory=list)
+    clutter_cells: list[np.ndarray] = field(default_factory=list)
+
+    def series(self, name: str) -> np.ndarray:
+        return np.asarray(self.metrics[name])
+
+    @property
+    def metric_times_s(self) -> np.ndarray:
+        """Times of the metric entries: 0 for the prior, then each image time."""
+        return np.concatenate([[0.0], np.asarray(self.times_s)])
+
+    def time_to_find_all_s(self) -> float:
+        """First image time at which all people are found (inf if never)."""
+        found = self.series("people_found")
+        hits = np.flatnonzero(found >= self.people_total)
+        return float(self.metric_times_s[hits[0]]) if len(hits) else float("inf")
+
+    def value_at(self, name: str, times_s: np.ndarray) -> np.ndarray:
+        """Step-interpolated metric at the given times (value after the last image before t)."""
+        index = np.searchsorted(self.metric_times_s, np.asarray(times_s), side="right") - 1
+        return self.series(name)[np.clip(index, 0, None)]
+
+
+def run_episode(
+    field,
+    planner: Planner,
+    camera,
+    detector,
+    flight,
+    budget_s: float = 150.0,
+    seed: int = 0,
+    diagonal: bool = False,
+    charge_planning_time: bool = False,
+    inject_false_detection_images: Sequence[int] = (),
+    keep_maps: bool = True,
+) -> EpisodeLog:
+    """Fly one mission of ``budget_s`` s with ``planner``; detector randomness from ``seed``.
+
+    diagonal: per-cell (diagonal) Kalman filter instead of full covariance;
+    charge_planning_time: the UAV hovers while planning and that time counts against the budget;
+    inject_false_detection_images: image numbers (0 = first) that get one false 2 x 3-cell blob.
+    """
+    if not (np.isfinite(budget_s) and budget_s > 0):
+        raise ActionInputError(f"budget_s: expected a flight budget > 0 s, got {budget_s!r}")
+    pose = validate_pose(field.start_pose_m, field.grid, field.altitude_limits_m, "start_pose_m")
+    rng = np.random.default_rng(seed)
+    planner.reset(seed)
+    belief = OccupancyMap.prior(field.grid, diagonal=diagonal)
+    truth = field.truth
+    log = EpisodeLog(planner.name, seed, float(budget_s), len(field.people))
+
+    def record(image=None) -> None:
+        values = map_metrics(belief.mean, belief.variance, truth, field.person_cells, field.grid.shape)
+        for key, value in values.items():
+            log.metrics.setdefault(key, []).append(value)
+        if keep_maps:
+            log.means.append(belief.mean.copy())
+            log.variances.append(belief.variance.copy())
+        if image is not None:
+            log.times_s.append(image.time_s)
+            log.poses_m.append(image.pose_m)
+            log.clutter_cells.append(image.clutter_cells)
+
+    record()
+    log.waypoints_m.append(pose.copy())
+    elapsed, time_to_next_image = 0.0, 0.0
+    n_images = 0
+    inject = set(int(i) for i in inject_false_detection_images)
+    while elapsed < budget_s - 1e-9:
+        tic = time.perf_counter()
+        waypoints = np.atleast_2d(planner.plan(belief, pose, budget_s - elapsed, time_to_next_image))
+        planning = time.perf_counter() - tic
+        log.planner_times_s.append(planning)
+        if charge_planning_time:
+            elapsed += planning
+            time_to_next_image = max(time_to_next_image - planning, 0.0)
+            if elapsed >= budget_s:
+                break
+        if waypoints.size == 0:
+            break
+        to_fly = waypoints if planner.waypoints_per_replan is None else waypoints[: planner.waypoints_per_replan]
+        for goal in to_fly:
+            poses, times, valid, duration, next_after = flight.segment_images(
+                pose, goal, time_to_next_image, budget_s - elapsed
+            )
+            for image_pose, image_time in zip(poses[0][valid[0]], times[0][valid[0]]):
+                image = take_image(
+                    field, camera, detector, image_pose, elapsed + image_time, rng, inject_false_blob=n_images in inject
+                )
+                belief.fuse(image.cells, image.measurements, image.noise_variance)
+                record(image)
+                n_images += 1
+            travelled = float(duration[0])
+            if travelled < flight.segment_duration(np.linalg.norm(goal - pose)) - 1e-9:
+                pose = flight_position(flight, pose, goal, travelled)
+            else:
+                pose = np.asarray(goal, float)
+            log.waypoints_m.append(pose.copy())
+            elapsed += travelled
+            time_to_next_image = float(next_after[0])
+            if elapsed >= budget_s - 1e-9:
+                break
+    return log
+
+
+def flight_position(flight, start: np.ndarray, goal: np.ndarray, elapsed_s: float) -> np.ndarray:
+    """Position after ``elapsed_s`` on the rest-to-rest segment start -> goal."""
+    length = float(np.linalg.norm(goal - start))
+    if length == 0:
+        return np.asarray(start, float)
+    flown = float(flight.distance_after(elapsed_s, length))
+    return start + (goal - start) * flown / length

@@ -1,0 +1,165 @@
+"""UAV flight model: straight segments between waypoints, rest-to-rest trapezoidal speed profile.
+
+A segment of length d with top speed v and acceleration a takes
+    t(d) = d / v + v / a          if d >= v^2 / a  (reaches top speed),
+    t(d) = 2 sqrt(d / a)          otherwise,
+and the distance flown after time s into it is the trapezoid/triangle integral. Images are taken
+every ``image_period_s`` (1 / 0.15 Hz) on the mission clock, so the first image of a new plan comes
+``time_to_next_image_s`` after the plan starts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from attend.action.camera import segments_hit_box
+from attend.action.errors import ActionInputError
+from attend.action.field import Obstacle
+
+
+@dataclass(frozen=True)
+class FlightModel:
+    """speed_m_s: top speed; acceleration_m_s2: acceleration and deceleration;
+    image_rate_hz: camera rate (images along the path)."""
+
+    speed_m_s: float = 5.0
+    acceleration_m_s2: float = 3.0
+    image_rate_hz: float = 0.15
+
+    def __post_init__(self) -> None:
+        for name in ("speed_m_s", "acceleration_m_s2", "image_rate_hz"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ActionInputError(f"{name}: expected a number > 0, got {value!r}")
+
+    @property
+    def image_period_s(self) -> float:
+        return 1.0 / self.image_rate_hz
+
+    def segment_duration(self, distance_m: np.ndarray) -> np.ndarray:
+        """Rest-to-rest time (s) for segments of the given lengths (m)."""
+        d = np.asarray(distance_m, dtype=float)
+        v, a = self.speed_m_s, self.acceleration_m_s2
+        return np.where(d >= v * v / a, d / v + v / a, 2 * np.sqrt(np.maximum(d, 0) / a))
+
+    def distance_after(self, elapsed_s: np.ndarray, distance_m: np.ndarray) -> np.ndarray:
+        """Distance flown (m) ``elapsed_s`` into a rest-to-rest segment of length ``distance_m``."""
+        s = np.asarray(elapsed_s, dtype=float)
+        d = np.asarray(distance_m, dtype=float)
+        v, a = self.speed_m_s, self.acceleration_m_s2
+        total = self.segment_duration(d)
+        cruise = d >= v * v / a
+        peak_time = np.where(cruise, v / a, total / 2)  # end of acceleration
+        peak_speed = a * peak_time
+        brake_start = total - peak_time
+        accel_part = 0.5 * a * np.minimum(s, peak_time) ** 2
+        cruise_part = peak_speed * np.clip(s - peak_time, 0, np.maximum(brake_start - peak_time, 0))
+        braking = np.clip(s - brake_start, 0, peak_time)
+        brake_part = peak_speed * braking - 0.5 * a * braking**2
+        return np.minimum(accel_part + cruise_part + brake_part, d)
+
+    def segment_images(
+        self,
+        start_m: np.ndarray,
+        end_m: np.ndarray,
+        time_to_next_image_s: np.ndarray,
+        time_left_s: np.ndarray,
+        hover_for_image: bool = True,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Images taken on k segments start -> end (arrays (k, 3)), vectorised.
+
+        The UAV hovers at the end of a segment until the next image when the segment is shorter
+        than the time to that image (``hover_for_image``), so every waypoint yields an image.
+        Flight stops at ``time_left_s``. Returns image poses (k, J, 3), image times since the
+        segment start (k, J), valid mask (k, J), segment duration (k,) and the time from the
+        segment end to the next image (k,).
+        """
+        start = np.atleast_2d(np.asarray(start_m, float))
+        end = np.atleast_2d(np.asarray(end_m, float))
+        k = max(len(start), len(end))
+        start, end = np.broadcast_to(start, (k, 3)), np.broadcast_to(end, (k, 3))
+        first = np.broadcast_to(np.asarray(time_to_next_image_s, float), (k,))
+        time_left = np.broadcast_to(np.asarray(time_left_s, float), (k,))
+        length = np.linalg.norm(end - start, axis=1)
+        travel = self.segment_duration(length)
+        duration = np.maximum(travel, first) if hover_for_image else travel
+        duration = np.minimum(duration, time_left)
+        period = self.image_period_s
+        n_images = np.where(first <= duration + 1e-9, np.floor((duration - first + 1e-9) / period) + 1, 0).astype(int)
+        width = max(int(n_images.max()) if k else 0, 1)
+        times = first[:, None] + period * np.arange(width)[None, :]
+        valid = np.arange(width)[None, :] < n_images[:, None]
+        flown = self.distance_after(np.minimum(times, travel[:, None]), length[:, None])
+        fraction = np.where(length[:, None] > 0, flown / np.maximum(length[:, None], 1e-12), 0.0)
+        poses = start[:, None, :] + fraction[..., None] * (end - start)[:, None, :]
+        next_after = first + n_images * period - duration
+        return poses, times, valid, duration, next_after
+
+    def path_images(
+        self, start_m: np.ndarray, paths_m: np.ndarray, time_to_next_image_s: float, time_left_s: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Images along k paths of w waypoints (k, w, 3) from a common start: poses (k, J, 3),
+        valid (k, J), flight time of each path (k,) and per-segment durations (k, w)."""
+        paths = np.asarray(paths_m, float)
+        k, w, _ = paths.shape
+        current = np.broadcast_to(np.asarray(start_m, float), (k, 3))
+        first = np.full(k, float(time_to_next_image_s))
+        left = np.full(k, float(time_left_s))
+        all_poses, all_valid, durations = [], [], []
+        for j in range(w):
+            poses, _, valid, duration, first = self.segment_images(current, paths[:, j], first, left)
+            all_poses.append(poses)
+            all_valid.append(valid)
+            durations.append(duration)
+            left = left - duration
+            current = paths[:, j]
+        durations_arr = np.column_stack(durations)
+        return np.concatenate(all_poses, axis=1), np.concatenate(all_valid, axis=1), durations_arr.sum(axis=1), durations_arr
+
+
+def path_collides(points_m: np.ndarray, obstacles: Sequence[Obstacle], margin_m: float = 1.0) -> np.ndarray:
+    """For paths (k, w, 3) (w points each, consecutive points joined), whether any segment
+    passes within ``margin_m`` of an obstacle box; returns (k,) bools."""
+    paths = np.asarray(points_m, dtype=float)
+    k, w, _ = paths.shape
+    if not obstacles or w < 2:
+        return np.zeros(k, dtype=bool)
+    start = paths[:, :-1].reshape(-1, 3)
+    end = paths[:, 1:].reshape(-1, 3)
+    hit = np.zeros(len(start), dtype=bool)
+    for box in obstacles:
+        hit |= segments_hit_box(start, end, box.bounds, margin_m)
+    return hit.reshape(k, w - 1).any(axis=1)
+
+
+def detour(start_m: np.ndarray, goal_m: np.ndarray, obstacles: Sequence[Obstacle], margin_m: float = 1.5) -> np.ndarray:
+    """Waypoints (j, 3) from start to goal that go around the boxes in the way (via the box
+    corners inflated by ``margin_m``, at the goal altitude, shorter side first); ends at goal."""
+    start, goal = np.asarray(start_m, float), np.asarray(goal_m, float)
+    route = [goal]
+    for box in obstacles:
+        if not path_collides(np.array([[start, route[0]]]), [box], margin_m * 0.5)[0]:
+            continue
+        x0, x1, y0, y1, _, _ = box.bounds
+        corners = np.array(
+            [[x0 - margin_m, y0 - margin_m], [x1 + margin_m, y0 - margin_m], [x1 + margin_m, y1 + margin_m], [x0 - margin_m, y1 + margin_m]]
+        )
+        altitude = goal[2]
+        best, best_len = None, np.inf
+        for i in range(4):
+            for j in range(4):
+                via = [np.r_[corners[i], altitude]] if i == j else [np.r_[corners[i], altitude], np.r_[corners[j], altitude]]
+                if i != j and abs(i - j) == 2:
+                    continue
+                candidate = np.vstack([start[None], via, route[0][None]])
+                if path_collides(candidate[None], [box], margin_m * 0.5)[0]:
+                    continue
+                length = np.linalg.norm(np.diff(candidate, axis=0), axis=1).sum()
+                if length < best_len:
+                    best, best_len = via, length
+        if best is not None:
+            route = list(best) + route
+    return np.array(route)

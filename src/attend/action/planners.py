@@ -1,0 +1,455 @@
+"""Path planners behind one interface: ``plan(belief, pose, remaining_budget_s) -> waypoints``.
+
+Informative planners score a look-ahead path (w waypoints, images every 1/0.15 s along it) by a
+value per flight time, value(path) / t(path):
+
+* PrecisionGainPlanner   value = trace(P) - trace(P_post)  (expected precision gain).
+* AdaptivePlanner        value = tr(W (P - P_post)) * mean_images N(h; h_opt, 7 m) / N(h_opt),
+                         W = diag(clip(mean + k sigma, 0, 1)), k = 1 (optimistic occupancy).
+* ExpectedFreeEnergyPlanner  value = -G = epistemic + pragmatic:
+                         epistemic = I(x; z) = 0.5 log det(I + D^1/2 P D^1/2)  (nats),
+                         pragmatic = c * sum_images sum_cells p(detect),
+                         p(detect) = m tpr(h) + (1 - m) fpr(h),  m = clip(mean, 0, 1),
+                         c = log preference for observing a person (nats per detected cell).
+
+Optimiser: greedy choice of each next waypoint from a lattice over 4 altitude layers (every
+candidate evaluated in one numpy batch, the covariance conditioned on the chosen images between
+steps), then CMA-ES (``cma``) refinement of the whole w-waypoint path (population evaluated as
+a batch); the better of the two is returned.
+
+Planning covariance: by default candidate paths are scored on a coarse-grained covariance
+P_b = B P B' over blocks of ``planning_block_cells``^2 cells (B averages a block), observing c
+cells of a block with noise r counting as precision c / r on the block mean, gains scaled back by
+the block area. It is derived from the full covariance (correlations kept) and makes a replan
+~100x cheaper; ``planning_block_cells=1`` scores on the exact full covariance.
+
+Baselines: LawnmowerPlanner (serpentine coverage at 10 m, repeated until the budget is spent) and
+RandomPlanner (uniform random waypoints).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from attend.action.belief import OccupancyMap, observation_gains
+from attend.action.camera import Camera, Detector
+from attend.action.errors import ActionInputError
+from attend.action.field import SearchField
+from attend.action.flight import FlightModel, detour, path_collides
+
+
+@dataclass(frozen=True)
+class PlanningSetup:
+    """What every planner knows about the mission.
+
+    field: field geometry (grid, obstacles, altitude limits; the people are not used);
+    camera, detector, flight: sensor and flight models; altitude_layers_m: candidate altitudes (m);
+    lattice_per_side: candidate positions per side and layer; lookahead_waypoints: w (3-5);
+    cma_evaluations: CMA-ES budget per replan (15-45); planning_block_cells: coarse-graining;
+    obstacle_margin_m: clearance kept from boxes (m).
+    """
+
+    field: SearchField
+    camera: Camera = Camera()
+    detector: Detector = Detector()
+    flight: FlightModel = FlightModel()
+    altitude_layers_m: tuple[float, ...] = (4.0, 8.0, 12.0, 16.0)
+    lattice_per_side: int = 4
+    lookahead_waypoints: int = 3
+    cma_evaluations: int = 24
+    planning_block_cells: int = 2
+    obstacle_margin_m: float = 1.0
+
+    def __post_init__(self) -> None:
+        low, high = self.field.altitude_limits_m
+        layers = tuple(float(h) for h in self.altitude_layers_m)
+        if not layers or any(not low <= h <= high for h in layers):
+            raise ActionInputError(
+                f"altitude_layers_m: expected altitudes within altitude_limits_m [{low:g}, {high:g}] m, got {layers}"
+            )
+        if not 1 <= int(self.lookahead_waypoints) <= 8:
+            raise ActionInputError(f"lookahead_waypoints: expected an integer in 1..8, got {self.lookahead_waypoints!r}")
+        side = self.field.grid.cells_per_side
+        if self.planning_block_cells < 1 or side % self.planning_block_cells:
+            raise ActionInputError(
+                f"planning_block_cells: expected a divisor of cells_per_side={side}, got {self.planning_block_cells!r}"
+            )
+
+    def lattice(self) -> np.ndarray:
+        """Candidate waypoints (m, 3): a lattice_per_side^2 grid per altitude layer, collision-free."""
+        half = self.field.grid.size_m / 2
+        ticks = -half + (np.arange(self.lattice_per_side) + 0.5) * (2 * half / self.lattice_per_side)
+        xx, yy = np.meshgrid(ticks, ticks, indexing="ij")
+        points = np.array([[x, y, h] for h in self.altitude_layers_m for x, y in zip(xx.ravel(), yy.ravel())])
+        return points[~self.inside_obstacle(points)]
+
+    def inside_obstacle(self, points: np.ndarray) -> np.ndarray:
+        inside = np.zeros(len(points), dtype=bool)
+        m = self.obstacle_margin_m
+        for box in self.field.obstacles:
+            x0, x1, y0, y1, _, z1 = box.bounds
+            inside |= (
+                (points[:, 0] >= x0 - m) & (points[:, 0] <= x1 + m) & (points[:, 1] >= y0 - m) & (points[:, 1] <= y1 + m)
+                & (points[:, 2] <= z1 + m)
+            )
+        return inside
+
+
+class Planner(ABC):
+    """``plan(belief, pose, remaining_budget_s, time_to_next_image_s) -> waypoints (w, 3) in m``."""
+
+    name = "planner"
+    #: waypoints flown before the next replan (None: all of them)
+    waypoints_per_replan: int | None = None
+
+    def __init__(self, setup: PlanningSetup, seed: int = 0) -> None:
+        self.setup = setup
+        self.reset(seed)
+
+    def reset(self, seed: int = 0) -> None:
+        """Start a new mission (clears any internal state, reseeds)."""
+        self.rng = np.random.default_rng(seed)
+
+    @abstractmethod
+    def plan(
+        self, belief: OccupancyMap, pose: Sequence[float], remaining_budget_s: float, time_to_next_image_s: float = 0.0
+    ) -> np.ndarray:
+        """Next waypoints (w, 3) in m from ``pose`` (x, y, z) m."""
+
+
+# ----------------------------------------------------------------------------------------------
+# Planning model: (coarse-grained) covariance and batched scoring
+
+
+class _PlanningModel:
+    """Covariance used to score candidates during one replan (conditioned between greedy steps)."""
+
+    def __init__(self, belief: OccupancyMap, setup: PlanningSetup, cell_weights: np.ndarray | None) -> None:
+        self.diagonal = belief.diagonal
+        self.block = 1 if belief.diagonal else setup.planning_block_cells
+        grid = belief.grid
+        side = grid.cells_per_side
+        nb = side // self.block
+        iy, ix = np.divmod(np.arange(grid.n_cells), side)
+        self.block_of_cell = (iy // self.block) * nb + ix // self.block
+        self.n_blocks = nb * nb
+        self.area = self.block**2
+        weights = np.ones(grid.n_cells) if cell_weights is None else cell_weights
+        if self.diagonal:
+            self.covariance = belief.covariance.copy()
+            self.weights = weights
+        elif self.block == 1:
+            self.covariance = belief.covariance.copy()
+            self.weights = weights
+        else:
+            b = self.block
+            blocks = belief.covariance.reshape(nb, b, nb, b, nb, b, nb, b).mean(axis=(1, 3, 5, 7))
+            self.covariance = blocks.reshape(self.n_blocks, self.n_blocks)
+            self.weights = weights.reshape(nb, b, nb, b).mean(axis=(1, 3)).ravel()
+        self._refresh()
+
+    def _refresh(self) -> None:
+        self.weighted_square = None if self.diagonal else (self.covariance * self.weights[None, :]) @ self.covariance
+
+    def precision(self, visible: np.ndarray, noise_variance: np.ndarray) -> np.ndarray:
+        """Per-(block) measurement precision (k, n_b) from visibility masks (k, J, n) and noise (k, J)."""
+        per_cell = np.einsum("kjn,kj->kn", visible, 1.0 / noise_variance)
+        if self.block == 1:
+            return per_cell
+        out = np.zeros((len(per_cell), self.n_blocks))
+        np.add.at(out.T, self.block_of_cell, per_cell.T)
+        return out
+
+    def gains(self, precision: np.ndarray, want_information: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+        reduction, information = observation_gains(
+            self.covariance,
+            precision,
+            weighted_square=self.weighted_square,
+            diagonal=self.diagonal,
+            cell_weights=self.weights,
+            want_information=want_information,
+        )
+        return reduction * self.area, information
+
+    def condition(self, precision: np.ndarray) -> None:
+        """Covariance-only update with per-(block) precision d (n_b,): P <- (P^-1 + D)^-1."""
+        if self.diagonal:
+            self.covariance = 1.0 / (1.0 / self.covariance + precision)
+            return
+        observed = np.flatnonzero(precision > 0)
+        if len(observed) == 0:
+            return
+        cross = self.covariance[:, observed]
+        innovation = cross[observed] + np.diag(1.0 / precision[observed])
+        self.covariance = self.covariance - cross @ np.linalg.solve(innovation, cross.T)
+        self.covariance = 0.5 * (self.covariance + self.covariance.T)
+        self._refresh()
+
+
+class InformativePlanner(Planner):
+    """Greedy lattice search plus CMA-ES refinement of a value-per-flight-time objective."""
+
+    name = "informative"
+    waypoints_per_replan = 1
+
+    def cell_weights(self, belief: OccupancyMap) -> np.ndarray | None:
+        return None
+
+    def path_value(
+        self,
+        model: _PlanningModel,
+        belief: OccupancyMap,
+        visible: np.ndarray,
+        altitudes: np.ndarray,
+        valid: np.ndarray,
+    ) -> np.ndarray:
+        """Value (k,) of image sets: visible (k, J, n) masks, altitudes (k, J) m, valid (k, J)."""
+        noise = np.where(valid, self.setup.detector.noise_variance(altitudes), np.inf)
+        reduction, _ = model.gains(model.precision(visible, noise))
+        return reduction
+
+    # -- helpers ---------------------------------------------------------------------------------
+    def _visibility(self, poses: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        k, j, _ = poses.shape
+        flat = poses.reshape(-1, 3)
+        mask = np.zeros((k * j, self.setup.field.grid.n_cells), dtype=bool)
+        rows = valid.ravel()
+        if rows.any():
+            mask[rows] = self.setup.camera.visible_cells(flat[rows], self.setup.field.grid, self.setup.field.obstacles)
+        return mask.reshape(k, j, -1)
+
+    def _score_paths(
+        self, model: _PlanningModel, belief: OccupancyMap, pose: np.ndarray, paths: np.ndarray, t_next: float, budget: float
+    ) -> np.ndarray:
+        poses, valid, total_time, _ = self.setup.flight.path_images(pose, paths, t_next, budget)
+        value = self.path_value(model, belief, self._visibility(poses, valid), poses[..., 2], valid)
+        score = value / np.maximum(total_time, 1e-6)
+        collides = path_collides(np.concatenate([np.broadcast_to(pose, (len(paths), 1, 3)), paths], axis=1),
+                                 self.setup.field.obstacles, self.setup.obstacle_margin_m)
+        return np.where(collides, -np.inf, score)
+
+    def plan(
+        self, belief: OccupancyMap, pose: Sequence[float], remaining_budget_s: float, time_to_next_image_s: float = 0.0
+    ) -> np.ndarray:
+        setup = self.setup
+        pose = np.asarray(pose, float)
+        weights = self.cell_weights(belief)
+        model = _PlanningModel(belief, setup, weights)
+        lattice = setup.lattice()
+        flight = setup.flight
+        # Greedy: choose each waypoint by the value rate of its segment, conditioning in between.
+        current, t_next, left = pose, float(time_to_next_image_s), float(remaining_budget_s)
+        chosen: list[np.ndarray] = []
+        for _ in range(setup.lookahead_waypoints):
+            if left <= 0:
+                break
+            distance = np.linalg.norm(lattice - current, axis=1)
+            candidates = lattice[distance > 0.5]
+            collides = path_collides(np.stack([np.broadcast_to(current, candidates.shape), candidates], axis=1),
+                                     setup.field.obstacles, setup.obstacle_margin_m)
+            candidates = candidates[~collides]
+            if len(candidates) == 0:
+                break
+            poses, _, valid, duration, next_after = flight.segment_images(current, candidates, t_next, left)
+            visible = self._visibility(poses, valid)
+            value = self.path_value(model, belief, visible, poses[..., 2], valid)
+            best = int(np.argmax(value / np.maximum(duration, 1e-6)))
+            chosen.append(candidates[best])
+            noise = np.where(valid[best], setup.detector.noise_variance(poses[best, :, 2]), np.inf)
+            model.condition(model.precision(visible[best][None], noise[None])[0])
+            current, t_next, left = candidates[best], float(next_after[best]), left - float(duration[best])
+        if not chosen:
+            return np.zeros((0, 3))
+        greedy = np.array(chosen)
+        if setup.cma_evaluations <= 0 or len(greedy) == 0:
+            return greedy
+        return self._refine(belief, pose, greedy, float(time_to_next_image_s), float(remaining_budget_s), weights)
+
+    def _refine(
+        self, belief: OccupancyMap, pose: np.ndarray, greedy: np.ndarray, t_next: float, budget: float, weights
+    ) -> np.ndarray:
+        import cma
+
+        setup = self.setup
+        model = _PlanningModel(belief, setup, weights)
+        half = setup.field.grid.size_m / 2 - 0.5
+        low = np.array([-half, -half, min(setup.altitude_layers_m)])
+        high = np.array([half, half, max(setup.altitude_layers_m)])
+        w = len(greedy)
+
+        def to_paths(unit: np.ndarray) -> np.ndarray:
+            return low + np.clip(unit, 0, 1).reshape(-1, w, 3) * (high - low)
+
+        start_unit = ((greedy - low) / (high - low)).ravel().clip(0, 1)
+        greedy_score = float(self._score_paths(model, belief, pose, greedy[None], t_next, budget)[0])
+        best_path, best_score = greedy, greedy_score
+        popsize = 6
+        options = {
+            "bounds": [0.0, 1.0],
+            "popsize": popsize,
+            "maxfevals": setup.cma_evaluations,
+            "seed": int(self.rng.integers(1, 2**31 - 1)),
+            "verbose": -9,
+            "tolfun": 1e-12,
+        }
+        strategy = cma.CMAEvolutionStrategy(start_unit, 0.15, options)
+        while not strategy.stop():
+            population = strategy.ask()
+            paths = to_paths(np.array(population))
+            scores = self._score_paths(model, belief, pose, paths, t_next, budget)
+            scale = abs(greedy_score) + 1e-9
+            strategy.tell(population, [float(-s / scale) if np.isfinite(s) else 1e6 for s in scores])
+            top = int(np.argmax(scores))
+            if scores[top] > best_score:
+                best_path, best_score = paths[top], float(scores[top])
+        return np.asarray(best_path)
+
+
+class PrecisionGainPlanner(InformativePlanner):
+    """Maximise the expected reduction of trace(P) per flight time."""
+
+    name = "precision_gain"
+
+
+class AdaptivePlanner(InformativePlanner):
+    """Precision gain weighted by optimistic occupancy mean + k sigma and an altitude preference
+    N(h; preferred_altitude_m, altitude_spread_m)."""
+
+    name = "adaptive"
+
+    def __init__(
+        self, setup: PlanningSetup, seed: int = 0, optimism: float = 1.0, preferred_altitude_m: float = 10.0,
+        altitude_spread_m: float = 7.0,
+    ) -> None:
+        self.optimism = optimism
+        self.preferred_altitude_m = preferred_altitude_m
+        self.altitude_spread_m = altitude_spread_m
+        super().__init__(setup, seed)
+
+    def cell_weights(self, belief: OccupancyMap) -> np.ndarray:
+        return np.clip(belief.mean + self.optimism * np.sqrt(belief.variance), 0.0, 1.0)
+
+    def path_value(self, model, belief, visible, altitudes, valid) -> np.ndarray:
+        reduction = super().path_value(model, belief, visible, altitudes, valid)
+        preference = np.exp(-0.5 * ((altitudes - self.preferred_altitude_m) / self.altitude_spread_m) ** 2)
+        mean_preference = (preference * valid).sum(axis=1) / np.maximum(valid.sum(axis=1), 1)
+        return reduction * mean_preference
+
+
+class ExpectedFreeEnergyPlanner(InformativePlanner):
+    """Minimise expected free energy G = -(epistemic + pragmatic) per flight time; the pragmatic
+    term is ``preference_nats`` per expected detected cell (prior preference for seeing people)."""
+
+    name = "efe"
+
+    def __init__(self, setup: PlanningSetup, seed: int = 0, preference_nats: float = 0.5) -> None:
+        self.preference_nats = preference_nats
+        super().__init__(setup, seed)
+
+    def path_value(self, model, belief, visible, altitudes, valid) -> np.ndarray:
+        detector = self.setup.detector
+        noise = np.where(valid, detector.noise_variance(altitudes), np.inf)
+        _, information = model.gains(model.precision(visible, noise), want_information=True)
+        occupancy = np.clip(belief.mean, 0.0, 1.0)
+        tpr = detector.true_positive_rate(altitudes)[..., None]
+        fpr = detector.false_positive_rate(altitudes)[..., None]
+        p_detect = occupancy[None, None, :] * tpr + (1 - occupancy[None, None, :]) * fpr
+        pragmatic = self.preference_nats * (p_detect * visible).sum(axis=(1, 2))
+        return information + pragmatic
+
+
+class LawnmowerPlanner(Planner):
+    """Serpentine coverage at ``altitude_m`` with footprint-spaced stops (one image each), the
+    pattern repeated back and forth until the budget is spent."""
+
+    name = "lawnmower"
+
+    def __init__(self, setup: PlanningSetup, seed: int = 0, altitude_m: float = 10.0, waypoints_per_plan: int = 3) -> None:
+        self.altitude_m = altitude_m
+        self.waypoints_per_plan = waypoints_per_plan
+        super().__init__(setup, seed)
+
+    def reset(self, seed: int = 0) -> None:
+        super().reset(seed)
+        self._pattern = self.pattern()
+        self._next = 0
+
+    def pattern(self) -> np.ndarray:
+        """Stops (m, 3): columns spaced <= footprint width in x, rows <= footprint height in y."""
+        size = self.setup.field.grid.size_m
+        width_x, width_y = self.setup.camera.footprint_m(self.altitude_m)
+        columns = int(np.ceil(size / float(width_x)))
+        rows = int(np.ceil(size / float(width_y)))
+        xs = -size / 2 + (np.arange(columns) + 0.5) * size / columns
+        ys = -size / 2 + (np.arange(rows) + 0.5) * size / rows
+        stops = []
+        for r, y in enumerate(ys):
+            for x in xs if r % 2 == 0 else xs[::-1]:
+                stops.append((x, y, self.altitude_m))
+        stops = np.array(stops)
+        free = ~self.setup.inside_obstacle(stops)
+        return stops[free]
+
+    def plan(self, belief, pose, remaining_budget_s, time_to_next_image_s=0.0) -> np.ndarray:
+        pose = np.asarray(pose, float)
+        if self._next == 0 and len(self._pattern):
+            # start the pattern at the end nearer to the UAV
+            if np.linalg.norm(self._pattern[-1] - pose) < np.linalg.norm(self._pattern[0] - pose):
+                self._pattern = self._pattern[::-1].copy()
+        out = []
+        current = pose
+        for _ in range(self.waypoints_per_plan):
+            if self._next >= len(self._pattern):
+                self._pattern = self._pattern[::-1].copy()
+                self._next = 1
+            goal = self._pattern[self._next]
+            self._next += 1
+            route = detour(current, goal, self.setup.field.obstacles, self.setup.obstacle_margin_m + 0.5)
+            out.extend(route)
+            current = goal
+        return np.array(out)
+
+
+class RandomPlanner(Planner):
+    """Uniform random waypoints in the field and between the lowest and highest altitude layer."""
+
+    name = "random"
+
+    def __init__(self, setup: PlanningSetup, seed: int = 0, waypoints_per_plan: int = 3) -> None:
+        self.waypoints_per_plan = waypoints_per_plan
+        super().__init__(setup, seed)
+
+    def plan(self, belief, pose, remaining_budget_s, time_to_next_image_s=0.0) -> np.ndarray:
+        half = self.setup.field.grid.size_m / 2 - 0.5
+        low, high = min(self.setup.altitude_layers_m), max(self.setup.altitude_layers_m)
+        out = []
+        current = np.asarray(pose, float)
+        while len(out) < self.waypoints_per_plan:
+            goal = np.array([self.rng.uniform(-half, half), self.rng.uniform(-half, half), self.rng.uniform(low, high)])
+            if self.setup.inside_obstacle(goal[None])[0]:
+                continue
+            out.extend(detour(current, goal, self.setup.field.obstacles, self.setup.obstacle_margin_m + 0.5))
+            current = goal
+        return np.array(out)
+
+
+PLANNERS = {
+    "precision_gain": PrecisionGainPlanner,
+    "adaptive": AdaptivePlanner,
+    "efe": ExpectedFreeEnergyPlanner,
+    "lawnmower": LawnmowerPlanner,
+    "random": RandomPlanner,
+}
+
+
+def make_planner(name: str, setup: PlanningSetup, seed: int = 0, **options) -> Planner:
+    """Planner by name: one of ``PLANNERS`` ("precision_gain", "adaptive", "efe", "lawnmower", "random")."""
+    try:
+        cls = PLANNERS[name]
+    except KeyError:
+        raise ActionInputError(f"planner: expected one of {sorted(PLANNERS)}, got {name!r}") from None
+    return cls(setup, seed, **options)

@@ -65,7 +65,10 @@ class DEMObserver:
     embedding_order: p (states/outputs have p + 1 orders); input_order: d; known_inputs: inputs
     measured (True) or estimated (False); precision_convention: "size" (SPM) or "max" (Meera:
     invert V at max(p, d) then truncate); window_offset: the embedding window of row k is centred
-    on sample k + window_offset (0 centred; -1 reproduces the authors' quadrotor code).
+    on sample k + window_offset (0 centred; -1 reproduces the authors' quadrotor code);
+    edges: where the window reaches past the log, "order0" uses the sample itself with zero
+    derivatives (Meera; the default: repeated end samples fake large derivatives whose effect
+    decays slowly through the imprecise high orders) or "clamp" repeats the end samples (SPM).
     Precisions are scalars (times I), vectors (diagonal) or matrices.
     """
 
@@ -80,6 +83,7 @@ class DEMObserver:
     known_inputs: bool = False
     precision_convention: str = "size"
     window_offset: int = 0
+    edges: str = "order0"
     _matrices: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -100,6 +104,8 @@ class DEMObserver:
                 raise AttendInputError("input_prior_precision: required when the inputs are unknown")
             prior = precision_matrix(self.input_prior_precision, system.n_inputs, "input_prior_precision")
         set_(self, "input_prior_precision", prior)
+        if self.edges not in ("order0", "clamp"):
+            raise AttendInputError(f"edges: expected 'order0' or 'clamp', got {self.edges!r}")
         if int(self.window_offset) != self.window_offset:
             raise AttendInputError(f"window_offset: expected an integer number of samples, got {self.window_offset!r}")
         self._matrices.update(self._build())
@@ -178,6 +184,8 @@ class DEMObserver:
                 stacklevel=3,
             )
         window_gain, offsets = self._fold_embedding(gain)
+        window_B_obs, _ = self._fold_embedding(B_obs)
+        order0 = np.r_[0:m, m * (p + 1): m * (p + 1) + r]  # columns of y and eta/u at order 0
         try:
             covariance = np.linalg.inv(Pi_X)
         except np.linalg.LinAlgError:
@@ -185,7 +193,8 @@ class DEMObserver:
         return dict(
             Ct=Ct, At=At, Bt=Bt, Dx=Dx, Dv=Dv, Vy=Vy, W=W, Vv=Vv, S_p=S_p, S_d=S_d,
             A_obs=A_obs, B_obs=B_obs, Pi_X=Pi_X, Sigma_X=covariance,
-            transition=transition, gain=gain, window_gain=window_gain, offsets=offsets,
+            transition=transition, gain=gain, window_gain=window_gain, window_B_obs=window_B_obs,
+            offsets=offsets, order0_gain=gain[:, order0], order0_B_obs=B_obs[:, order0],
         )
 
     def _fold_embedding(self, gain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -216,11 +225,20 @@ class DEMObserver:
     # --- estimation ------------------------------------------------------------------------
 
     def _raw_windows(self, signals: np.ndarray, start: int, stop: int) -> np.ndarray:
-        """(stop - start, n_offsets * (m + r)) raw windows, end samples repeated at the edges."""
-        n_samples = signals.shape[0]
+        """(stop - start, n_offsets * (m + r)) raw windows, end samples repeated at the edges.
+
+        Row t is the window of samples t + offsets, flattened sample-major: consecutive rows
+        overlap, so they are read from one padded copy through a strided view.
+        """
+        n_samples, width = signals.shape
         offsets = self._matrices["offsets"]
-        index = np.clip(np.arange(start, stop)[:, None] + offsets[None, :], 0, n_samples - 1)
-        return signals[index].reshape(stop - start, -1)
+        span = np.clip(np.arange(start + offsets[0], stop + offsets[-1]), 0, n_samples - 1)
+        padded = np.ascontiguousarray(signals[span])
+        item = padded.itemsize
+        view = np.lib.stride_tricks.as_strided(
+            padded, shape=(stop - start, len(offsets) * width), strides=(width * item, item), writeable=False
+        )
+        return np.ascontiguousarray(view)
 
     def _signals(self, outputs, inputs) -> np.ndarray:
         m, r = self.system.n_outputs, self.system.n_inputs
@@ -245,11 +263,28 @@ class DEMObserver:
             )
         return np.hstack([y, u])
 
-    def initial_state(self, first_drive: np.ndarray) -> np.ndarray:
-        """The fixed point of X = Phi X + drive for the first drive: inv(I - Phi) drive[0]."""
-        transition = self._matrices["transition"]
-        system = np.eye(transition.shape[0]) - transition
-        return np.linalg.lstsq(system, first_drive, rcond=None)[0]
+    def initial_state(self, window: np.ndarray, edge: bool) -> np.ndarray:
+        """Start of the flow: the static MAP of the first row's data, X0 = inv(Pi_X) B_obs Y[0].
+
+        This is the mode of F for that sample's data alone (no generalised motion); the fixed
+        point of the flow, inv(D_X - Pi_X) B_obs Y[0], is ill-conditioned when the highest orders
+        are imprecise and can start the estimate far off. ``window`` is the raw window of the
+        row, or (``edge``) its own sample [y; u] for an order-0 edge row.
+        """
+        mats = self._matrices
+        data = mats["order0_B_obs"] @ window if edge else mats["window_B_obs"] @ window
+        return np.linalg.lstsq(mats["Pi_X"], data, rcond=None)[0]
+
+    def _edge_rows(self, n_samples: int, start: int, stop: int) -> np.ndarray:
+        """Rows in [start, stop) whose embedding window reaches past the log (relative indices)."""
+        if self.edges == "clamp":
+            return np.zeros(0, dtype=int)
+        offsets = self._matrices["offsets"]
+        rows = np.arange(start, stop)
+        return np.flatnonzero((rows + offsets[0] < 0) | (rows + offsets[-1] > n_samples - 1))
+
+    def _centre_samples(self, signals: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        return signals[np.clip(rows + self.window_offset, 0, signals.shape[0] - 1)]
 
     def estimate(self, outputs, inputs=None, *, keep_generalized: bool = False,
                  initial_state=None, segment: int = 1 << 17) -> DEMEstimate:
@@ -273,9 +308,15 @@ class DEMObserver:
         state = None if initial_state is None else np.asarray(initial_state, dtype=float)
         for start in range(0, n_samples, segment):
             stop = min(start + segment, n_samples)
-            drive = self._raw_windows(signals, start, stop) @ gain_t
+            windows = self._raw_windows(signals, start, stop)
+            drive = windows @ gain_t
+            edge = self._edge_rows(n_samples, start, stop)
+            if len(edge):
+                drive[edge] = self._centre_samples(signals, start + edge) @ mats["order0_gain"].T
             if state is None:
-                state = self.initial_state(drive[0])
+                first_is_edge = len(edge) > 0 and edge[0] == 0
+                first = self._centre_samples(signals, np.array([start]))[0] if first_is_edge else windows[0]
+                state = self.initial_state(first, first_is_edge)
             X = linear_recurrence(mats["transition"], drive, state)
             state = X[-1]
             states[start:stop] = X[:, :n]
@@ -320,11 +361,18 @@ class OnlineDEM:
         self._n = observer.system.n_states
         self._n_x = self._n * (observer.embedding_order + 1)
         self._r = observer.system.n_inputs
+        self._order0 = observer.edges == "order0"
 
-    def _advance(self) -> tuple[np.ndarray, np.ndarray]:
-        drive = self._gain @ self._buffer.reshape(-1)
+    def _advance(self, edge: bool) -> tuple[np.ndarray, np.ndarray]:
+        mats = self.observer._matrices
+        if edge:
+            data = self._buffer[self._before]
+            drive = mats["order0_gain"] @ data
+        else:
+            data = self._buffer.reshape(-1)
+            drive = self._gain @ data
         if self._state is None:
-            self._state = self.observer.initial_state(drive)
+            self._state = self.observer.initial_state(data, edge)
         self._state = self._transition @ self._state + drive
         states = self._state[: self._n].copy()
         if self.observer.known_inputs:
@@ -349,7 +397,8 @@ class OnlineDEM:
         lead = self._window - 1 - self._before  # future samples needed by the window
         if self._count <= lead:
             return None
-        return self._advance()
+        row = self._count - 1 - lead
+        return self._advance(edge=self._order0 and row < self._before)
 
     def finish(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """Flush the estimates still waiting for future samples (end samples repeated)."""
@@ -357,5 +406,5 @@ class OnlineDEM:
         out = []
         for _ in range(min(lead, self._count)):
             self._buffer[:-1] = self._buffer[1:].copy()
-            out.append(self._advance())
+            out.append(self._advance(edge=self._order0))
         return out

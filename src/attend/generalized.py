@@ -126,14 +126,14 @@ def _unit_taylor_inverse(window: int, centre: Fraction) -> np.ndarray:
 
 def embedding_weights(n_orders: int, dt: float, centre: float | None = None) -> np.ndarray:
     """E = inv(T), T_ij = ((i - c) dt)^j / j!: row j maps a window of n_orders samples to the
-    j-th derivative at window position c (default (n_orders - 1) // 2: the centre sample, or for
-    an even window the earlier of the two middle samples).
+    j-th derivative at window position c (default n_orders // 2: the centre sample, or for an
+    even window the later of the two middle samples, so the window leans on the past).
 
     For 7 orders, row 1 is [-1/60, 3/20, -3/4, 0, 3/4, -3/20, 1/60] / dt (central differences).
     """
     n_orders = order(n_orders, "n_orders", maximum=40)
     dt = positive_scalar(dt, "dt", "s")
-    c = Fraction((n_orders - 1) // 2) if centre is None else Fraction(centre).limit_denominator(1000)
+    c = Fraction(n_orders // 2) if centre is None else Fraction(centre).limit_denominator(1000)
     unit = _unit_taylor_inverse(n_orders, c)
     return unit * (dt ** -np.arange(n_orders))[:, None]
 
@@ -143,8 +143,8 @@ def embed(series, n_orders: int, dt: float, *, edges: str = "clamp", shift: int 
 
     series: (N, k) samples at spacing dt [s]. Returns (N, n_orders * k), order-major per row:
     row t holds [y; y'; ...] at sample t + shift, estimated from the window of n_orders samples
-    around it: (n_orders - 1) // 2 samples before and the rest after (an even window reaches one
-    sample further into the future than into the past).
+    around it: n_orders // 2 samples before and the rest after (an even window reaches one
+    sample further into the past than into the future, as in the authors' DEM code).
     ``shift`` = -1 centres row t on sample t - 1 (the convention of the authors' quadrotor code).
 
     Edges (windows reaching past the log): "clamp" repeats the end samples (SPM);
@@ -155,7 +155,7 @@ def embed(series, n_orders: int, dt: float, *, edges: str = "clamp", shift: int 
         y = y[:, None]
     n_samples, width = y.shape
     weights = embedding_weights(n_orders, dt)
-    before = (n_orders - 1) // 2
+    before = n_orders // 2
     after = n_orders - 1 - before
     centres = np.arange(n_samples) + shift
     # shifted[i] = y at sample centre - before + i, clamped to the log (repeat end samples)

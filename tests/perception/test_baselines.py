@@ -293,3 +293,19 @@ def test_bad_input_names_the_field(call, field):
     y = np.random.default_rng(0).normal(size=(10, 4))
     with pytest.raises(AttendInputError, match=field):
         call(system, y)
+
+
+def test_exact_posterior_reduction_to_range_of_C_keeps_the_likelihood():
+    """m = 4 > n = 2: the outputs are reduced to 2 channels; mean, stds and log p(y) stay exact."""
+    system = convolution_model()
+    N, u = 30, np.ones((30, 1))
+    trajectory = simulate(system, u, DT, kernel_width=1e-3, process_std=0.3,
+                          measurement_std=[0.02, 0.03, 0.01, 0.05], seed=2)
+    exact = bl.exact_posterior(system, DT, trajectory.outputs, u, kernel_width=1e-3, process_std=0.3,
+                               measurement_std=[0.02, 0.03, 0.01, 0.05], initial_std=0.1)
+    Q, R = bl.simulation_covariances(system, DT, 0.3, [0.02, 0.03, 0.01, 0.05])
+    smooth = bl.rts_smoother(system, DT, trajectory.outputs, u, process_covariance=Q, measurement_covariance=R,
+                             initial_covariance=0.01)
+    np.testing.assert_allclose(exact.states, smooth.states, atol=1e-9)
+    np.testing.assert_allclose(exact.state_std, smooth.state_std, atol=1e-9)
+    assert exact.log_likelihood == pytest.approx(smooth.log_likelihood, rel=1e-9)

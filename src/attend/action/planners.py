@@ -57,7 +57,7 @@ class PlanningSetup:
     camera: Camera = Camera()
     detector: Detector = Detector()
     flight: FlightModel = FlightModel()
-    altitude_layers_m: tuple[float, ...] = (4.0, 8.0, 12.0, 16.0)
+    altitude_layers_m: tuple[float, ...] = (5.0, 8.0, 11.0, 14.0)
     lattice_per_side: int = 4
     lookahead_waypoints: int = 3
     cma_evaluations: int = 24

@@ -445,12 +445,14 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width, process_s
     conditioning gives mean = m_x + S_xy inv(S_yy) (y - m_y), cov = S_xx - S_xy inv(S_yy) S_yx,
     with a Cholesky factor of S_yy + jitter * mean(diag S_yy) I (coloured noise makes S_yy
     numerically singular at high frequencies; the jitter adds white noise of that tiny variance).
+    When m > n the outputs are first reduced, exactly, to the n whitened channels that span
+    range(C) (the others are pure noise independent of x and u).
 
     system; dt [s]; outputs (N, m); inputs (N, r) known inputs, or None with input_prior_mean
     (scalar, (r,) or (N, r)) and input_prior_std (scalar or (r,)) [input unit]; kernel_width s [s];
     process_std, measurement_std: per-sample standard deviations as passed to simulate();
     initial_mean m0 (default 0) and initial_std s0 (default 0: x[0] known, as simulate() starts).
-    Cost O((N m)^3) time, O((N (n + m + r))^2) memory: for logs up to a few thousand samples.
+    Cost O((N min(m, n))^3) time, O((N (n + m + r))^2) memory: for logs up to a few thousand samples.
     """
     system = _system(system)
     dt = positive_scalar(dt, "dt", "s")
@@ -492,37 +494,59 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width, process_s
         drive_cov = drive_cov + Bbig @ input_cov @ Bbig.T
     x_mean = Phi @ m0 + L @ drive_mean
     x_cov = L @ drive_cov @ L.T + Phi @ np.diag(s0**2) @ Phi.T
-    Cbig = np.kron(np.eye(N), system.C)
+    # Exact reduction to a sufficient statistic: the measurement noise has covariance
+    # K kron diag(sz^2), so with the whitened channels diag(1/sz) y and the QR factor
+    # diag(1/sz) C = Qc Rc, the rotated channels Qc' diag(1/sz) y beyond the first q = n are
+    # noise with covariance K kron I, independent of x, u and of the first q channels.
+    if m > n and np.all(sz > 0):
+        Qc = np.linalg.qr(system.C / sz[:, None], mode="complete")[0]
+        transform, q = Qc.T / sz[None, :], n  # (m, m)
+    else:
+        transform, q = np.eye(m), m
+    rotated = y @ transform.T
+    Cq = transform[:q] @ system.C
+    Cbig = np.kron(np.eye(N), Cq)
     y_mean = Cbig @ x_mean
-    xy_cov = x_cov @ Cbig.T  # Cov(x, y)
-    y_cov = Cbig @ xy_cov + np.kron(K, np.diag(sz**2))
+    xy_cov = x_cov @ Cbig.T  # Cov(x, y_q)
+    channel_cov = (transform[:q] * sz**2) @ transform[:q].T
+    y_cov = Cbig @ xy_cov + np.kron(K, channel_cov)
     y_cov = 0.5 * (y_cov + y_cov.T)
     y_cov[np.diag_indices_from(y_cov)] += jitter * np.mean(np.diag(y_cov))
     try:
         chol = np.linalg.cholesky(y_cov)
+        chol_noise = np.linalg.cholesky(K + jitter * np.eye(N)) if q < m else None
     except np.linalg.LinAlgError:
         raise AttendInputError(
             "jitter: the output covariance is not numerically positive definite; increase jitter"
         ) from None
+    residual = rotated[:, :q].reshape(-1) - y_mean
+    white = solve_triangular(chol, residual, lower=True)
+    log_likelihood = -0.5 * (white @ white) - np.sum(np.log(np.diag(chol))) - 0.5 * N * m * np.log(2 * np.pi)
+    if q < m:  # the pure-noise channels and the Jacobian of the transform
+        noise = solve_triangular(chol_noise, rotated[:, q:], lower=True)
+        log_likelihood += -0.5 * np.sum(noise**2) - (m - q) * np.sum(np.log(np.diag(chol_noise)))
+        log_likelihood -= N * np.sum(np.log(sz))
     # latent z = [x; u] (u only when unknown)
     if known:
-        z_mean, zy_cov, z_cov = x_mean, xy_cov, x_cov
+        z_mean, zy_cov, z_var = x_mean, xy_cov, np.diag(x_cov)
     else:
-        uy_cov = input_cov @ Bbig.T @ L.T @ Cbig.T  # Cov(u, y)
-        xu_cov = L @ Bbig @ input_cov  # Cov(x, u)
+        LB = L @ Bbig
+        uy_cov = input_cov @ LB.T @ Cbig.T  # Cov(u, y_q)
         z_mean = np.concatenate([x_mean, u_mean.reshape(-1)])
         zy_cov = np.vstack([xy_cov, uy_cov])
-        z_cov = np.block([[x_cov, xu_cov], [xu_cov.T, input_cov]])
-    residual = y.reshape(-1) - y_mean
-    white = solve_triangular(chol, residual, lower=True)
+        z_var = np.concatenate([np.diag(x_cov), np.diag(input_cov)])
     G = solve_triangular(chol, zy_cov.T, lower=True)  # inv(chol) S_yz
     post_mean = z_mean + G.T @ white
-    post_var = np.clip(np.diag(z_cov) - np.sum(G**2, axis=0), 0, None)
+    post_var = np.clip(z_var - np.sum(G**2, axis=0), 0, None)
     covariance = None
     if return_covariance:
+        if known:
+            z_cov = x_cov
+        else:
+            xu_cov = LB @ input_cov  # Cov(x, u)
+            z_cov = np.block([[x_cov, xu_cov], [xu_cov.T, input_cov]])
         covariance = z_cov - G.T @ G
         covariance = 0.5 * (covariance + covariance.T)
-    log_likelihood = -0.5 * (white @ white) - np.sum(np.log(np.diag(chol))) - 0.5 * N * m * np.log(2 * np.pi)
     states = post_mean[: N * n].reshape(N, n)
     state_std = np.sqrt(post_var[: N * n]).reshape(N, n)
     if known:

@@ -127,7 +127,7 @@ class DEMObserver:
 
     @staticmethod
     def _after(window: int) -> int:
-        return window - 1 - (window - 1) // 2
+        return window - 1 - window // 2
 
     def generalized_matrices(self) -> dict[str, np.ndarray]:
         """C~, A~, B~, D_x, D_v, Vy, W, Vv, A_obs, B_obs, Pi_X (see the module docstring)."""
@@ -207,18 +207,18 @@ class DEMObserver:
         p, d = self.embedding_order, self.input_order
         Ey = embedding_weights(p + 1, self.dt)  # (p+1 orders, p+1 samples)
         Eu = embedding_weights(d + 1, self.dt)
-        first = -max((p) // 2, (d) // 2)
+        first = -max((p + 1) // 2, (d + 1) // 2)
         last = max(self._after(p + 1), self._after(d + 1))
         offsets = np.arange(first, last + 1)
         width = m + r
         folded = np.zeros((gain.shape[0], len(offsets) * width))
         gain_y = gain[:, : m * (p + 1)].reshape(gain.shape[0], p + 1, m)
         gain_u = gain[:, m * (p + 1):].reshape(gain.shape[0], d + 1, r)
-        for i in range(p + 1):  # sample i of the y window sits at offset i - p//2
-            column = (i - p // 2 - first) * width
+        for i in range(p + 1):  # sample i of the y window sits at offset i - (p + 1) // 2
+            column = (i - (p + 1) // 2 - first) * width
             folded[:, column: column + m] += np.einsum("sjc,j->sc", gain_y, Ey[:, i])
         for i in range(d + 1):
-            column = (i - d // 2 - first) * width + m
+            column = (i - (d + 1) // 2 - first) * width + m
             folded[:, column: column + r] += np.einsum("sjc,j->sc", gain_u, Eu[:, i])
         return folded, offsets + self.window_offset
 

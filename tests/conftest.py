@@ -3,6 +3,10 @@
 import os
 from pathlib import Path
 
+# One BLAS thread: the small matrices of these tests run slower multi-threaded on 2 cores.
+for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
+
 import pytest
 
 SHARED = Path(os.environ.get("ATTEND_SHARED", Path(__file__).resolve().parents[2] / "shared"))

@@ -256,8 +256,9 @@ def _mean_moments(mu, Ytil, Util, st: _Structure) -> np.ndarray:
     Z = np.concatenate([x, Util[:, used], Ytil[:, used], tau], axis=3)  # (R, T', P, dz)
     dz = Z.shape[-1]
     Zf = Z.reshape(R, -1, P * dz)
-    second = (np.swapaxes(Zf, 1, 2) @ Zf).reshape(R, P, dz, P, dz)
-    K = np.einsum("ij,riajb->rab", st.S, second)
+    with np.errstate(all="ignore"):
+        second = (np.swapaxes(Zf, 1, 2) @ Zf).reshape(R, P, dz, P, dz)
+        K = np.einsum("ij,riajb->rab", st.S, second)
     return 0.5 * (K + np.swapaxes(K, 1, 2))
 
 
@@ -498,11 +499,10 @@ def _prepare(outputs, inputs, dt, kernel_width, embedding_order, input_order, ac
     Util[:, :, :k] = Uq[:, :, :k]
     used = np.ones(T, dtype=bool)
     if trim_edges:
-        before = max((P - 1) // 2, (Q - 1) // 2)
-        after = max(P - 1 - (P - 1) // 2, Q - 1 - (Q - 1) // 2)
-        used[:before] = False
-        if after:
-            used[T - after:] = False
+        reach = max(P, Q) // 2  # samples a window reaches on either side (either centring)
+        if reach:
+            used[:reach] = False
+            used[T - reach:] = False
     st = _Structure(
         n=n, r=r, m=m, orders=P, S=S, log_det_S=float(np.linalg.slogdet(S)[1]),
         Dx=shift_operator(P, n), n_used=int(used.sum()), used=used, active=active,
@@ -604,6 +604,12 @@ def learn_batch(
     def pick(mask, new: _Evaluation, old: _Evaluation) -> _Evaluation:
         return _Evaluation(*(np.where(mask.reshape((-1,) + (1,) * (a.ndim - 1)), a, b) for a, b in zip(new, old)))
 
+    def diverge(step_name, mask, it):
+        for k in np.flatnonzero(mask & ~stopped):
+            messages[k] = (f"stopped: the {step_name}-step diverged at iteration {it} (every trial step gave a "
+                           "non-finite free energy); returning the last accepted estimate")
+        stopped[mask] = True
+
     def note_trace(mask, F):
         for k in np.flatnonzero(mask):
             trace[k].append(float(F[k]))
@@ -623,11 +629,13 @@ def learn_batch(
         mu_new = _d_step(state.theta, state.lam, Ytil, Util, st)
         pending = live.copy()
         alpha = 1.0
+        seen_finite = np.zeros(R, dtype=bool)
         for _ in range(6):
             cand = state._replace(mu=state.mu + alpha * (mu_new - state.mu))
             with np.errstate(all="ignore"):
                 K_c = _mean_moments(cand.mu, Ytil, Util, st)
             ev_c = _evaluate(cand, K_c, priors, st)
+            seen_finite |= np.isfinite(ev_c.F)
             ok = pending & (ev_c.F >= ev.F)
             if ok.any():
                 state = select(ok, cand, state)
@@ -639,12 +647,14 @@ def learn_batch(
             if not pending.any():
                 break
             alpha *= 0.5
+        diverge("D", pending & ~seen_finite, it)
 
         # ---- E-step: flow of the quadratic over integration time L, shrunk on failure
         with np.errstate(all="ignore"):
             target, J = _e_step_target(state, ev.K, priors, st)
-        pending = live.copy()
+        pending = live & ~stopped
         time = L.copy()
+        seen_finite = np.zeros(R, dtype=bool)
         for attempt in range(8):
             theta_c = state.theta.copy()
             with np.errstate(all="ignore"):
@@ -653,6 +663,7 @@ def learn_batch(
             theta_c = np.where(finite[:, None], theta_c, state.theta)
             cand = state._replace(theta=theta_c)
             ev_c = _evaluate(cand, K_mean, priors, st)
+            seen_finite |= np.isfinite(ev_c.F) & finite
             ok = pending & finite & (ev_c.F >= ev.F)
             if ok.any():
                 state = select(ok, cand, state)
@@ -663,10 +674,7 @@ def learn_batch(
             if not pending.any():
                 break
             time = time * 0.5
-        failed_e = pending & ~np.all(np.isfinite(target), axis=1)
-        for k in np.flatnonzero(failed_e):
-            messages[k] = f"stopped: the E-step diverged at iteration {it} (non-finite parameter update); returning the last accepted estimate"
-        stopped |= failed_e
+        diverge("E", pending & ~seen_finite, it)
 
         # ---- M-step: noise log-precisions, up to noise_iterations clipped steps
         curvature = -(fisher[None] + np.where(np.isfinite(P_lam), P_lam, 0.0))
@@ -679,9 +687,11 @@ def learn_batch(
             if not pending.any():
                 break
             moved = np.zeros(R, dtype=bool)
+            seen_finite = np.zeros(R, dtype=bool)
             for _ in range(6):
                 cand = state._replace(lam=state.lam + step)
                 ev_c = _evaluate(cand, K_mean, priors, st)
+                seen_finite |= np.isfinite(ev_c.F)
                 ok = pending & (ev_c.F >= ev.F)
                 if ok.any():
                     state = select(ok, cand, state)
@@ -693,7 +703,8 @@ def learn_batch(
                 if not pending.any():
                     break
                 step = step * 0.5
-            m_live &= moved
+            diverge("M", pending & ~seen_finite, it)
+            m_live &= moved & ~stopped
 
         # ---- bookkeeping
         iterations[live] = it

@@ -1,0 +1,237 @@
+"""Tests of attend.perception.learning: E/M-step derivatives against finite differences of the
+free energy, monotone free energy, least-squares limit, recovery, bad input and divergence."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from attend._validation import AttendInputError
+from attend.perception import learning as L
+from attend.systems import identification_system, mass_spring_damper, simulate
+
+DT = 0.1
+FREE_MSD = np.array([False, False, True, True, False, True, False, False])  # theta3, theta4, theta6
+
+
+def _msd_log(seed=0, n=320, sigma=np.exp(-4)):
+    system = mass_spring_damper()
+    t = np.arange(n) * DT
+    u = np.exp(-0.25 * (t - 12) ** 2)[:, None]
+    return system, simulate(system, u, DT, kernel_width=0.5, process_std=sigma, measurement_std=sigma, seed=seed)
+
+
+def _problem(seed=0, p=4, lam=(6.0, 5.0)):
+    """A small problem with q(X) from one D-step at a perturbed theta."""
+    system, log = _msd_log(seed, n=120)
+    theta_true = L.parameter_vector(system)
+    P_theta = np.where(FREE_MSD, 0.5, 40.0)
+    st, Y, U = L._prepare(log.outputs[None], log.inputs[None], DT, 0.5, p, p, np.isfinite(P_theta), 2, True, "size")
+    rng = np.random.default_rng(seed)
+    eta = theta_true + 0.3 * rng.standard_normal(8) * FREE_MSD
+    theta = theta_true + 0.2 * rng.standard_normal(8)
+    lam = np.array([lam])
+    priors = L._Priors(eta[None], P_theta[None], np.array([[1.0, 2.0]]), np.array([[1.0, 3.0]]),
+                       0.5 * st.n_used * st.orders * np.array([st.m, st.n], dtype=float))
+    mu = L._d_step(theta[None], lam, Y, U, st)
+    K_mean = L._mean_moments(mu, Y, U, st)
+    Sigma_X = L._observer(theta[None], lam, st)[1]
+    return st, Y, U, priors, mu, K_mean, Sigma_X, theta, lam
+
+
+def _F_fixed_q(st, priors, mu, K_mean, Sigma_X, theta, lam):
+    """Free energy with q(X) = (mu, Sigma_X) held fixed."""
+    return L._evaluate(L._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X).F[0]
+
+
+def test_e_step_gradient_and_hessian_match_finite_differences():
+    st, Y, U, priors, mu, K_mean, Sigma_X, theta, lam = _problem()
+    ev = L._evaluate(L._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X)
+    target, J = L._e_step_target(L._State(mu, theta[None], lam), ev.K, priors, st)
+    # the E-step objective is the quadratic with curvature J and maximiser target (all entries active)
+    gradient = J[0] @ (theta - target[0])
+    f = lambda th: _F_fixed_q(st, priors, mu, K_mean, Sigma_X, th, lam)
+    h = 1e-4
+    fd_grad = np.array([(f(theta + h * e) - f(theta - h * e)) / (2 * h) for e in np.eye(8)])
+    scale = np.abs(fd_grad).max()
+    np.testing.assert_allclose(gradient, fd_grad, rtol=1e-6, atol=1e-7 * scale)
+    fd_hess = np.array([[(f(theta + h * a + h * b) - f(theta + h * a - h * b) - f(theta - h * a + h * b)
+                          + f(theta - h * a - h * b)) / (4 * h * h) for b in np.eye(8)] for a in np.eye(8)])
+    np.testing.assert_allclose(J[0], fd_hess, rtol=1e-4, atol=1e-5 * np.abs(J).max())
+    # Pi_theta = -d2F/dtheta2
+    np.testing.assert_allclose(ev.Pi_theta[0], -fd_hess, rtol=1e-4, atol=1e-5 * np.abs(J).max())
+
+
+def test_m_step_gradient_matches_finite_differences():
+    st, Y, U, priors, mu, K_mean, Sigma_X, theta, lam = _problem(seed=1)
+    ev = L._evaluate(L._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X)
+    grad = L._m_gradient(ev, L._State(mu, theta[None], lam), priors, st)[0]
+    h = 1e-5
+    fd = [(_F_fixed_q(st, priors, mu, K_mean, Sigma_X, theta, lam + h * e[None])
+           - _F_fixed_q(st, priors, mu, K_mean, Sigma_X, theta, lam - h * e[None])) / (2 * h) for e in np.eye(2)]
+    np.testing.assert_allclose(grad, fd, rtol=1e-5)
+
+
+def test_expected_energy_matches_dense_generalised_errors():
+    """F's energy term equals sum_t e'Pi e at the means plus n_t tr(Pi_X Sigma_X), built densely."""
+    st, Y, U, priors, mu, K_mean, Sigma_X, theta, lam = _problem(seed=2)
+    P, n, m = st.orders, st.n, st.m
+    ev = L._evaluate(L._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X)
+    A, B, C = theta[:4].reshape(2, 2), theta[4:6].reshape(2, 1), theta[6:].reshape(1, 2)
+    Ct, At, Bt = np.kron(np.eye(P), C), np.kron(np.eye(P), A), np.kron(np.eye(P), B)
+    Dx = np.kron(np.eye(P, k=1), np.eye(n))
+    Vy, W = np.kron(st.S, np.exp(lam[0, 0]) * np.eye(m)), np.kron(st.S, np.exp(lam[0, 1]) * np.eye(n))
+    total = 0.0
+    for t in np.flatnonzero(st.used):
+        x, y, u = mu[0, t].ravel(), Y[0, t].ravel(), U[0, t].ravel()
+        ey, ex = y - Ct @ x, (Dx - At) @ x - Bt @ u
+        total += ey @ Vy @ ey + ex @ W @ ex
+    Pi_X = Ct.T @ Vy @ Ct + (Dx - At).T @ W @ (Dx - At)
+    total += st.n_used * np.trace(Pi_X @ Sigma_X[0])
+    expected = np.exp(lam[0, 0]) * ev.Ez[0] + np.exp(lam[0, 1]) * ev.Ew[0]
+    np.testing.assert_allclose(expected, total, rtol=1e-9)
+
+
+def test_e_step_with_known_states_and_flat_prior_is_least_squares():
+    """Sigma_X = 0, flat prior: theta* is the weighted least-squares fit of the generalised errors."""
+    st, Y, U, priors, mu, K_mean, Sigma_X, theta, lam = _problem(seed=3)
+    flat = L._Priors(priors.eta_theta, np.zeros((1, 8)), priors.eta_lambda, priors.P_lambda, priors.fisher)
+    K = K_mean  # no state uncertainty
+    target, _ = L._e_step_target(L._State(mu, theta[None], lam), K, flat, st)
+    P, n, m = st.orders, st.n, st.m
+    rows, rhs = [], []
+    wy = np.linalg.cholesky(np.kron(st.S, np.exp(lam[0, 0]) * np.eye(m))).T
+    ww = np.linalg.cholesky(np.kron(st.S, np.exp(lam[0, 1]) * np.eye(n))).T
+    for t in np.flatnonzero(st.used):
+        x = mu[0, t]  # (P, n)
+        u = U[0, t]  # (P, 1)
+        tau = np.vstack([x[1:], np.zeros((1, n))])
+        # e_x = tau - A x - B u per order; e_y = y - C x per order (theta public order)
+        Nx = np.zeros((P * n, 8))
+        Ny = np.zeros((P * m, 8))
+        for i in range(P):
+            for a in range(n):
+                Nx[i * n + a, a * n: a * n + n] = x[i]
+                Nx[i * n + a, 4 + a] = u[i, 0]
+            Ny[i, 6:8] = x[i]
+        rows += [ww @ Nx, wy @ Ny]
+        rhs += [ww @ tau.ravel(), wy @ Y[0, t].ravel()]
+    lsq = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
+    np.testing.assert_allclose(target[0], lsq, rtol=1e-7, atol=1e-9)
+
+
+def test_free_energy_never_decreases_and_parameters_are_recovered():
+    system, log = _msd_log(seed=4)
+    rng = np.random.default_rng(0)
+    theta = L.parameter_vector(system)
+    start = theta.copy()
+    start[FREE_MSD] = rng.uniform(-2, 2, 3)
+    prior = L.system_from_parameters(start, system)
+    result = L.identify(prior, log.outputs, log.inputs, DT, kernel_width=0.5, free=FREE_MSD, max_iterations=40)
+    trace = result.settings["free_energy_trace"]
+    assert np.all(np.diff(trace) >= 0)
+    assert np.all(np.diff(result.free_energy) >= 0)
+    assert result.steps_accepted["E"] > 0 and result.steps_accepted["M"] > 0
+    rel = np.abs(result.parameters[FREE_MSD] - theta[FREE_MSD]) / np.abs(theta[FREE_MSD])
+    assert np.all(rel < 0.25), rel
+    assert abs(result.log_precision[0] - 8.0) < 0.5
+    # posterior precision of the learned entries rose far above the prior precision 1
+    assert np.all(np.diag(result.parameter_precision)[FREE_MSD] > 100)
+    learned = result.system()
+    np.testing.assert_allclose(learned.A.ravel()[[2, 3]], result.parameters[[2, 3]])
+
+
+def test_batch_equals_single_runs():
+    system, log0 = _msd_log(seed=5, n=200)
+    _, log1 = _msd_log(seed=6, n=200)
+    theta = L.parameter_vector(system)
+    P = np.where(FREE_MSD, 1.0, np.exp(15))
+    eta = np.stack([theta + 0.5 * FREE_MSD, theta - 0.4 * FREE_MSD])
+    kw = dict(n_states=2, kernel_width=0.5, prior_precision=P[None], max_iterations=8, embedding_order=4)
+    batch = L.learn_batch(np.stack([log0.outputs, log1.outputs]), np.stack([log0.inputs, log1.inputs]), DT,
+                          prior_mean=eta, **kw)
+    for k, log in enumerate((log0, log1)):
+        single = L.learn_batch(log.outputs[None], log.inputs[None], DT, prior_mean=eta[k:k + 1], **kw)
+        np.testing.assert_allclose(batch.parameters[k], single.parameters[0], rtol=1e-10)
+        np.testing.assert_allclose(batch.free_energy[k], single.free_energy[0][: batch.free_energy.shape[1]], rtol=1e-10)
+
+
+def test_identification_system_learns_a_and_b():
+    system = identification_system()
+    t = np.arange(320) * DT
+    u = np.exp(-0.25 * (t - 12) ** 2)[:, None]
+    log = simulate(system, u, DT, kernel_width=0.5, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=0)
+    theta = L.parameter_vector(system)
+    free = np.zeros(14, bool)
+    free[:6] = True
+    start = theta.copy()
+    start[free] = np.random.default_rng(1).uniform(-2, 2, 6)
+    result = L.identify(L.system_from_parameters(start, system), log.outputs, log.inputs, DT, kernel_width=0.5,
+                        free=free, prior_precision=np.where(free, np.exp(6), np.exp(32)),
+                        noise_prior_precision=np.exp(3), max_iterations=20)
+    assert np.abs(result.parameters[free] - theta[free]).max() < 0.1
+    assert abs(result.log_precision[0] - 8.0) < 0.5
+
+
+# --- bad input and failure -------------------------------------------------------------------
+
+def test_free_entries_with_infinite_prior_precision_are_rejected():
+    system, log = _msd_log(n=100)
+    P = np.where(FREE_MSD, np.inf, 1.0)
+    with pytest.raises(AttendInputError, match="infinite prior precision"):
+        L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5, free=FREE_MSD, prior_precision=P)
+
+
+def test_everything_fixed_is_rejected():
+    system, log = _msd_log(n=100)
+    with pytest.raises(AttendInputError, match="nothing to learn"):
+        L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5, free=np.zeros(8, bool),
+                   prior_precision=np.inf)
+
+
+def test_log_without_excitation_is_rejected():
+    system, _ = _msd_log(n=100)
+    with pytest.raises(AttendInputError, match="no excitation"):
+        L.identify(system, np.zeros((100, 1)), np.zeros((100, 1)), DT, kernel_width=0.5, free=FREE_MSD)
+
+
+def test_zero_input_with_free_b_warns():
+    system, log = _msd_log(n=100)
+    with pytest.warns(L.IdentifiabilityWarning, match="inputs are identically zero"):
+        L.identify(system, log.outputs, np.zeros((100, 1)), DT, kernel_width=0.5, free=FREE_MSD, max_iterations=2)
+
+
+def test_unidentifiable_model_warns():
+    """A, B and C all free: a change of state basis leaves the input-output behaviour unchanged."""
+    system, log = _msd_log(n=100)
+    with pytest.warns(L.IdentifiabilityWarning, match="determines only"):
+        L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5, free=np.ones(8, bool), max_iterations=2)
+
+
+@pytest.mark.parametrize("field, kwargs, match", [
+    ("outputs", dict(outputs=np.zeros((100, 2))), "outputs: expected 1 columns"),
+    ("inputs", dict(inputs=np.zeros((90, 1))), "inputs: expected shape"),
+    ("outputs", dict(outputs=np.full((100, 1), np.nan)), "outputs: expected finite"),
+    ("free", dict(free=["A[3,1]"]), "unknown parameter"),
+    ("dt", dict(dt=-1.0), "dt"),
+    ("noise_prior_precision", dict(noise_prior_precision=0.0), "noise_prior_precision"),
+    ("outputs", dict(outputs=np.ones((10, 1)), inputs=np.ones((10, 1))), "at least"),
+])
+def test_bad_input_names_the_field(field, kwargs, match):
+    system, log = _msd_log(n=100)
+    args = dict(outputs=log.outputs, inputs=log.inputs, dt=DT, free=FREE_MSD)
+    args.update(kwargs)
+    with pytest.raises(AttendInputError, match=match):
+        L.identify(system, args.pop("outputs"), args.pop("inputs"), args.pop("dt"), kernel_width=0.5, **args)
+
+
+def test_divergence_stops_with_a_message_and_the_last_accepted_estimate():
+    system, log = _msd_log(n=100)
+    huge = log.outputs * 1e160  # squares overflow: every step yields a non-finite free energy
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", L.IdentifiabilityWarning)
+        with pytest.warns(L.LearningWarning, match=r"iteration \d+"):
+            result = L.identify(system, huge, log.inputs, DT, kernel_width=0.5, free=FREE_MSD, max_iterations=5)
+    assert "step" in result.message
+    assert np.all(np.isfinite(result.parameters))
+    np.testing.assert_allclose(result.parameters, L.parameter_vector(system))

@@ -27,3 +27,24 @@ def test_errors_are_one_line(tmp_path, capsys):
     assert err.startswith("attend: error: model file:") and "Traceback" not in err
     assert main(["reproduce", "nonsense"]) == 2
     assert "unknown experiment 'nonsense'" in capsys.readouterr().err
+
+
+def test_reproduce_writes_json_report_and_uses_the_cache(tmp_path, capsys, monkeypatch):
+    from attend.experiments import fig2
+
+    calls = []
+    original = fig2.run
+
+    def small_run(quick=True, out_dir=None, progress=True):
+        calls.append(quick)
+        return original(quick=quick, out_dir=out_dir, progress=False, seeds=2)
+
+    monkeypatch.setattr(fig2, "run", small_run)
+    assert main(["reproduce", "fig2", "--out", str(tmp_path), "--report", "--no-progress"]) == 0
+    assert (tmp_path / "fig2.json").is_file() and (tmp_path / "fig2.png").is_file()
+    page = (tmp_path / "index.html").read_text()
+    assert "fig2" in page and "data:image/png;base64," in page
+    assert main(["reproduce", "fig2", "--out", str(tmp_path), "--no-progress"]) == 0
+    assert "cached" in capsys.readouterr().out and calls == [True]
+    assert main(["reproduce", "fig2", "--out", str(tmp_path), "--force", "--no-progress"]) == 0
+    assert calls == [True, True]

@@ -56,13 +56,18 @@ def _build_parser() -> argparse.ArgumentParser:
         "reproduce",
         help="reproduce a result of the paper (or all of them)",
         description="Run a reproduction experiment and write OUT/NAME.json (reproduced beside published "
-        "values) and PNG figures. 'all' runs every experiment.",
+        "values) and PNG figures. 'all' runs every experiment and writes the self-contained HTML report "
+        "OUT/index.html. Results are cached by configuration: a rerun only redoes what changed.",
     )
     reproduce.add_argument("name", help="experiment name, or 'all'; 'attend reproduce list' shows them")
     reproduce.add_argument("--out", default="results", help="output directory (default: %(default)s)")
     reproduce.add_argument("--full", action="store_true",
                            help="paper-size settings (more seeds and trials; slower). Default: quick settings")
     reproduce.add_argument("--no-progress", action="store_true", help="hide progress bars")
+    reproduce.add_argument("--force", action="store_true",
+                           help="rerun even when OUT/NAME.json holds a result for the same code and mode (cache)")
+    reproduce.add_argument("--report", action="store_true",
+                           help="also write OUT/index.html for a single experiment (always written for 'all')")
     return parser
 
 
@@ -95,12 +100,12 @@ def _command_estimate(args) -> int:
 
 
 def _command_reproduce(args) -> int:
-    from attend import experiments
+    from attend import experiments, report
 
     available = experiments.available()
     if args.name == "list":
         for name, description in available.items():
-            print(f"{name:12s} {description}")
+            print(f"{name:16s} {description}")
         return 0
     names = list(available) if args.name == "all" else [args.name]
     for name in names:
@@ -109,14 +114,42 @@ def _command_reproduce(args) -> int:
                 f"reproduce: unknown experiment {name!r}; expected one of {', '.join(available)} or 'all'"
             )
     out = Path(args.out)
+    quick = not args.full
+    code_hash = report.source_hash()
+    results, failures = [], []
+    started_all = time.perf_counter()
     for name in names:
+        key = report.cache_key(name, quick, code_hash)
+        cached = None if args.force else report.cached_result(out, name, key)
+        if cached is not None:
+            print(f"== {name}: cached ({out / (name + '.json')}; --force reruns it)")
+            results.append(cached)
+            continue
         print(f"== {name}: {available[name]}", flush=True)
         started = time.perf_counter()
         module = experiments.load(name)
-        result = module.run(quick=not args.full, out_dir=out, progress=not args.no_progress)
+        try:
+            result = module.run(quick=quick, out_dir=out, progress=not args.no_progress)
+        except Exception as error:  # one failing experiment must not hide the others' results
+            if len(names) == 1 or args.debug:
+                raise
+            failures.append(name)
+            print(f"attend: error: experiment {name} failed: {type(error).__name__}: {error}", file=sys.stderr)
+            continue
+        result.settings.setdefault("quick", quick)
+        result.runtime_s = time.perf_counter() - started
+        result.cache_key = key
         path = result.write(out)
+        results.append(result)
         print(result.table())
-        print(f"-> {path} ({time.perf_counter() - started:.1f} s)\n", flush=True)
+        print(f"-> {path} ({result.runtime_s:.1f} s)\n", flush=True)
+    if args.name == "all" or args.report:
+        command = "attend " + " ".join(sys.argv[1:]) if sys.argv[1:] else "attend reproduce all"
+        page = report.write_report(out, results, available, command, time.perf_counter() - started_all)
+        print(f"report -> {page} ({time.perf_counter() - started_all:.1f} s in all)")
+    if failures:
+        print(f"attend: error: {len(failures)} experiment(s) failed: {', '.join(failures)}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -45,6 +45,9 @@ class ExperimentResult:
     settings: dict[str, Any] = field(default_factory=dict)
     figures: list[str] = field(default_factory=list)
     data: dict[str, Any] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    runtime_s: float | None = None
+    cache_key: str | None = None
 
     def add(self, name: str, value: float, unit: str, published: float | None = None) -> None:
         self.metrics.append(Metric(name, float(value), unit, published))
@@ -69,7 +72,20 @@ class ExperimentResult:
             ],
             "settings": _jsonable(self.settings),
             "figures": list(self.figures),
+            "notes": list(self.notes),
+            "runtime_s": self.runtime_s,
+            "cache_key": self.cache_key,
         }
+
+    @classmethod
+    def from_json_dict(cls, data: dict[str, Any]) -> "ExperimentResult":
+        """Rebuild a result (without its raw data) from its JSON form."""
+        metrics = [
+            Metric(m["name"], float("nan") if m["value"] is None else m["value"], m["unit"], m["published"])
+            for m in data["metrics"]
+        ]
+        return cls(data["experiment"], metrics, data.get("settings", {}), data.get("figures", []),
+                   notes=data.get("notes", []), runtime_s=data.get("runtime_s"), cache_key=data.get("cache_key"))
 
     def write(self, out_dir: str | Path) -> Path:
         """Write ``out_dir/<experiment>.json`` and return its path."""

@@ -9,7 +9,9 @@ value per flight time, value(path) / t(path):
 * ExpectedFreeEnergyPlanner  value = -G = epistemic + pragmatic:
                          epistemic = I(x; z) = 0.5 log det(I + D^1/2 P D^1/2)  (nats),
                          pragmatic = c * sum_images sum_cells p(detect),
-                         p(detect) = m tpr(h) + (1 - m) fpr(h),  m = clip(mean, 0, 1),
+                         p(detect) = q tpr(h) + (1 - q) fpr(h),
+                         q = clip((mean - 0.05) / 0.95, 0, 1)  (occupancy probability: a cell
+                         never detected reads 0.05, so mean 0.05 means empty),
                          c = log preference for observing a person (nats per detected cell).
 
 Optimiser: greedy choice of each next waypoint from a lattice over 4 altitude layers (every
@@ -36,7 +38,7 @@ from typing import Sequence
 import numpy as np
 
 from attend.action.belief import OccupancyMap, observation_gains
-from attend.action.camera import Camera, Detector
+from attend.action.camera import DETECTED_VALUE, NOT_DETECTED_VALUE, Camera, Detector
 from attend.action.errors import ActionInputError
 from attend.action.field import SearchField
 from attend.action.flight import FlightModel, detour, path_collides
@@ -346,7 +348,7 @@ class ExpectedFreeEnergyPlanner(InformativePlanner):
 
     name = "efe"
 
-    def __init__(self, setup: PlanningSetup, seed: int = 0, preference_nats: float = 0.5) -> None:
+    def __init__(self, setup: PlanningSetup, seed: int = 0, preference_nats: float = 1.0) -> None:
         self.preference_nats = preference_nats
         super().__init__(setup, seed)
 
@@ -354,12 +356,18 @@ class ExpectedFreeEnergyPlanner(InformativePlanner):
         detector = self.setup.detector
         noise = np.where(valid, detector.noise_variance(altitudes), np.inf)
         _, information = model.gains(model.precision(visible, noise), want_information=True)
-        occupancy = np.clip(belief.mean, 0.0, 1.0)
+        occupancy = occupancy_probability(belief.mean)
         tpr = detector.true_positive_rate(altitudes)[..., None]
         fpr = detector.false_positive_rate(altitudes)[..., None]
         p_detect = occupancy[None, None, :] * tpr + (1 - occupancy[None, None, :]) * fpr
         pragmatic = self.preference_nats * (p_detect * visible).sum(axis=(1, 2))
         return information + pragmatic
+
+
+def occupancy_probability(mean: np.ndarray) -> np.ndarray:
+    """Map mean to occupancy probability q = clip((mean - z0) / (1 - z0), 0, 1), z0 = 0.05 the
+    reading of a cell without detection."""
+    return np.clip((mean - NOT_DETECTED_VALUE) / (DETECTED_VALUE - NOT_DETECTED_VALUE), 0.0, 1.0)
 
 
 class LawnmowerPlanner(Planner):

@@ -287,7 +287,7 @@ class DEMObserver:
         return signals[np.clip(rows + self.window_offset, 0, signals.shape[0] - 1)]
 
     def estimate(self, outputs, inputs=None, *, keep_generalized: bool = False,
-                 initial_state=None, segment: int = 1 << 17) -> DEMEstimate:
+                 initial_state=None, segment: int = 1 << 14) -> DEMEstimate:
         """Batch estimation over a whole log.
 
         outputs: (N, m) measured outputs; inputs: (N, r) measured inputs (known_inputs=True) or the

@@ -1,0 +1,142 @@
+"""One search-and-rescue mission with outputs: the function behind ``attend search``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from attend.action.camera import Camera, Detector
+from attend.action.episode import EpisodeLog, run_episode
+from attend.action.errors import ActionInputError
+from attend.action.field import DEFAULT_START_POSE_M, make_field
+from attend.action.flight import FlightModel
+from attend.action.planners import PLANNERS, PlanningSetup, make_planner
+
+
+def run_search(
+    planner: str = "efe",
+    seed: int = 0,
+    obstacles: str = "none",
+    people_region: str = "all",
+    budget_s: float = 150.0,
+    out_dir: str | Path = "search_out",
+    n_people: int = 7,
+    start_pose_m: Sequence[float] = DEFAULT_START_POSE_M,
+    altitude_limits_m: Sequence[float] = (2.0, 26.0),
+    altitude_layers_m: Sequence[float] = (5.0, 8.0, 11.0, 14.0),
+    fov_deg: Sequence[float] = (45.0, 60.0),
+    speed_m_s: float = 5.0,
+    acceleration_m_s2: float = 3.0,
+    image_rate_hz: float = 0.15,
+    clutter_rate_per_image: float = 0.0,
+    diagonal: bool = False,
+    charge_planning_time: bool = False,
+    lookahead_waypoints: int = 3,
+    cma_evaluations: int = 24,
+    snapshot_times_s: Sequence[float] | None = None,
+    gif: bool = True,
+) -> dict[str, Path]:
+    """Fly one mission and write its metrics, figures and animation to ``out_dir``.
+
+    planner: "precision_gain", "adaptive", "efe", "lawnmower" or "random";
+    seed: seeds the people placement, the detector and the planner;
+    obstacles: "none" or "buildings" (a 4 x 4 x 26 m tower at the centre, a 4 x 4 x 13 m block);
+    people_region: "all" or "lower_half" (people only at y < 0);
+    budget_s: flight budget in s (> 0); out_dir: output directory (created);
+    n_people: number of people; start_pose_m: take-off (x, y, z) in m, field-centred frame
+    (field spans [-15, 15] m); altitude_limits_m: (min, max) flight altitude in m;
+    altitude_layers_m: planner altitude layers in m; fov_deg: camera field of view (x, y) in
+    degrees, each in (0, 180); speed_m_s, acceleration_m_s2: flight limits; image_rate_hz: camera
+    rate in Hz; clutter_rate_per_image: mean false blobs per image; diagonal: per-cell (diagonal)
+    Kalman filter instead of the full covariance; charge_planning_time: planning wall time counts
+    against the budget; lookahead_waypoints: planner look-ahead (3-5); cma_evaluations: CMA-ES
+    evaluations per replan; snapshot_times_s: times (s) of the map figures (default 4 evenly
+    spaced over the budget); gif: write the animated GIF.
+
+    Returns the written paths: "metrics" (JSON), "maps", "path_3d", "metrics_plot" (PNG) and "gif".
+    Raises ActionInputError (a ValueError) for bad input, naming the argument.
+    """
+    if planner not in PLANNERS:
+        raise ActionInputError(f"planner: expected one of {sorted(PLANNERS)}, got {planner!r}")
+    if not (isinstance(budget_s, (int, float)) and np.isfinite(budget_s) and budget_s > 0):
+        raise ActionInputError(f"budget_s: expected a flight budget > 0 s, got {budget_s!r}")
+    try:
+        fov_x, fov_y = (float(v) for v in fov_deg)
+    except (TypeError, ValueError):
+        raise ActionInputError(f"fov_deg: expected (fov_x, fov_y) in degrees, got {fov_deg!r}") from None
+    if not all(np.isfinite(v) and 0 < v < 180 for v in (fov_x, fov_y)):
+        raise ActionInputError(f"fov_deg: expected each field of view in (0, 180) degrees, got ({fov_x:g}, {fov_y:g})")
+    field = make_field(
+        seed,
+        n_people=n_people,
+        obstacles=obstacles,
+        people_region=people_region,
+        start_pose_m=start_pose_m,
+        altitude_limits_m=altitude_limits_m,
+    )
+    camera = Camera(fov_x, fov_y)
+    detector = Detector(clutter_rate_per_image=clutter_rate_per_image)
+    flight = FlightModel(speed_m_s, acceleration_m_s2, image_rate_hz)
+    setup = PlanningSetup(
+        field, camera, detector, flight, tuple(altitude_layers_m), lookahead_waypoints=lookahead_waypoints,
+        cma_evaluations=cma_evaluations,
+    )
+    chosen = make_planner(planner, setup, seed)
+    log = run_episode(field, chosen, camera, detector, flight, budget_s, seed, diagonal=diagonal,
+                      charge_planning_time=charge_planning_time)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    from attend.action import plots
+
+    times = snapshot_times_s if snapshot_times_s is not None else np.linspace(0, budget_s, 4)
+    paths = {
+        "metrics": write_metrics_json(log, field, out / "search_metrics.json", settings={
+            "planner": planner, "seed": seed, "obstacles": obstacles, "people_region": people_region,
+            "budget_s": budget_s, "diagonal": diagonal, "altitude_layers_m": list(altitude_layers_m),
+            "speed_m_s": speed_m_s, "image_rate_hz": image_rate_hz,
+        }),
+        "maps": plots.plot_maps(field, log, times, out / "search_maps.png"),
+        "path_3d": plots.plot_path_3d(field, log, out / "search_path_3d.png"),
+        "metrics_plot": plots.plot_metrics(log, out / "search_metrics.png"),
+    }
+    if gif:
+        paths["gif"] = plots.write_gif(field, log, out / "search_mission.gif")
+    return paths
+
+
+def episode_summary(log: EpisodeLog) -> dict[str, float]:
+    """Final values of one mission."""
+    find_all = log.time_to_find_all_s()
+    return {
+        "final_rse": float(log.series("rse")[-1]),
+        "final_trace": float(log.series("trace")[-1]),
+        "people_found": float(log.series("people_found")[-1]),
+        "people_total": float(log.people_total),
+        "time_to_find_all_s": find_all if np.isfinite(find_all) else None,
+        "false_alarm_cells": float(log.series("false_alarm_cells")[-1]),
+        "false_alarm_objects": float(log.series("false_alarm_objects")[-1]),
+        "images": float(len(log.times_s)),
+        "median_planner_time_s": float(np.median(log.planner_times_s)) if log.planner_times_s else 0.0,
+    }
+
+
+def write_metrics_json(log: EpisodeLog, field, path: Path, settings: dict) -> Path:
+    """Per-image metrics, the summary and the settings of one mission as JSON."""
+    data = {
+        "settings": settings,
+        "summary": episode_summary(log),
+        "per_image": {
+            "time_s": log.metric_times_s.tolist(),
+            **{key: [float(v) for v in values] for key, values in log.metrics.items()},
+            "pose_m": [[0.0, 0.0, 0.0]] + [np.asarray(p).tolist() for p in log.poses_m],
+        },
+        "planner_times_s": [float(t) for t in log.planner_times_s],
+        "waypoints_m": [np.asarray(w).tolist() for w in log.waypoints_m],
+        "people_xy_m": [[p.x_m, p.y_m, p.heading_rad] for p in field.people],
+    }
+    data["per_image"]["pose_m"][0] = list(field.start_pose_m)
+    path.write_text(json.dumps(data, indent=1) + "\n")
+    return path

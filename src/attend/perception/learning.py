@@ -255,9 +255,9 @@ def _mean_moments(mu, Ytil, Util, st: _Structure) -> np.ndarray:
     tau = np.concatenate([x[:, :, 1:], np.zeros_like(x[:, :, :1])], axis=2)
     Z = np.concatenate([x, Util[:, used], Ytil[:, used], tau], axis=3)  # (R, T', P, dz)
     dz = Z.shape[-1]
-    Zf = Z.reshape(R, -1, P * dz)
+    Zf = np.ascontiguousarray(Z.reshape(R, -1, P * dz))
     with np.errstate(all="ignore"):
-        second = (np.swapaxes(Zf, 1, 2) @ Zf).reshape(R, P, dz, P, dz)
+        second = (np.ascontiguousarray(np.swapaxes(Zf, 1, 2)) @ Zf).reshape(R, P, dz, P, dz)
         K = np.einsum("ij,riajb->rab", st.S, second)
     return 0.5 * (K + np.swapaxes(K, 1, 2))
 

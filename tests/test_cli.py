@@ -48,3 +48,44 @@ def test_reproduce_writes_json_report_and_uses_the_cache(tmp_path, capsys, monke
     assert "cached" in capsys.readouterr().out and calls == [True]
     assert main(["reproduce", "fig2", "--out", str(tmp_path), "--force", "--no-progress"]) == 0
     assert calls == [True, True]
+
+
+def test_identify_learns_and_writes_a_usable_model(tmp_path, capsys):
+    from attend import mass_spring_damper, simulate
+
+    system = mass_spring_damper()
+    t = np.arange(320) * 0.1
+    u = np.exp(-0.25 * (t - 12) ** 2)
+    log = simulate(system, u[:, None], 0.1, kernel_width=0.5, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=1)
+    np.savetxt(tmp_path / "log.csv", np.column_stack([t, log.outputs[:, 0], u]), delimiter=",",
+               header="t,y,u", comments="")
+    (tmp_path / "model.toml").write_text("""
+[model]
+A = [[0, 1], [-1.0, -1.0]]
+B = [[0], [1.0]]
+C = [[1, 0]]
+[outputs]
+columns = ["y"]
+[[inputs]]
+name = "force"
+column = "u"
+[observer]
+kernel_width = 0.5
+sensor_precision = 2980.0
+process_precision = 2980.0
+[learning]
+free = ["A[2,1]", "A[2,2]", "B[2,1]"]
+max_iterations = 20
+""")
+    out = tmp_path / "learned.toml"
+    assert main(["identify", str(tmp_path / "model.toml"), str(tmp_path / "log.csv"), "--out", str(out),
+                 "--no-progress"]) == 0
+    report = capsys.readouterr().out
+    assert "A[2,1]" in report and "free energy" in report
+    from attend import io
+
+    learned = io.read_model(out)
+    assert abs(learned.system.A[1, 0] - system.A[1, 0]) < 0.1  # -k/m = -0.571 from a prior of -1
+    assert abs(learned.system.B[1, 0] - system.B[1, 0]) < 0.1  # 1/m = 0.714 from a prior of 1
+    assert main(["estimate", str(out), str(tmp_path / "log.csv"), "--out", str(tmp_path / "e.csv")]) == 0
+    assert main(["identify", str(tmp_path / "missing.toml"), str(tmp_path / "log.csv")]) == 2

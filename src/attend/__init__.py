@@ -7,6 +7,7 @@ Public API (everything else is private):
 - noise: :func:`coloured_noise`
 - generalised coordinates: :func:`smoothness_precision`, :func:`embed`, :func:`shift_operator`
 - perception: :class:`DEMObserver`, :class:`DEMEstimate`
+- learning: :func:`identify`, :class:`IdentificationResult`
 - errors: :class:`AttendInputError`, :class:`ModelWarning`
 """
 
@@ -14,6 +15,7 @@ from attend._validation import AttendInputError
 from attend.generalized import block_precisions, embed, embedding_weights, shift_operator, smoothness_precision
 from attend.noise import coloured_noise
 from attend.perception.dem import DEMEstimate, DEMObserver, OnlineDEM
+from attend.perception.learning import IdentificationResult, identify
 from attend.systems import (
     LinearSystem,
     ModelWarning,
@@ -31,6 +33,7 @@ __all__ = [
     "AttendInputError",
     "DEMEstimate",
     "DEMObserver",
+    "IdentificationResult",
     "LinearSystem",
     "ModelWarning",
     "OnlineDEM",
@@ -41,6 +44,7 @@ __all__ = [
     "embed",
     "embedding_weights",
     "identification_system",
+    "identify",
     "mass_spring_damper",
     "quadrotor_roll",
     "shift_operator",

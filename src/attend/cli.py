@@ -68,6 +68,21 @@ def _build_parser() -> argparse.ArgumentParser:
                            help="rerun even when OUT/NAME.json holds a result for the same code and mode (cache)")
     reproduce.add_argument("--report", action="store_true",
                            help="also write OUT/index.html for a single experiment (always written for 'all')")
+    identify = commands.add_parser(
+        "identify",
+        help="learn the parameters and noise precisions of your model from a CSV log",
+        description="System identification with precision learning (DEM's D, E and M steps): the model "
+        "file's A, B, C are the prior means, its [learning] section says which entries are free and how "
+        "precise the priors are. Writes a learned model file (posterior means and precisions of the "
+        "parameters, learned noise precisions) and prints the convergence report.",
+        epilog="See README.md ('Identify your model') for the [learning] section.",
+    )
+    identify.add_argument("model", help="model file (TOML) with a [learning] section; all inputs measured")
+    identify.add_argument("log", help="log file (CSV, uniform time column in seconds)")
+    identify.add_argument("--out", default="learned_model.toml",
+                          help="learned model file, usable by 'attend estimate' (default: %(default)s)")
+    identify.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
     search = commands.add_parser(
         "search",
         help="fly one UAV search-and-rescue mission with a precision-map planner",
@@ -100,6 +115,24 @@ def _build_parser() -> argparse.ArgumentParser:
     search.add_argument("--no-gif", action="store_true", help="skip the animated GIF (faster)")
     search.add_argument("--out", default="search_out", help="output directory (default: %(default)s)")
     return parser
+
+
+def _command_identify(args) -> int:
+    from attend import io
+
+    model = io.read_model(args.model)
+    log = io.read_log(args.log, model.time_column)
+    started = time.perf_counter()
+    result = io.identify_from_files(model, log, progress=not args.no_progress)
+    elapsed = time.perf_counter() - started
+    print(result.table())
+    accepted = ", ".join(f"{step}: {count}" for step, count in result.steps_accepted.items())
+    print(f"free energy: {result.free_energy[0]:.6g} -> {result.free_energy[-1]:.6g} over {result.iterations} "
+          f"iterations ({result.message}); "
+          f"steps accepted {accepted}; {elapsed:.2f} s")
+    path = io.write_learned_model(args.out, model, result)
+    print(f"learned model -> {path}")
+    return 0
 
 
 def _command_search(args) -> int:
@@ -206,7 +239,8 @@ def main(argv=None) -> int:
     if args.command is None:
         parser.print_help()
         return 0
-    handlers = {"estimate": _command_estimate, "reproduce": _command_reproduce, "search": _command_search}
+    handlers = {"estimate": _command_estimate, "reproduce": _command_reproduce, "search": _command_search,
+                "identify": _command_identify}
     warnings.simplefilter("default")
     warnings.formatwarning = lambda message, category, *rest: f"attend: warning: {message}\n"
     try:

@@ -34,6 +34,15 @@ Model file (all times in seconds)::
     [log]
     time_column = "t"               # CSV column with time stamps [s], uniform spacing
 
+    [learning]                      # only for `attend identify` (all inputs measured)
+    free = ["A[2,1]", "A[2,2]", "B[2,1]"]   # entries to learn (1-based row, column)
+    free_prior_precision = 1.0      # P_theta of the free entries (their prior means: [model])
+    known_prior_precision = 3.3e6   # P_theta of the other entries (exp(15))
+    noise_prior_mean = [0.0, 0.0]   # eta_lambda of [lambda_z, lambda_w] (log-precisions)
+    noise_prior_precision = 1.0     # P_lambda
+    max_iterations = 50
+    tolerance = 1e-3                # stop when an iteration raises F by less
+
 Log file: CSV with a header row; the time column, the output columns and the known-input
 columns named in the model file (other columns are ignored).
 """
@@ -63,6 +72,15 @@ _SECTIONS = {
         "process_precision", "precision_convention", "known_input_precision",
     },
     "log": {"time_column"},
+    "learning": {
+        "free", "free_prior_precision", "known_prior_precision", "noise_prior_mean",
+        "noise_prior_precision", "max_iterations", "tolerance",
+    },
+    # written by `attend identify`; informative, not used by the observer
+    "learned": {
+        "parameter_names", "parameters", "parameter_precision", "log_precision", "free_energy",
+        "converged", "iterations", "message",
+    },
 }
 _INPUT_KEYS = {"name", "column", "operating_point", "prior_mean", "prior_precision"}
 
@@ -98,6 +116,7 @@ class ModelFile:
     precision_convention: str
     known_input_precision: float
     time_column: str
+    learning: dict = None
     path: str = ""
 
     def observer(self, dt: float) -> DEMObserver:
@@ -209,6 +228,7 @@ def read_model(path: str | Path) -> ModelFile:
         precision_convention=observer.get("precision_convention", "size"),
         known_input_precision=float(observer.get("known_input_precision", KNOWN_INPUT_PRECISION)),
         time_column=data.get("log", {}).get("time_column", "t"),
+        learning=dict(data.get("learning", {})),
         path=str(path),
     )
 
@@ -317,4 +337,72 @@ def write_estimates(path: str | Path, log: Log, system: LinearSystem, estimate: 
     table = np.column_stack([log.time, estimate.states, estimate.inputs, estimate.state_std, estimate.input_std])
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savetxt(path, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+    return path
+
+
+def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
+    """Run attend's learning (D, E, M steps) on the log with the model file's [learning] settings.
+
+    The model's A, B, C are the prior means; every input must be measured (a column).
+    """
+    from attend.perception.learning import identify
+
+    unknown = [spec.name for spec in model.inputs if not spec.known]
+    if unknown:
+        raise AttendInputError(
+            f"{model.path}: identify needs measured inputs; input(s) {', '.join(map(repr, unknown))} have no column"
+        )
+    if len(log.time) < 2:
+        raise AttendInputError(f"{log.path}: expected at least 2 samples, got {len(log.time)}")
+    dt = log.dt
+    if model.dt is not None and abs(model.dt - dt) > 1e-4 * dt:
+        raise AttendInputError(f"{model.path}: [model] dt = {model.dt} s but the log {log.path} is sampled every {dt:.6g} s")
+    outputs = log.matrix(model.output_columns)
+    require_finite(outputs, f"{log.path}: output columns {', '.join(model.output_columns)}")
+    inputs = np.column_stack([log.matrix([spec.column])[:, 0] - spec.operating_point for spec in model.inputs])
+    require_finite(inputs, f"{log.path}: input columns")
+    settings = dict(model.learning or {})
+    options = {key: settings[key] for key in (
+        "free", "free_prior_precision", "known_prior_precision", "noise_prior_mean", "noise_prior_precision",
+        "max_iterations", "tolerance") if key in settings}
+    if "noise_prior_mean" in options:
+        options["noise_prior_mean"] = tuple(options["noise_prior_mean"])
+    return identify(model.system, outputs, inputs, dt, kernel_width=model.kernel_width,
+                    embedding_order=model.embedding_order, input_order=model.input_order,
+                    precision_convention=model.precision_convention, progress=progress, **options)
+
+
+def write_learned_model(path: str | Path, model: ModelFile, result) -> Path:
+    """A model file with the learned A, B, C and noise precisions, their posterior precisions in
+    [learned], ready for `attend estimate`."""
+    import tomli_w
+
+    system = result.system()
+    data = tomllib.loads(Path(model.path).read_text()) if model.path else {}
+    data.setdefault("model", {})
+    data["model"]["A"] = system.A.tolist()
+    data["model"]["B"] = system.B.tolist()
+    data["model"]["C"] = system.C.tolist()
+    observer = data.setdefault("observer", {})
+    observer["sensor_precision"] = float(result.sensor_precision)
+    observer["process_precision"] = float(result.process_precision)
+    learned = {
+        "parameter_names": list(result.parameter_names),
+        "parameters": [float(v) for v in result.parameters],
+        "parameter_precision": [float(v) for v in np.diag(np.atleast_2d(result.parameter_precision))]
+        if np.ndim(result.parameter_precision) == 2 else [float(v) for v in result.parameter_precision],
+        "log_precision": [float(v) for v in result.log_precision],
+        "free_energy": [float(v) for v in result.free_energy],
+        "converged": bool(result.converged),
+        "iterations": int(result.iterations),
+        "message": str(result.message),
+    }
+    learned_section = {"learned": learned}
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    header = "# Learned by `attend identify`: [model] holds the posterior means; [learned] the details.\n"
+    data.pop("learned", None)
+    body = tomli_w.dumps(data) + "\n# posterior parameter precisions (Pi_theta diagonal), noise log-precisions\n"
+    body += "# [lambda_z, lambda_w], free energy per iteration\n" + tomli_w.dumps(learned_section)
+    path.write_text(header + body)
     return path

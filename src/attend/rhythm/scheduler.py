@@ -54,10 +54,10 @@ class ScheduledTask(Protocol):
     precision and ``duration`` [s] is the length of the step."""
 
     def expected_gain_of_staying(self, precision_gain: float, duration: float) -> float:
-        """Expected gain of one more perception step where the sensor is now."""
+        """Expected gain of perceiving for ``duration`` more where the sensor is now."""
 
     def expected_gain_of_moving(self, precision_gain: float, duration: float) -> float:
-        """Expected gain of one perception step at the best place the sensor could move to."""
+        """Expected gain of perceiving for ``duration`` at the best place the sensor could move to."""
 
     def perceive(self, precision_gain: float, duration: float) -> None:
         """Assimilate one step of data with precision scaled by ``precision_gain``."""
@@ -189,18 +189,20 @@ class FixedDurationScheduler(_Scheduler):
 class PrecisionDrivenScheduler(_Scheduler):
     """Move when staying stops paying; the rhythm is a prior on when.
 
-    At each perception step (after ``min_fixation_steps``) with G_stay, G_move the task's expected
-    gains of one step here / at the best other place (at gain g = ``perception_gain``):
+    A marginal-value rule (as in optimal foraging). At each perception step (after
+    ``min_fixation_steps``), with g = ``perception_gain`` and dt = ``time_step``:
 
-        move  iff  G_stay < G_move * (h - m) / h * exp(-kappa sin theta(t))
+        G_stay = task.expected_gain_of_staying(g, dt)             one more step here
+        G_move = task.expected_gain_of_moving(g, (h - m) dt)      a whole fixation elsewhere
+        move  iff  G_stay < G_move / h * exp(-kappa sin theta(t))
 
-    h = ``horizon_steps`` (look-ahead, default one oscillator cycle), m = action steps: the move
-    costs m steps of (almost) no data, so over h steps moving earns G_move (h - m) / h per step.
-    kappa = ``prior_weight`` >= 0: the oscillator's phase theta(t) tilts the decision towards the
-    troughs (sin theta = -1 raises the bar for staying by e^kappa) and away from the peaks;
-    kappa = 0 is the pure precision-dynamics rule. While G_stay is high (the posterior precision
-    still rises quickly) the sensor stays. A move lasts ``action_duration`` [s] at gain
-    s * ``perception_gain``.
+    A move costs m action steps of (almost) no data, so over the next h = ``horizon_steps``
+    steps (default: one oscillator cycle) moving earns G_move / h per step on average; staying
+    earns G_stay now, and G_stay falls as the posterior precision saturates. While the posterior
+    precision still rises quickly (G_stay high) the sensor stays. kappa = ``prior_weight`` >= 0:
+    the oscillator phase theta(t) tilts the decision towards its troughs (sin theta = -1 lowers
+    the bar for moving by e^kappa) and away from its peaks; kappa = 0 is the pure
+    precision-dynamics rule. A move lasts m = ``action_duration`` / dt steps at gain s * g.
 
     ``perception_gain`` defaults to the oscillator's mean gain over its perception windows, so
     the precision budget per perception step matches :class:`OscillatorScheduler`'s.
@@ -234,10 +236,10 @@ class PrecisionDrivenScheduler(_Scheduler):
         self.min_fixation_steps = _positive_int(min_fixation_steps, "min_fixation_steps")
 
     def should_move(self, gain_of_staying: float, gain_of_moving: float, time: float) -> bool:
-        """The decision rule above, at time ``time`` [s]."""
-        travel = (self.horizon_steps - self.action_steps) / self.horizon_steps
+        """The decision rule above at time ``time`` [s]: G_stay (one step) vs G_move (a fixation of
+        h - m steps)."""
         prior = math.exp(-self.prior_weight * math.sin(float(self.oscillator.phase_angle(time))))
-        return gain_of_staying < gain_of_moving * travel * prior
+        return gain_of_staying < gain_of_moving / self.horizon_steps * prior
 
     def steps(self, task: ScheduledTask | None, n_steps: int) -> Iterator[ScheduleStep]:
         if task is None:
@@ -254,7 +256,8 @@ class PrecisionDrivenScheduler(_Scheduler):
                 i += 1
                 continue
             if fixation_steps >= self.min_fixation_steps and self.should_move(
-                    task.expected_gain_of_staying(g, dt), task.expected_gain_of_moving(g, dt), t + 0.5 * dt):
+                    task.expected_gain_of_staying(g, dt),
+                    task.expected_gain_of_moving(g, (self.horizon_steps - self.action_steps) * dt), t + 0.5 * dt):
                 action_left, fixation_steps = self.action_steps, 0
                 continue
             yield ScheduleStep(i, t, dt, PERCEIVE, g, fixation_steps == 0)

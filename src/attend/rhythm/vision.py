@@ -195,32 +195,38 @@ def information_gain(log_posterior: np.ndarray, precisions: np.ndarray, patterns
 
     I = -sum_c q(c) mean_s logsumexp_k(log q(k) + a_ck(e_s)), a as in the module docstring;
     ``noise`` (S, D) standard normal samples."""
-    differences = patterns[:, None, :] - patterns[None, :, :]            # (K, K, D): mu_c - mu_k
+    lam = np.asarray(precisions, dtype=float)
+    batch = lam.ndim - 1                                                  # leading axes before L
+    differences = patterns[None, :, :] - patterns[:, None, :]            # [k, c] = mu_c - mu_k
     squared = np.sum(differences ** 2, axis=-1)                          # (K, K)
-    projections = np.einsum("sd,ckd->sck", noise, differences)           # (S, K, K)
-    lam = np.asarray(precisions, dtype=float)[..., None, None, None]     # (..., L, 1, 1, 1)
-    exponent = -0.5 * lam * squared - np.sqrt(lam) * projections         # (..., L, S, K, K)
-    log_q = log_posterior[:, None, None, :]                              # (L, 1, 1, K)
-    log_marginal = _logsumexp(log_q + exponent, axis=-1)                  # (..., L, S, K): over k
-    q = np.exp(log_posterior)                                            # (L, K): over c
-    return np.maximum(-np.einsum("...lc,lc->...l", log_marginal.mean(axis=-2), q), 0.0)
+    projections = np.einsum("sd,kcd->kcs", noise, differences)           # (K, K, S)
+    expand = (...,) + (None,) * lam.ndim
+    exponent = -0.5 * squared[expand][:, :, None] * lam - projections[expand] * np.sqrt(lam)
+    log_q = log_posterior.T.reshape((log_posterior.shape[1], 1, 1) + (1,) * batch + (log_posterior.shape[0],))
+    log_marginal = _logsumexp(exponent + log_q, axis=0)                   # (K_c, S, ..., L)
+    q = np.exp(log_posterior).T.reshape((log_posterior.shape[1],) + (1,) * batch + (log_posterior.shape[0],))
+    return np.maximum(-np.sum(q * log_marginal.mean(axis=1), axis=0), 0.0)
 
 
 def salience_map(log_posterior: np.ndarray, locations: np.ndarray, eye: FoveatedEye, dose: float,
                  patterns: np.ndarray, noise: np.ndarray, fixations=None,
-                 resolved_entropy: float = 1e-6, negligible_acuity: float = 1e-6) -> np.ndarray:
+                 resolved_entropy: float = 1e-4, negligible_acuity: float = 1e-6) -> np.ndarray:
     """S(f) = sum_l I(c_l; y_l | rho * dose * acuity(f, l)) [nats] for every candidate fixation f
     (all locations, or the indices ``fixations``); ``dose`` = integral of g dt [s].
 
-    I is computed once per (location, distinct eccentricity). Locations with entropy below
-    ``resolved_entropy`` [nats] and eccentricities with acuity below ``negligible_acuity``
-    contribute ~0 and are skipped."""
+    I is computed once per (location, distinct eccentricity). Locations with entropy H_l below
+    ``resolved_entropy`` [nats] are skipped (I <= H_l, so S changes by less than L times that)
+    and so are eccentricities with acuity below ``negligible_acuity``."""
     candidates = np.arange(len(locations)) if fixations is None else np.asarray(fixations, dtype=int)
     open_locations = entropy(log_posterior) > resolved_entropy
     result = np.zeros(len(candidates))
     if not open_locations.any():
         return result
     squared = np.sum((locations[candidates][:, None, :] - locations[open_locations][None, :, :]) ** 2, axis=-1)
+    if len(candidates) == 1:  # one fixation: one eccentricity per location, compute directly
+        acuity = np.exp(-squared / (2.0 * eye.fovea_width ** 2))
+        lam = eye.foveal_precision_rate * dose * np.where(acuity >= negligible_acuity, acuity, 0.0)
+        return information_gain(log_posterior[open_locations], lam, patterns, noise).sum(axis=1)
     distinct, inverse = np.unique(np.round(squared, 9), return_inverse=True)
     inverse = inverse.reshape(squared.shape)
     acuity = np.exp(-distinct / (2.0 * eye.fovea_width ** 2))

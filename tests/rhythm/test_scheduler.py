@@ -1,0 +1,128 @@
+"""Schedulers: the rhythm's timing, fixed budgets, the precision-driven rule on a toy task."""
+
+import math
+
+import numpy as np
+import pytest
+
+from attend._validation import AttendInputError
+from attend.rhythm import (
+    ACT,
+    PERCEIVE,
+    FixedDurationScheduler,
+    OscillatorScheduler,
+    PrecisionDrivenScheduler,
+    PrecisionOscillator,
+    ScheduledTask,
+    drive,
+)
+
+
+class DecayingTask:
+    """Staying yields G0 exp(-n / tau) per step after n steps here (posterior saturates); a
+    fixation elsewhere yields ``move_gain``. Counts calls."""
+
+    def __init__(self, g0=1.0, tau=4.0, move_gain=2.0):
+        self.g0, self.tau, self.move_gain = g0, tau, move_gain
+        self.steps_here, self.perceived, self.acted, self.moves = 0, 0, 0, 0
+
+    def expected_gain_of_staying(self, precision_gain, duration):
+        return self.g0 * math.exp(-self.steps_here / self.tau)
+
+    def expected_gain_of_moving(self, precision_gain, duration):
+        return self.move_gain
+
+    def perceive(self, precision_gain, duration):
+        self.perceived += 1
+        self.steps_here += 1
+
+    def act(self, precision_gain, duration, onset):
+        self.acted += 1
+        if onset:
+            self.moves += 1
+            self.steps_here = 0
+
+
+def test_oscillator_scheduler_acts_in_the_troughs():
+    osc = PrecisionOscillator(frequency=4.0, depth=1.0, phase=0.0)
+    scheduler = OscillatorScheduler(osc, time_step=0.001, action_fraction=0.25, saccadic_suppression=0.1)
+    steps = list(scheduler.steps(None, 2000))  # 2 s = 8 cycles
+    acting = np.array([s.mode == ACT for s in steps])
+    assert acting.mean() == pytest.approx(0.25, abs=5e-3)  # 62.5 steps per trough, rounded
+    onsets = [s for s in steps if s.onset and s.mode == ACT]
+    assert len(onsets) == 8
+    times = np.array([s.time for s in steps])
+    for trough in osc.trough_times(0.0, 2.0):  # every trough lies inside an action phase
+        assert acting[int(trough / 0.001)]
+    for s in steps:
+        expected = osc.gain(s.time + 0.0005) * (0.1 if s.mode == ACT else 1.0)
+        assert s.precision_gain == pytest.approx(expected)
+    assert times[1] - times[0] == pytest.approx(0.001)
+
+
+def test_oscillator_scheduler_mean_perception_gain():
+    osc = PrecisionOscillator(frequency=4.0, depth=1.0)
+    scheduler = OscillatorScheduler(osc, action_fraction=0.25)
+    t = (np.arange(400000) + 0.5) / 400000 * osc.period
+    g = osc.gain(t)
+    assert scheduler.mean_perception_gain() == pytest.approx(g[g >= scheduler.threshold].mean(), rel=1e-3)
+
+
+def test_fixed_duration_pattern():
+    scheduler = FixedDurationScheduler(0.05, 0.02, time_step=0.01, perception_gain=2.0, saccadic_suppression=0.25)
+    modes = [s.mode for s in scheduler.steps(None, 14)]
+    assert modes == [PERCEIVE] * 5 + [ACT] * 2 + [PERCEIVE] * 5 + [ACT] * 2
+    gains = [s.precision_gain for s in scheduler.steps(None, 7)]
+    assert gains == [2.0] * 5 + [0.5] * 2
+
+
+def test_precision_driven_moves_when_staying_stops_paying():
+    # G_stay(n) = exp(-n / 4) < G_move / h = 2 / 20 = 0.1 first at n = 10 steps here.
+    osc = PrecisionOscillator(frequency=4.0)
+    scheduler = PrecisionDrivenScheduler(osc, time_step=0.0125, action_duration=0.0375, prior_weight=0.0,
+                                         perception_gain=1.0)
+    assert scheduler.horizon_steps == 20 and scheduler.action_steps == 3
+    task = DecayingTask()
+    trace = drive(scheduler, task, 39)
+    expected = [True] * 10 + [False] * 3
+    assert list(trace.perceiving) == expected * 3
+    assert task.moves == 3 and trace.n_moves == 3
+    assert isinstance(task, ScheduledTask)
+
+
+def test_precision_driven_prior_pulls_moves_towards_troughs():
+    osc = PrecisionOscillator(frequency=4.0, phase=0.0)
+    task_times = {}
+    for weight in (0.0, 3.0):
+        scheduler = PrecisionDrivenScheduler(osc, time_step=0.0025, action_duration=0.01, prior_weight=weight,
+                                             perception_gain=1.0)
+        task = DecayingTask(tau=20.0, move_gain=scheduler.horizon_steps * 0.3)
+        trace = drive(scheduler, task, 2000)
+        onset_times = trace.time[trace.onset & ~trace.perceiving]
+        task_times[weight] = np.sin(osc.phase_angle(onset_times))
+    # with the prior, moves start at lower phase (closer to the troughs, sin = -1)
+    assert task_times[3.0].mean() < task_times[0.0].mean() - 0.3
+
+
+def test_drive_until_stops_early():
+    task = DecayingTask()
+    scheduler = FixedDurationScheduler(0.05, 0.02, time_step=0.01)
+    trace = drive(scheduler, task, 100, until=lambda step: step.index == 9)
+    assert len(trace.time) == 9 and task.perceived + task.acted == 9
+
+
+@pytest.mark.parametrize("make, field", [
+    (lambda: OscillatorScheduler(PrecisionOscillator(), time_step=0.0), "time_step"),
+    (lambda: OscillatorScheduler(PrecisionOscillator(), action_fraction=1.0), "action_fraction"),
+    (lambda: OscillatorScheduler(PrecisionOscillator(), saccadic_suppression=1.5), "saccadic_suppression"),
+    (lambda: OscillatorScheduler("4 Hz"), "oscillator"),
+    (lambda: FixedDurationScheduler(0.0, 0.05), "fixation_duration"),
+    (lambda: FixedDurationScheduler(0.2, -1.0), "action_duration"),
+    (lambda: PrecisionDrivenScheduler(PrecisionOscillator(), prior_weight=-1.0), "prior_weight"),
+    (lambda: PrecisionDrivenScheduler(PrecisionOscillator(), horizon_steps=2, action_duration=0.05), "horizon_steps"),
+    (lambda: list(PrecisionDrivenScheduler(PrecisionOscillator()).steps(None, 3)), "task"),
+    (lambda: list(OscillatorScheduler(PrecisionOscillator()).steps(None, 0)), "n_steps"),
+])
+def test_bad_input_names_the_field(make, field):
+    with pytest.raises(AttendInputError, match=field):
+        make()

@@ -149,10 +149,18 @@ class _PlanningModel:
             self.weights = weights
         else:
             b = self.block
-            blocks = belief.covariance.reshape(nb, b, nb, b, nb, b, nb, b).mean(axis=(1, 3, 5, 7))
-            self.covariance = blocks.reshape(self.n_blocks, self.n_blocks)
+            n = grid.n_cells
+            rows = belief.covariance.reshape(n, nb, b, nb, b).sum(axis=(2, 4)).reshape(n, self.n_blocks)
+            blocks = rows.T.reshape(self.n_blocks, nb, b, nb, b).sum(axis=(2, 4)).reshape(self.n_blocks, self.n_blocks)
+            self.covariance = blocks / self.area**2  # B P B', B averaging each block
             self.weights = weights.reshape(nb, b, nb, b).mean(axis=(1, 3)).ravel()
         self._refresh()
+
+    def copy(self) -> "_PlanningModel":
+        twin = object.__new__(_PlanningModel)
+        twin.__dict__.update(self.__dict__)
+        twin.covariance = self.covariance.copy()
+        return twin
 
     def _refresh(self) -> None:
         self.weighted_square = None if self.diagonal else (self.covariance * self.weights[None, :]) @ self.covariance
@@ -240,7 +248,8 @@ class InformativePlanner(Planner):
         setup = self.setup
         pose = np.asarray(pose, float)
         weights = self.cell_weights(belief)
-        model = _PlanningModel(belief, setup, weights)
+        base_model = _PlanningModel(belief, setup, weights)
+        model = base_model.copy()
         lattice = setup.lattice()
         flight = setup.flight
         # Greedy: choose each waypoint by the value rate of its segment, conditioning in between.
@@ -269,15 +278,14 @@ class InformativePlanner(Planner):
         greedy = np.array(chosen)
         if setup.cma_evaluations <= 0 or len(greedy) == 0:
             return greedy
-        return self._refine(belief, pose, greedy, float(time_to_next_image_s), float(remaining_budget_s), weights)
+        return self._refine(belief, pose, greedy, float(time_to_next_image_s), float(remaining_budget_s), base_model)
 
     def _refine(
-        self, belief: OccupancyMap, pose: np.ndarray, greedy: np.ndarray, t_next: float, budget: float, weights
+        self, belief: OccupancyMap, pose: np.ndarray, greedy: np.ndarray, t_next: float, budget: float, model
     ) -> np.ndarray:
         import cma
 
         setup = self.setup
-        model = _PlanningModel(belief, setup, weights)
         half = setup.field.grid.size_m / 2 - 0.5
         low = np.array([-half, -half, min(setup.altitude_layers_m)])
         high = np.array([half, half, max(setup.altitude_layers_m)])

@@ -22,6 +22,7 @@ import numpy as np
 
 from attend.experiments._result import ExperimentResult
 from attend.perception.learning import learn_batch, parameter_vector
+from attend.sweep import chunk_slices, run_tasks
 from attend.systems import mass_spring_damper, simulate
 
 #: theta3 = -k/m, theta4 = -b/m, theta6 = 1/m (1-based positions in theta = [vec A; vec B; vec C])
@@ -58,25 +59,86 @@ def random_priors(seeds, rng_offset: int = 1000) -> np.ndarray:
     return eta
 
 
-def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentResult:
-    """Median parameter SSE vs P_theta over seeds (one batched learning call)."""
-    n_seeds, n_prec = (12, 13) if quick else (50, 25)
+#: Runs per sweep task: each task is one learn_batch call over this many (seed, P_theta) runs
+#: (at least 2: see attend.sweep.chunk_slices), enough to amortise the per-iteration overhead.
+RUNS_PER_TASK = 64
+
+
+def learn_msd_runs(task: dict) -> dict:
+    """Learn one chunk of mass-spring-damper runs: the sweep task of Figs. 4 and 5.
+
+    ``task`` is self-contained and seeded: ``settings`` (dt, duration, kernel_width,
+    embedding_order, iterations, process_std) and per-run arrays ``seed`` (simulation seed),
+    ``sensor_std``, ``prior_mean`` eta_theta (R, 8) and ``prior_precision`` P_theta of the free
+    entries (R,) (the known entries keep exp(15)). The logs are simulated here from the seeds
+    (once per distinct (seed, sensor_std)) and all R runs are learned in one batched call, so
+    the result does not depend on where the task runs or on how the sweep was cut into tasks.
+    Returns per-run ``parameters`` (R, 8), ``log_precision`` (R, 2), ``iterations`` (R,) and
+    ``parameter_history`` (R, iterations + 1, 8; NaN after a run's last iteration).
+    """
+    cfg = task["settings"]
+    seeds = np.asarray(task["seed"], dtype=int)
+    sensor_std = np.asarray(task["sensor_std"], dtype=float)
+    pairs, which = np.unique(np.stack([seeds.astype(float), sensor_std], axis=1), axis=0, return_inverse=True)
+    Y, U = msd_logs(pairs[:, 0].astype(int), pairs[:, 1], cfg["process_std"], cfg["dt"], cfg["duration"],
+                    cfg["kernel_width"])
+    which = np.asarray(which).ravel()
+    P = np.where(FREE[None], np.asarray(task["prior_precision"], dtype=float)[:, None], KNOWN_PRECISION)
+    result = learn_batch(Y[which], U[which], cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"],
+                         prior_mean=np.asarray(task["prior_mean"], dtype=float), prior_precision=P,
+                         embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"])
+    return dict(parameters=result.parameters, log_precision=result.log_precision,
+                iterations=result.iterations, parameter_history=result.parameter_history)
+
+
+def msd_tasks(settings: dict, seed, sensor_std, prior_mean, prior_precision,
+              runs_per_task: int = RUNS_PER_TASK) -> list[dict]:
+    """Cut a list of runs (per-run arrays, in sweep order) into :func:`learn_msd_runs` tasks."""
+    keys = ("dt", "duration", "kernel_width", "embedding_order", "iterations", "process_std")
+    shared = {k: settings[k] for k in keys}
+    seed, sensor_std, prior_precision = (np.broadcast_to(np.asarray(a), (len(prior_mean),))
+                                         for a in (seed, sensor_std, prior_precision))
+    return [dict(settings=shared, seed=seed[s].copy(), sensor_std=sensor_std[s].copy(),
+                 prior_mean=np.asarray(prior_mean)[s].copy(), prior_precision=prior_precision[s].copy())
+            for s in chunk_slices(len(prior_mean), runs_per_task)]
+
+
+def gather_runs(results: list[dict]) -> dict:
+    """Concatenate :func:`learn_msd_runs` results in task order; histories NaN-padded to one length."""
+    length = max(r["parameter_history"].shape[1] for r in results)
+    history = [np.pad(r["parameter_history"], ((0, 0), (0, length - r["parameter_history"].shape[1]), (0, 0)),
+                      constant_values=np.nan) for r in results]
+    out = {k: np.concatenate([r[k] for r in results]) for k in ("parameters", "log_precision", "iterations")}
+    out["parameter_history"] = np.concatenate(history)
+    return out
+
+
+def run(quick: bool = True, out_dir=None, progress: bool = True, *, cluster=None, n_seeds: int | None = None,
+        n_prior_precisions: int | None = None, runs_per_task: int = RUNS_PER_TASK) -> ExperimentResult:
+    """Median parameter SSE vs P_theta over seeds.
+
+    The (P_theta, seed) grid is cut into tasks of ``runs_per_task`` runs, each learned with one
+    batched call; ``cluster`` (None: here; ``"tcp://host:8786"`` or a ``distributed.Client``)
+    says where they run (:func:`attend.sweep.run_tasks`): the numbers are the same either way.
+    ``n_seeds`` and ``n_prior_precisions`` override the quick/full sizes (12 x 13 / 50 x 25).
+    """
+    default_seeds, default_prec = (12, 13) if quick else (50, 25)
+    n_seeds = default_seeds if n_seeds is None else int(n_seeds)
+    n_prec = default_prec if n_prior_precisions is None else int(n_prior_precisions)
     cfg = dict(SETTINGS, seeds=n_seeds, prior_precisions=np.logspace(-4, 8, n_prec).tolist())
     precisions = np.array(cfg["prior_precisions"])
     seeds = np.arange(n_seeds)
     theta_true = parameter_vector(mass_spring_damper())
     std = np.exp(-cfg["noise_log_precision"] / 2)
-    Y, U = msd_logs(seeds, std, std, cfg["dt"], cfg["duration"], cfg["kernel_width"])
     eta = random_priors(seeds)
     # runs ordered (precision, seed)
-    R = n_prec * n_seeds
     idx_seed = np.tile(np.arange(n_seeds), n_prec)
     idx_prec = np.repeat(np.arange(n_prec), n_seeds)
-    P = np.where(FREE[None], precisions[idx_prec][:, None], KNOWN_PRECISION)
-    result = learn_batch(Y[idx_seed], U[idx_seed], cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"],
-                         prior_mean=eta[idx_seed], prior_precision=P, embedding_order=cfg["embedding_order"],
-                         max_iterations=cfg["iterations"], progress=progress)
-    sse = np.sum((result.parameters[:, FREE] - theta_true[FREE]) ** 2, axis=1).reshape(n_prec, n_seeds)
+    tasks = msd_tasks(dict(cfg, process_std=std), seeds[idx_seed], std, eta[idx_seed], precisions[idx_prec],
+                      runs_per_task)
+    runs = gather_runs(run_tasks(learn_msd_runs, tasks, cluster=cluster, progress=progress,
+                                 desc=f"fig4 ({len(idx_seed)} runs, {len(tasks)} tasks)"))
+    sse = np.sum((runs["parameters"][:, FREE] - theta_true[FREE]) ** 2, axis=1).reshape(n_prec, n_seeds)
     prior_sse = np.sum((eta[:, FREE] - theta_true[FREE]) ** 2, axis=1)
     median = np.median(sse, axis=1)
 
@@ -89,12 +151,12 @@ def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentRe
     out.add("orders_of_magnitude_swept", np.log10(precisions[-1] / precisions[0]), "decades", None)
     out.data.update(prior_precision=precisions, sse=sse, prior_sse=prior_sse)
     if out_dir is not None:
-        out.figures.append(str(_plot(result, precisions, sse, theta_true, idx_prec, Path(out_dir))))
+        out.figures.append(str(_plot(runs["parameter_history"], precisions, sse, theta_true, idx_prec, Path(out_dir))))
         out.write(out_dir)
     return out
 
 
-def _plot(result, precisions, sse, theta_true, idx_prec, out_dir: Path) -> Path:
+def _plot(parameter_history, precisions, sse, theta_true, idx_prec, out_dir: Path) -> Path:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -106,7 +168,7 @@ def _plot(result, precisions, sse, theta_true, idx_prec, out_dir: Path) -> Path:
     for ax, which, title in ((axes[0], 0, "a) over-exposed (lowest P_theta)"),
                              (axes[2], len(precisions) - 1, "c) biased (highest P_theta)")):
         run = np.flatnonzero(idx_prec == which)[0]
-        history = result.parameter_history[run][:, FREE]
+        history = parameter_history[run][:, FREE]
         for j in range(3):
             line, = ax.plot(history[:, j], label=labels[j])
             ax.axhline(theta_true[FREE][j], color=line.get_color(), ls=":", lw=1)

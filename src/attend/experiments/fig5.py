@@ -23,8 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from attend.experiments._result import ExperimentResult
-from attend.experiments.fig4 import FREE, KNOWN_PRECISION, msd_logs
-from attend.perception.learning import learn_batch, parameter_vector
+from attend.experiments.fig4 import FREE, RUNS_PER_TASK, gather_runs, learn_msd_runs, msd_tasks
+from attend.perception.learning import parameter_vector
+from attend.sweep import run_tasks
 from attend.systems import mass_spring_damper
 
 SETTINGS = dict(dt=0.1, duration=32.0, kernel_width=0.5, process_log_precision=8.0, embedding_order=6,
@@ -32,9 +33,19 @@ SETTINGS = dict(dt=0.1, duration=32.0, kernel_width=0.5, process_log_precision=8
                 biased_prior_precision=1e4, prior_relative_spread=0.2, iterations=30)
 
 
-def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentResult:
-    """Median SSE of both learners vs sensor noise, their crossing, and learned vs true lambda_z."""
-    n_seeds, n_levels = (8, 9) if quick else (40, 16)
+def run(quick: bool = True, out_dir=None, progress: bool = True, *, cluster=None, n_seeds: int | None = None,
+        n_noise_levels: int | None = None, runs_per_task: int = RUNS_PER_TASK) -> ExperimentResult:
+    """Median SSE of both learners vs sensor noise, their crossing, and learned vs true lambda_z.
+
+    The (learner, noise level, seed) grid is cut into tasks of ``runs_per_task`` runs, each
+    learned with one batched call; ``cluster`` (None: here; ``"tcp://host:8786"`` or a
+    ``distributed.Client``) says where they run (:func:`attend.sweep.run_tasks`): the numbers
+    are the same either way. ``n_seeds`` and ``n_noise_levels`` override the quick/full sizes
+    (8 x 9 / 40 x 16).
+    """
+    default_seeds, default_levels = (8, 9) if quick else (40, 16)
+    n_seeds = default_seeds if n_seeds is None else int(n_seeds)
+    n_levels = default_levels if n_noise_levels is None else int(n_noise_levels)
     cfg = dict(SETTINGS, seeds=n_seeds, noise_levels=n_levels)
     levels = np.linspace(*cfg["sensor_log_precision_range"], n_levels)  # true lambda_z
     theta_true = parameter_vector(mass_spring_damper())
@@ -43,21 +54,20 @@ def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentRe
     lvl = np.tile(np.repeat(np.arange(n_levels), n_seeds), 2)
     sd = np.tile(seeds, 2 * n_levels)
     learner = np.repeat([0, 1], n_levels * n_seeds)
-    Y, U = msd_logs(sd[: n_levels * n_seeds], np.exp(-levels[lvl[: n_levels * n_seeds]] / 2),
-                    np.exp(-cfg["process_log_precision"] / 2), cfg["dt"], cfg["duration"], cfg["kernel_width"])
-    Y, U = np.concatenate([Y, Y]), np.concatenate([U, U])
+    sensor_std = np.exp(-levels[lvl[: n_levels * n_seeds]] / 2)
+    sensor_std = np.concatenate([sensor_std, sensor_std])
     eta = np.tile(theta_true, (len(seeds), 1))
     for k in seeds:
         noise = np.random.default_rng(2000 + int(k)).standard_normal(FREE.sum())
         eta[k, FREE] = theta_true[FREE] * (1 + cfg["prior_relative_spread"] * noise)
     P_free = np.where(learner == 0, cfg["over_exposed_prior_precision"], cfg["biased_prior_precision"])
-    P = np.where(FREE[None], P_free[:, None], KNOWN_PRECISION)
-    result = learn_batch(Y, U, cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"], prior_mean=eta[sd],
-                         prior_precision=P, embedding_order=cfg["embedding_order"],
-                         max_iterations=cfg["iterations"], progress=progress)
-    sse = np.sum((result.parameters[:, FREE] - theta_true[FREE]) ** 2, axis=1).reshape(2, n_levels, n_seeds)
+    process_std = np.exp(-cfg["process_log_precision"] / 2)
+    tasks = msd_tasks(dict(cfg, process_std=process_std), sd, sensor_std, eta[sd], P_free, runs_per_task)
+    runs = gather_runs(run_tasks(learn_msd_runs, tasks, cluster=cluster, progress=progress,
+                                 desc=f"fig5 ({len(sd)} runs, {len(tasks)} tasks)"))
+    sse = np.sum((runs["parameters"][:, FREE] - theta_true[FREE]) ** 2, axis=1).reshape(2, n_levels, n_seeds)
     median = np.median(sse, axis=2)
-    lam_z = result.log_precision[:, 0].reshape(2, n_levels, n_seeds)
+    lam_z = runs["log_precision"][:, 0].reshape(2, n_levels, n_seeds)
 
     out = ExperimentResult("fig5", settings=cfg)
     sensor_var = np.exp(-levels)

@@ -66,6 +66,7 @@ def test_oscillator_scheduler_mean_perception_gain():
     t = (np.arange(400000) + 0.5) / 400000 * osc.period
     g = osc.gain(t)
     assert scheduler.mean_perception_gain() == pytest.approx(g[g >= scheduler.threshold].mean(), rel=1e-3)
+    assert scheduler.mean_action_gain() == pytest.approx(0.1 * g[g < scheduler.threshold].mean(), rel=1e-3)
 
 
 def test_fixed_duration_pattern():

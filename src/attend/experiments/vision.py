@@ -16,7 +16,9 @@ Metrics: summed entropy [nats] and identification accuracy vs number of saccades
 90 % accuracy (mean curve), revisit rates.
 
 Part 2, when to look (epistemic policy for all): the oscillator schedule vs fixed fixation
-durations (the matched one has the oscillator's saccade rate and precision budget) vs the
+durations (the matched one has the oscillator's saccade rate and precision budget: perception
+gain = mean of pi(t) over the oscillator's perception windows, act gain = mean of 0.1 pi(t) over
+its troughs; the precision-driven scheduler uses the same two gains) vs the
 precision-driven scheduler (move when the expected gain of staying drops below that of moving,
 with and without the oscillator as a prior on timing). Metrics vs time [s].
 """
@@ -82,6 +84,9 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, scenes: int | N
     oscillator = PrecisionOscillator(cfg["frequency"], cfg["depth"])
     rhythm = OscillatorScheduler(oscillator, cfg["time_step"], cfg["action_fraction"], cfg["saccadic_suppression"])
     perception_gain = rhythm.mean_perception_gain()
+    # matched budget: the other schedulers' act-step gain s' g equals the oscillator's mean s pi(t)
+    matched_suppression = rhythm.mean_action_gain() / perception_gain
+    result.settings.update(matched_perception_gain=perception_gain, matched_saccadic_suppression=matched_suppression)
     fixation_duration = (1.0 - cfg["action_fraction"]) * oscillator.period
     action_duration = cfg["action_fraction"] * oscillator.period
     fixation_dose = perception_gain * fixation_duration
@@ -129,15 +134,15 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, scenes: int | N
     schedulers = {
         "oscillator (4 Hz)": rhythm,
         f"fixed {fixation_duration * 1e3:.0f} ms fixations (matched)": FixedDurationScheduler(
-            fixation_duration, action_duration, cfg["time_step"], perception_gain, cfg["saccadic_suppression"]),
+            fixation_duration, action_duration, cfg["time_step"], perception_gain, matched_suppression),
         "fixed 100 ms fixations": FixedDurationScheduler(
-            0.1, action_duration, cfg["time_step"], perception_gain, cfg["saccadic_suppression"]),
+            0.1, action_duration, cfg["time_step"], perception_gain, matched_suppression),
         "fixed 400 ms fixations": FixedDurationScheduler(
-            0.4, action_duration, cfg["time_step"], perception_gain, cfg["saccadic_suppression"]),
+            0.4, action_duration, cfg["time_step"], perception_gain, matched_suppression),
         "precision-driven, oscillator prior": PrecisionDrivenScheduler(
-            oscillator, cfg["time_step"], action_duration, 1.0, cfg["saccadic_suppression"], perception_gain),
+            oscillator, cfg["time_step"], action_duration, 1.0, matched_suppression, perception_gain),
         "precision-driven, no prior": PrecisionDrivenScheduler(
-            oscillator, cfg["time_step"], action_duration, 0.0, cfg["saccadic_suppression"], perception_gain),
+            oscillator, cfg["time_step"], action_duration, 0.0, matched_suppression, perception_gain),
     }
     time_axis = (np.arange(n_steps) + 1) * cfg["time_step"]
     timing = {}

@@ -144,6 +144,12 @@ class OscillatorScheduler(_Scheduler):
         gain = self.oscillator.baseline_gain * np.exp(self.oscillator.depth * np.sin(theta))
         return float(gain[gain >= self.threshold].mean())
 
+    def mean_action_gain(self, samples: int = 4096) -> float:
+        """Mean of the suppressed gain s pi(t) over the action part of a cycle [dimensionless]."""
+        theta = 2.0 * np.pi * (np.arange(samples) + 0.5) / samples
+        gain = self.oscillator.baseline_gain * np.exp(self.oscillator.depth * np.sin(theta))
+        return float(self.saccadic_suppression * gain[gain < self.threshold].mean())
+
     def steps(self, task: ScheduledTask | None, n_steps: int) -> Iterator[ScheduleStep]:
         n_steps = self._check(n_steps)
         dt = self.time_step

@@ -110,7 +110,7 @@ class Scene:
         return self.identities.ravel()
 
     def image(self) -> np.ndarray:
-        """The scene as a (5 rows, 5 cols) mosaic of glyphs with one blank pixel between cells."""
+        """The scene as an image: the glyphs side by side, one blank pixel between cells."""
         rows, cols = self.shape
         side = int(round(np.sqrt(self.patterns.shape[1])))
         canvas = np.zeros((rows * (side + 1) + 1, cols * (side + 1) + 1))

@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from attend.action.belief import OccupancyMap, kalman_update, prior_covariance
+from attend.action.belief import OccupancyMap, _prior_covariance_cached, prior_covariance
 from attend.action.camera import Camera, Detector
 from attend.action.field import Grid, make_field
 from attend.action.flight import FlightModel
@@ -79,6 +79,7 @@ def main() -> None:
     for side in (20, 40, 60, 80):
         if side > args.max_grid:
             continue
+        _prior_covariance_cached.cache_clear()
         tic = time.perf_counter()
         prior_covariance(side)
         prior_time = time.perf_counter() - tic

@@ -1,0 +1,107 @@
+"""Planners, episode runner and mission outputs: properties on short missions."""
+
+import json
+
+import numpy as np
+import pytest
+
+from attend.action.camera import Camera, Detector
+from attend.action.episode import run_episode
+from attend.action.errors import ActionInputError
+from attend.action.field import make_field
+from attend.action.flight import FlightModel, path_collides
+from attend.action.mission import run_search
+from attend.action.planners import PLANNERS, PlanningSetup, make_planner
+from attend.action.belief import OccupancyMap
+
+
+@pytest.fixture(scope="module")
+def buildings_setup():
+    field = make_field(1, obstacles="buildings")
+    return field, PlanningSetup(field, cma_evaluations=12)
+
+
+@pytest.mark.parametrize("name", sorted(PLANNERS))
+def test_planners_return_feasible_waypoints(name, buildings_setup):
+    field, setup = buildings_setup
+    planner = make_planner(name, setup, seed=2)
+    pose = np.array(field.start_pose_m)
+    waypoints = planner.plan(OccupancyMap.prior(field.grid), pose, 150.0, 0.0)
+    assert waypoints.ndim == 2 and waypoints.shape[1] == 3 and len(waypoints) >= 1
+    half = field.grid.size_m / 2
+    assert np.all(np.abs(waypoints[:, :2]) <= half)
+    low, high = field.altitude_limits_m
+    assert np.all((waypoints[:, 2] >= low) & (waypoints[:, 2] <= high))
+    path = np.vstack([pose, waypoints])[None]
+    assert not path_collides(path, field.obstacles, margin_m=0.0)[0]
+
+
+def test_precision_gain_choice_beats_random_candidates_on_its_objective():
+    field = make_field(0)
+    setup = PlanningSetup(field, cma_evaluations=0, lookahead_waypoints=1)
+    planner = make_planner("precision_gain", setup)
+    belief = OccupancyMap.prior(field.grid)
+    pose = np.array(field.start_pose_m)
+    chosen = planner.plan(belief, pose, 150.0, 0.0)
+    from attend.action.planners import _PlanningModel
+
+    model = _PlanningModel(belief, setup, None)
+    candidates = np.vstack([chosen, setup.lattice()])
+    scores = planner._score_paths(model, belief, pose, candidates[:, None, :], 0.0, 150.0)
+    assert scores[0] >= scores[1:].max() - 1e-9
+
+
+def test_episode_logs_every_image_and_trace_never_increases():
+    field = make_field(4)
+    setup = PlanningSetup(field, cma_evaluations=6)
+    log = run_episode(field, make_planner("lawnmower", setup), setup.camera, setup.detector, setup.flight, 40.0, seed=4)
+    n_images = len(log.times_s)
+    assert n_images == int(40.0 * 0.15) + 1  # one image every 6.67 s from t = 0
+    for key in ("rse", "trace", "trace_interest", "people_found", "false_alarm_cells", "rmse"):
+        assert len(log.series(key)) == n_images + 1
+    assert np.all(np.diff(log.series("trace")) <= 1e-9)
+    assert log.series("rse")[0] == pytest.approx(np.sqrt(np.sum((0.1 - field.truth) ** 2)))
+
+
+def test_diagonal_filter_runs_and_is_less_informed_by_neighbours():
+    field = make_field(5)
+    setup = PlanningSetup(field, cma_evaluations=6)
+    full = run_episode(field, make_planner("lawnmower", setup), setup.camera, setup.detector, setup.flight, 20.0, seed=5)
+    diag = run_episode(field, make_planner("lawnmower", setup), setup.camera, setup.detector, setup.flight, 20.0, seed=5,
+                       diagonal=True)
+    assert diag.series("trace")[0] == pytest.approx(full.series("trace")[0])
+    # without correlations an image only informs the cells it sees
+    assert diag.series("trace")[-1] > full.series("trace")[-1]
+
+
+def test_run_episode_rejects_bad_budget():
+    field = make_field(0)
+    setup = PlanningSetup(field)
+    with pytest.raises(ActionInputError, match="budget_s"):
+        run_episode(field, make_planner("random", setup), setup.camera, setup.detector, setup.flight, 0.0)
+
+
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        ({"budget_s": -5.0}, "budget_s"),
+        ({"fov_deg": (180.0, 60.0)}, "fov_deg"),
+        ({"fov_deg": (45.0, 0.0)}, "fov_deg"),
+        ({"start_pose_m": (0.0, 20.0, 7.0)}, "start_pose_m"),
+        ({"altitude_limits_m": (20.0, 5.0)}, "altitude_limits_m"),
+        ({"planner": "astar"}, "planner"),
+        ({"obstacles": "mountains"}, "obstacles"),
+    ],
+)
+def test_run_search_bad_input(kwargs, name, tmp_path):
+    with pytest.raises(ValueError, match=name):
+        run_search(out_dir=tmp_path, **kwargs)
+
+
+def test_run_search_writes_outputs(tmp_path):
+    paths = run_search("precision_gain", seed=1, budget_s=14.0, out_dir=tmp_path, cma_evaluations=6)
+    for key in ("metrics", "maps", "path_3d", "metrics_plot", "gif"):
+        assert paths[key].exists() and paths[key].stat().st_size > 0
+    data = json.loads(paths["metrics"].read_text())
+    assert len(data["per_image"]["rse"]) == len(data["per_image"]["time_s"]) == 4  # prior + 3 images
+    assert data["summary"]["people_total"] == 7

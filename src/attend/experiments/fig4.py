@@ -4,7 +4,9 @@ The mass-spring-damper's unknown entries theta3 = -k/m, theta4 = -b/m, theta6 = 
 means drawn uniformly in [-2, 2] (one draw per seed, shared across prior precisions) and a prior
 precision P_theta swept over 12 orders of magnitude (1e-4 .. 1e8); the known entries keep
 exp(15). Learning (attend.perception.learning, D/E/M steps, noise precisions learned from
-lambda = 0 with P_lambda = 1) runs for every (seed, P_theta) at once, batched. The parameter SSE
+lambda = 0 with P_lambda = 1) runs batched over the (P_theta, seed) grid, cut into sweep tasks of
+``RUNS_PER_TASK`` runs (one learn_batch call each) that run here or on a Dask cluster
+(``run(cluster="tcp://host:8786")``, see attend.sweep) with the same numbers. The parameter SSE
 sum_i (theta_i - theta_i,true)^2 over the three unknown entries is low for a low P_theta
 (over-exposed: attention on the sensory data), rises through a balanced band, and saturates
 at the error of the random prior for a high P_theta (biased: attention on the prior).

@@ -13,7 +13,9 @@ Choice (the seed does not state it): the prior means are informed but imperfect,
 (1 + 0.2 n), n ~ N(0, 1) per entry and seed, so that a biased learner is a reasonable robot
 rather than a random guess. Other settings as in Fig. 4 (dt = 0.1 s, 32 s, s = 0.5 s, p = 6,
 30 iterations, noise precisions learned from lambda = 0 with P_lambda = 1).
-Quick: 8 seeds x 9 noise levels x 2 learners (144 runs, batched); full: 40 x 16 x 2.
+Quick: 8 seeds x 9 noise levels x 2 learners (144 runs, batched); full: 40 x 16 x 2; the runs
+are cut into sweep tasks (fig4.learn_msd_runs) that run here or on a Dask cluster
+(``run(cluster="tcp://host:8786")``, see attend.sweep) with the same numbers.
 """
 
 from __future__ import annotations

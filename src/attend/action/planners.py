@@ -356,7 +356,7 @@ class ExpectedFreeEnergyPlanner(InformativePlanner):
 
     name = "efe"
 
-    def __init__(self, setup: PlanningSetup, seed: int = 0, preference_nats: float = 1.0) -> None:
+    def __init__(self, setup: PlanningSetup, seed: int = 0, preference_nats: float = 0.5) -> None:
         self.preference_nats = preference_nats
         super().__init__(setup, seed)
 

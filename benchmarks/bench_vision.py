@@ -75,7 +75,9 @@ def main() -> None:
         note = {"epistemic": "low without coded IOR", "random": "chance",
                 "static saliency (IOR coded)": "0 by construction",
                 "static saliency, no IOR": "~1 (stuck)"}[name]
-        print(f"{'revisit rate, ' + name + f' (first {n_half} / all)':60s} {first:5.2f}/{whole:4.2f}   {note}")
+        uncertain = result.metric(f"{key}: revisit rate while summed entropy > 1 nat").value
+        print(f"{'revisit rate, ' + name + f' (first {n_half} / all / H>1 nat)':60s} "
+              f"{first:4.2f}/{whole:4.2f}/{uncertain:4.2f}   {note}")
     for n in (5, 10):
         row = ", ".join(f"{key} {result.metric(f'{key}: entropy after {n} saccades').value:.1f}"
                         for key in keys.values())

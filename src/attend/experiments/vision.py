@@ -73,6 +73,14 @@ def revisit_rate(fixations: list[int], n_saccades: int | None = None) -> float:
     return float(np.mean(landings)) if landings else float("nan")
 
 
+def revisit_rate_while_uncertain(episode, entropy_level: float = 1.0) -> float:
+    """Fraction of revisiting saccades among those made while the summed entropy exceeded
+    ``entropy_level`` [nats] (after that the scene is resolved and no location has value)."""
+    landings = [episode.fixations[i + 1] in episode.fixations[: i + 1]
+                for i, record in enumerate(episode.saccades) if record.entropy > entropy_level]
+    return float(np.mean(landings)) if landings else float("nan")
+
+
 def run(quick: bool = True, out_dir=None, progress: bool = True, scenes: int | None = None) -> ExperimentResult:
     """Both parts; figures (PNG, GIF) go to ``out_dir`` when given."""
     cfg = dict(SETTINGS, **(QUICK if quick else FULL))
@@ -94,7 +102,8 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, scenes: int | N
     saccade_axis = np.arange(cfg["saccades"] + 1)
 
     # Part 1: where to look --------------------------------------------------------------------
-    curves = {name: dict(entropy=[], accuracy=[], revisit_all=[], revisit_first=[]) for name in POLICY_NAMES}
+    curves = {name: dict(entropy=[], accuracy=[], revisit_all=[], revisit_first=[], revisit_uncertain=[])
+              for name in POLICY_NAMES}
     example = {}
     jobs = [(name, seed) for seed in range(cfg["scenes"]) for name in POLICY_NAMES]
     for name, seed in tqdm(jobs, desc="vision: policies", disable=not progress):
@@ -106,6 +115,7 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, scenes: int | N
         c["accuracy"].append(episode.accuracy)
         c["revisit_all"].append(revisit_rate(episode.fixations))
         c["revisit_first"].append(revisit_rate(episode.fixations, n_locations // 2))
+        c["revisit_uncertain"].append(revisit_rate_while_uncertain(episode))
         if seed == 0:
             example[name] = (scene, episode)
     for name in POLICY_NAMES:
@@ -125,6 +135,7 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, scenes: int | N
             result.add(f"{key}: entropy after {n} saccades", entropy.mean(axis=0)[n], "nats")
         result.add(f"{key}: revisit rate, first {n_locations // 2} saccades", np.mean(c["revisit_first"]), "fraction")
         result.add(f"{key}: revisit rate, all {cfg['saccades']} saccades", np.mean(c["revisit_all"]), "fraction")
+        result.add(f"{key}: revisit rate while summed entropy > 1 nat", np.nanmean(c["revisit_uncertain"]), "fraction")
         result.data[f"{key}_entropy"] = entropy
         result.data[f"{key}_accuracy"] = accuracy
     result.data["saccade_axis"] = saccade_axis

@@ -105,3 +105,17 @@ def test_run_search_writes_outputs(tmp_path):
     data = json.loads(paths["metrics"].read_text())
     assert len(data["per_image"]["rse"]) == len(data["per_image"]["time_s"]) == 4  # prior + 3 images
     assert data["summary"]["people_total"] == 7
+
+
+def test_injected_false_detection_is_resolved_by_revisits():
+    field = make_field(3, people_region="lower_half")
+    setup = PlanningSetup(field)
+    log = run_episode(field, make_planner("lawnmower", setup), setup.camera, setup.detector, setup.flight, 150.0, seed=3,
+                      inject_false_detection_images=(0,))
+    blob = log.clutter_cells[0]
+    assert len(blob) == 6 and np.all(field.truth[blob] == 0)
+    blob_mean = np.array([m[blob].mean() for m in log.means])
+    assert blob_mean[1] > 0.5  # the false detection looks like a person at first
+    assert blob_mean[-1] < 0.4  # the lawnmower's revisits (no detection there) resolve it
+    assert np.all(np.diff(blob_mean[1:]) <= 1e-9)
+    assert log.series("false_alarm_objects")[-1] == 0

@@ -5,7 +5,8 @@ A segment of length d with top speed v and acceleration a takes
     t(d) = 2 sqrt(d / a)          otherwise,
 and the distance flown after time s into it is the trapezoid/triangle integral. Images are taken
 every ``image_period_s`` (1 / 0.15 Hz) on the mission clock, so the first image of a new plan comes
-``time_to_next_image_s`` after the plan starts.
+``time_to_next_image_s`` after the plan starts; when a segment ends before the next image the UAV
+hovers at the waypoint until it is taken (every waypoint yields at least one image).
 """
 
 from __future__ import annotations

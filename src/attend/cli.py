@@ -7,6 +7,7 @@ expected (exit status 2); tracebacks are shown only with ``--debug``.
 from __future__ import annotations
 
 import argparse
+import inspect
 import sys
 import time
 import warnings
@@ -64,6 +65,9 @@ def _build_parser() -> argparse.ArgumentParser:
     reproduce.add_argument("--full", action="store_true",
                            help="paper-size settings (more seeds and trials; slower). Default: quick settings")
     reproduce.add_argument("--no-progress", action="store_true", help="hide progress bars")
+    reproduce.add_argument("--cluster", metavar="ADDRESS", default=None,
+                           help="run the sweeps (fig4, fig5) on a running Dask cluster, e.g. tcp://host:8786 "
+                           "(needs: pip install 'attend[distributed]'); same numbers as a local run. Default: run here")
     reproduce.add_argument("--force", action="store_true",
                            help="rerun even when OUT/NAME.json holds a result for the same code and mode (cache)")
     reproduce.add_argument("--report", action="store_true",
@@ -209,7 +213,10 @@ def _command_reproduce(args) -> int:
         started = time.perf_counter()
         module = experiments.load(name)
         try:
-            result = module.run(quick=quick, out_dir=out, progress=not args.no_progress)
+            options = dict(quick=quick, out_dir=out, progress=not args.no_progress)
+            if args.cluster is not None and "cluster" in inspect.signature(module.run).parameters:
+                options["cluster"] = args.cluster
+            result = module.run(**options)
         except Exception as error:  # one failing experiment must not hide the others' results
             if len(names) == 1 or args.debug:
                 raise

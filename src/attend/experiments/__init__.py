@@ -1,7 +1,8 @@
 """Reproduction experiments, one module per paper figure.
 
 Each module has ``run(quick=True, out_dir=None, progress=True) -> ExperimentResult``; the CLI's
-``attend reproduce NAME`` calls it and writes ``NAME.json`` and PNG figures.
+``attend reproduce NAME`` calls it and writes ``NAME.json`` and PNG figures. Sweeps (fig4, fig5)
+also take ``cluster="tcp://host:8786"`` to run on a Dask cluster (see :mod:`attend.sweep`).
 """
 
 from __future__ import annotations

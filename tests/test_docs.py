@@ -216,7 +216,12 @@ def test_experiment_page(name):
     module = experiments.load(name)
     settings = getattr(module, "SETTINGS", None)
     rows = settings_table(text)
+    for key, value in rows.items():  # module constants (UPPER_CASE) shown in a table
+        if key.isupper() and isinstance(getattr(module, key, None), (int, float, str, tuple)):
+            constant = getattr(module, key)
+            assert _same(value, constant), f"{page.name}: `{key}` is {value!r} on the page, {constant!r} in the code"
     if settings is None:
+        assert rows, f"{page.name}: expected a table of the settings (| `NAME` | value | unit | ...)"
         return
     assert rows, f"{page.name}: expected a settings table (| `name` | value | unit | ...)"
     for key, value in rows.items():

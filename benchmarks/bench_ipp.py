@@ -60,6 +60,7 @@ def main() -> None:
     parser.add_argument("--trials", type=int, default=25)
     parser.add_argument("--skip-trials", action="store_true")
     parser.add_argument("--max-grid", type=int, default=80)
+    parser.add_argument("--workers", type=int, default=2, help="processes for the trials")
     args = parser.parse_args()
     import os
 
@@ -95,7 +96,7 @@ def main() -> None:
         return
     print(f"\nTrials: {args.trials} seeded fields per planner, 150 s budget")
     tic = time.perf_counter()
-    logs = run_trials(trials=args.trials, progress=True)
+    logs = run_trials(trials=args.trials, progress=True, workers=args.workers)
     final = {name: summarise(runs) for name, runs in logs.items()}
     print(f"  ({time.perf_counter() - tic:.0f} s)")
     for name in PLANNER_NAMES:

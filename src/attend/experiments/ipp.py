@@ -26,24 +26,55 @@ INFORMATIVE = ("precision_gain", "adaptive", "efe")
 BUDGET_S = 150.0
 
 
+def _one_trial(job: tuple[str, int, float, int]) -> EpisodeLog:
+    name, seed, budget_s, cma_evaluations = job
+    camera, detector, flight = Camera(), Detector(), FlightModel()
+    field = make_field(seed)
+    setup = PlanningSetup(field, camera, detector, flight, cma_evaluations=cma_evaluations)
+    planner = make_planner(name, setup, seed)
+    return run_episode(field, planner, camera, detector, flight, budget_s, seed, keep_maps=False)
+
+
 def run_trials(
     planners=PLANNER_NAMES, trials: int = 25, budget_s: float = BUDGET_S, cma_evaluations: int = 24,
-    progress: bool = False, first_seed: int = 0,
+    progress: bool = False, first_seed: int = 0, workers: int = 1,
 ) -> dict[str, list[EpisodeLog]]:
-    """``trials`` seeded missions per planner (seed k: same field and detector noise for every planner)."""
-    camera, detector, flight = Camera(), Detector(), FlightModel()
-    logs: dict[str, list[EpisodeLog]] = {name: [] for name in planners}
-    jobs = [(name, seed) for seed in range(first_seed, first_seed + trials) for name in planners]
-    iterator = jobs
-    if progress:
-        from tqdm import tqdm
+    """``trials`` seeded missions per planner (seed k: same field and detector noise for every
+    planner); ``workers`` > 1 runs them in that many processes (results identical)."""
+    jobs = [(name, seed, budget_s, cma_evaluations) for seed in range(first_seed, first_seed + trials) for name in planners]
+    if workers > 1:
+        import multiprocessing
+        import os
+        from concurrent.futures import ProcessPoolExecutor
 
-        iterator = tqdm(jobs, desc="ipp trials", unit="episode")
-    for name, seed in iterator:
-        field = make_field(seed)
-        setup = PlanningSetup(field, camera, detector, flight, cma_evaluations=cma_evaluations)
-        planner = make_planner(name, setup, seed)
-        logs[name].append(run_episode(field, planner, camera, detector, flight, budget_s, seed, keep_maps=False))
+        # one BLAS thread per worker process (set before the spawned workers import numpy)
+        saved = {key: os.environ.get(key) for key in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
+        os.environ.update({key: "1" for key in saved})
+        try:
+            context = multiprocessing.get_context("spawn")
+            with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+                results = pool.map(_one_trial, jobs)
+                if progress:
+                    from tqdm import tqdm
+
+                    results = tqdm(results, total=len(jobs), desc="ipp trials", unit="episode")
+                done = list(results)
+        finally:
+            for key, value in saved.items():
+                if value is None:
+                    os.environ.pop(key, None)
+                else:
+                    os.environ[key] = value
+    else:
+        iterator = jobs
+        if progress:
+            from tqdm import tqdm
+
+            iterator = tqdm(jobs, desc="ipp trials", unit="episode")
+        done = [_one_trial(job) for job in iterator]
+    logs: dict[str, list[EpisodeLog]] = {name: [] for name in planners}
+    for (name, _, _, _), log in zip(jobs, done):
+        logs[name].append(log)
     return logs
 
 
@@ -62,14 +93,17 @@ def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentRe
     trials = 2 if quick else 25
     cma_evaluations = 12 if quick else 24
     start = time.perf_counter()
-    logs = run_trials(trials=trials, cma_evaluations=cma_evaluations, progress=progress)
+    import os
+
+    workers = max(1, min(2, os.cpu_count() or 1))
+    logs = run_trials(trials=trials, cma_evaluations=cma_evaluations, progress=progress, workers=workers)
     fp_field, fp_log = false_positive_episode(cma_evaluations=cma_evaluations)
     result = ExperimentResult(
         "ipp",
         settings={
             "quick": quick, "trials_per_planner": trials, "budget_s": BUDGET_S, "planners": list(PLANNER_NAMES),
             "cma_evaluations": cma_evaluations, "grid": "40 x 40 cells of 0.75 m", "image_rate_hz": 0.15,
-            "speed_m_s": 5.0, "acceleration_m_s2": 3.0, "altitude_layers_m": [5.0, 8.0, 11.0, 14.0],
+            "speed_m_s": 5.0, "workers": workers, "acceleration_m_s2": 3.0, "altitude_layers_m": [5.0, 8.0, 11.0, 14.0],
         },
     )
     first = logs[PLANNER_NAMES[0]]

@@ -97,6 +97,7 @@ class InputSpec:
 
     @property
     def known(self) -> bool:
+        """True when the input is measured (read from a CSV column)."""
         return self.column is not None
 
 
@@ -243,6 +244,7 @@ class Log:
 
     @property
     def dt(self) -> float:
+        """Mean sample time [s]."""
         return float((self.time[-1] - self.time[0]) / (len(self.time) - 1))
 
     def matrix(self, names) -> np.ndarray:

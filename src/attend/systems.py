@@ -62,14 +62,17 @@ class LinearSystem:
 
     @property
     def n_states(self) -> int:
+        """n, the number of states."""
         return self.A.shape[0]
 
     @property
     def n_inputs(self) -> int:
+        """r, the number of inputs."""
         return self.B.shape[1]
 
     @property
     def n_outputs(self) -> int:
+        """m, the number of outputs."""
         return self.C.shape[0]
 
     def discretize(self, dt: float) -> tuple[np.ndarray, np.ndarray]:

@@ -114,10 +114,12 @@ class DEMObserver:
 
     @property
     def n_state_coordinates(self) -> int:
+        """Size of x~: n (p + 1)."""
         return self.system.n_states * (self.embedding_order + 1)
 
     @property
     def n_input_coordinates(self) -> int:
+        """Size of v~: r (d + 1), or 0 with known inputs."""
         return 0 if self.known_inputs else self.system.n_inputs * (self.input_order + 1)
 
     @property
@@ -382,6 +384,8 @@ class OnlineDEM:
         return states, inputs
 
     def step(self, output, input_value=None):
+        """Feed sample k (outputs (m,), input or input prior (r,)); return (states, inputs) of
+        sample k - delay, or None while the first window fills."""
         sample = np.concatenate([np.ravel(np.asarray(output, dtype=float)),
                                  np.zeros(self._r) if input_value is None else np.ravel(np.asarray(input_value, dtype=float))])
         if sample.shape[0] != self._width:

@@ -12,7 +12,10 @@ value per flight time, value(path) / t(path):
                          p(detect) = q tpr(h) + (1 - q) fpr(h),
                          q = clip((mean - 0.05) / 0.95, 0, 1)  (occupancy probability: a cell
                          never detected reads 0.05, so mean 0.05 means empty),
-                         c = log preference for observing a person (nats per detected cell).
+                         c = log preference for observing a person (nats per detected cell);
+                         optionally minus k * sum (1 - p(detect)), a dis-preference for views of
+                         empty ground (``empty_view_cost_nats``, default 0), which makes the planner
+                         descend over likely people once the map is certain.
 
 Optimiser: greedy choice of each next waypoint from a lattice over 4 altitude layers (every
 candidate evaluated in one numpy batch, the covariance conditioned on the chosen images between
@@ -356,8 +359,11 @@ class ExpectedFreeEnergyPlanner(InformativePlanner):
 
     name = "efe"
 
-    def __init__(self, setup: PlanningSetup, seed: int = 0, preference_nats: float = 0.5) -> None:
+    def __init__(
+        self, setup: PlanningSetup, seed: int = 0, preference_nats: float = 0.5, empty_view_cost_nats: float = 0.0
+    ) -> None:
         self.preference_nats = preference_nats
+        self.empty_view_cost_nats = empty_view_cost_nats
         super().__init__(setup, seed)
 
     def path_value(self, model, belief, visible, altitudes, valid) -> np.ndarray:
@@ -368,7 +374,7 @@ class ExpectedFreeEnergyPlanner(InformativePlanner):
         tpr = detector.true_positive_rate(altitudes)[..., None]
         fpr = detector.false_positive_rate(altitudes)[..., None]
         p_detect = occupancy[None, None, :] * tpr + (1 - occupancy[None, None, :]) * fpr
-        pragmatic = self.preference_nats * (p_detect * visible).sum(axis=(1, 2))
+        pragmatic = ((self.preference_nats * p_detect - self.empty_view_cost_nats * (1 - p_detect)) * visible).sum(axis=(1, 2))
         return information + pragmatic
 
 

@@ -20,7 +20,6 @@ import numpy as np
 from attend.action.belief import OccupancyMap, _prior_covariance_cached, prior_covariance
 from attend.action.camera import Camera, Detector
 from attend.action.field import Grid, make_field
-from attend.action.flight import FlightModel
 from attend.action.planners import PlanningSetup, make_planner
 from attend.experiments.ipp import INFORMATIVE, PLANNER_NAMES, run_trials, summarise
 

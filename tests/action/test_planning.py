@@ -5,11 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from attend.action.camera import Camera, Detector
 from attend.action.episode import run_episode
 from attend.action.errors import ActionInputError
 from attend.action.field import make_field
-from attend.action.flight import FlightModel, path_collides
+from attend.action.flight import path_collides
 from attend.action.mission import run_search
 from attend.action.planners import PLANNERS, PlanningSetup, make_planner
 from attend.action.belief import OccupancyMap

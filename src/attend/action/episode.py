@@ -4,7 +4,8 @@ budget is spent; every metric of metrics.map_metrics logged at every image."""
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 from typing import Sequence
 
 import numpy as np
@@ -31,14 +32,14 @@ class EpisodeLog:
     seed: int
     budget_s: float
     people_total: int
-    times_s: list[float] = field(default_factory=list)
-    poses_m: list[np.ndarray] = field(default_factory=list)
-    metrics: dict[str, list[float]] = field(default_factory=dict)
-    planner_times_s: list[float] = field(default_factory=list)
-    waypoints_m: list[np.ndarray] = field(default_factory=list)
-    means: list[np.ndarray] = field(default_factory=list)
-    variances: list[np.ndarray] = field(default_factory=list)
-    clutter_cells: list[np.ndarray] = field(default_factory=list)
+    times_s: list[float] = dataclass_field(default_factory=list)
+    poses_m: list[np.ndarray] = dataclass_field(default_factory=list)
+    metrics: dict[str, list[float]] = dataclass_field(default_factory=dict)
+    planner_times_s: list[float] = dataclass_field(default_factory=list)
+    waypoints_m: list[np.ndarray] = dataclass_field(default_factory=list)
+    means: list[np.ndarray] = dataclass_field(default_factory=list)
+    variances: list[np.ndarray] = dataclass_field(default_factory=list)
+    clutter_cells: list[np.ndarray] = dataclass_field(default_factory=list)
 
     def series(self, name: str) -> np.ndarray:
         return np.asarray(self.metrics[name])

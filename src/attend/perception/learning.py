@@ -538,7 +538,10 @@ def learn_batch(
 
     outputs (R, T, m) and inputs (R, T, r) sampled at dt [s]; prior_mean eta_theta and
     prior_precision P_theta (R, n_theta) in the order of :func:`parameter_names` (P_theta = inf
-    holds an entry fixed; all runs must fix the same entries); initial theta (R, n_theta)
+    holds an entry fixed; all runs must fix the same entries); prior_precision may also be a
+    schedule (R, max_iterations, n_theta): row i is the P_theta of iteration i + 1 (its E-step
+    and the free energy it maximises; the learning schedules of attend.rhythm.learning_schedule),
+    and a run then converges only once its schedule stays constant; initial theta (R, n_theta)
     (default eta_theta); noise_prior_mean eta_lambda and noise_prior_precision P_lambda,
     (2,) or (R, 2), for [lambda_z, lambda_w] (P_lambda = inf holds lambda fixed at eta_lambda);
     tolerance: a run has converged when one whole D-E-M iteration raises F by less than this
@@ -550,10 +553,18 @@ def learn_batch(
     R = outputs.shape[0]
     input_order = embedding_order if input_order is None else input_order
     eta = np.broadcast_to(np.asarray(prior_mean, dtype=float), (R, prior_mean.shape[-1])).copy()
-    P_theta = np.broadcast_to(np.asarray(prior_precision, dtype=float), eta.shape).copy()
-    active_runs = np.isfinite(P_theta)
-    active = active_runs[0]
-    if not np.all(active_runs == active[None]):
+    P_given = np.asarray(prior_precision, dtype=float)
+    if P_given.ndim == 3:  # a schedule: one P_theta per iteration
+        if P_given.shape[1] != max_iterations:
+            raise AttendInputError(f"prior_precision: a schedule needs one row per iteration, expected "
+                                   f"(R, {max_iterations}, {eta.shape[1]}), got {P_given.shape}")
+        P_schedule = np.broadcast_to(P_given, (R, max_iterations, eta.shape[1])).copy()
+    else:
+        P_schedule = np.broadcast_to(P_given, eta.shape)[:, None, :].repeat(max(max_iterations, 1), axis=1)
+    P_theta = P_schedule[:, 0].copy()
+    active_runs = np.isfinite(P_schedule)
+    active = active_runs[0, 0]
+    if not np.all(active_runs == active[None, None]):
         raise AttendInputError("prior_precision: every run must hold the same entries fixed (inf)")
     st, Ytil, Util = _prepare(outputs, inputs, dt, kernel_width, embedding_order, input_order, active,
                               n_states, trim_edges, precision_convention)
@@ -563,6 +574,10 @@ def learn_batch(
     P_lam = np.broadcast_to(np.asarray(noise_prior_precision, dtype=float), (R, 2)).copy()
     fisher = 0.5 * st.n_used * st.orders * np.array([st.m, st.n], dtype=float)
     priors = _Priors(eta, P_theta, lam_eta, P_lam, fisher)
+    # constant_from[r, i]: P_theta of run r no longer changes from iteration i + 1 on
+    same_as_next = np.all(P_schedule[:, 1:] == P_schedule[:, :-1], axis=2)
+    constant_from = np.flip(np.cumprod(np.flip(np.concatenate(
+        [same_as_next, np.ones((R, 1), dtype=bool)], axis=1), axis=1), axis=1), axis=1).astype(bool)
     L = np.full(R, float(integration_time))
 
     # initial D-step (no check: there is no previous q(X))
@@ -623,6 +638,10 @@ def learn_batch(
         live = ~(converged | stopped)
         if not live.any():
             break
+        P_now = P_schedule[:, it - 1]
+        if not np.array_equal(P_now, priors.P_theta):  # the schedule moved: F is re-evaluated
+            priors = _Priors(eta, P_now.copy(), lam_eta, P_lam, fisher)
+            ev = _evaluate(state, K_mean, priors, st)
         F_start = ev.F.copy()
 
         # ---- D-step: exact per-sample solve, accepted (with halving) only if F increases
@@ -710,7 +729,7 @@ def learn_batch(
         iterations[live] = it
         record(it, state, ev, np.flatnonzero(live))
         gain = ev.F - F_start
-        newly = live & ~stopped & (gain < tolerance)
+        newly = live & ~stopped & (gain < tolerance) & constant_from[:, it - 1]
         converged |= newly
         for k in np.flatnonzero(newly):
             messages[k] = f"converged at iteration {it} (free energy rose by {gain[k]:.3g} < tolerance {tolerance:g})"

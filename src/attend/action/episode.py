@@ -49,9 +49,10 @@ class EpisodeLog:
         """Times of the metric entries: 0 for the prior, then each image time."""
         return np.concatenate([[0.0], np.asarray(self.times_s)])
 
-    def time_to_find_all_s(self) -> float:
-        """First image time at which all people are found (inf if never)."""
-        found = self.series("people_found")
+    def time_to_find_all_s(self, criterion: str = "people_found") -> float:
+        """First image time at which all people are found (inf if never); ``criterion`` is the
+        metric counting found people ("people_found" or "people_found_person_mean")."""
+        found = self.series(criterion)
         hits = np.flatnonzero(found >= self.people_total)
         return float(self.metric_times_s[hits[0]]) if len(hits) else float("inf")
 

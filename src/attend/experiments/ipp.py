@@ -117,6 +117,7 @@ def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentRe
         result.add(f"{name}_final_trace_std", values["trace"].std(ddof=1) if len(values["trace"]) > 1 else 0.0, "1")
         result.add(f"{name}_people_found_mean", values["found"].mean(), "people")
         result.add(f"{name}_all_found_fraction", np.mean(np.isfinite(values["time_to_all"])), "1")
+        result.add(f"{name}_all_found_fraction_person_mean_criterion", np.mean(np.isfinite(values["time_to_all_person_mean"])), "1")
         finite = values["time_to_all"][np.isfinite(values["time_to_all"])]
         result.add(f"{name}_time_to_find_all_median", np.median(finite) if len(finite) else np.inf, "s")
         result.add(f"{name}_false_alarm_cells_mean", values["false_cells"].mean(), "cells")
@@ -156,6 +157,7 @@ def summarise(runs: list[EpisodeLog]) -> dict[str, np.ndarray]:
         "trace": np.array([r.series("trace")[-1] for r in runs]),
         "found": np.array([r.series("people_found")[-1] for r in runs]),
         "time_to_all": np.array([r.time_to_find_all_s() for r in runs]),
+        "time_to_all_person_mean": np.array([r.time_to_find_all_s("people_found_person_mean") for r in runs]),
         "false_cells": np.array([r.series("false_alarm_cells")[-1] for r in runs]),
         "false_objects": np.array([r.series("false_alarm_objects")[-1] for r in runs]),
         "planner_median": float(np.median(np.concatenate([r.planner_times_s for r in runs]))),

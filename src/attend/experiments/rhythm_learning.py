@@ -1,0 +1,228 @@
+"""Rhythmic prior precision in system identification vs every fixed P_theta (seed §4.4, spec/rhythm.md use 1).
+
+The mass-spring-damper's theta3 = -k/m, theta4 = -b/m, theta6 = 1/m are learned (D/E/M steps of
+attend.perception.learning, noise precisions learned from lambda = 0, P_lambda = 1) from logs
+whose sensor noise has log-precision from 8 down to -2 (as in Fig. 5; process noise
+log-precision 8), with informed but imperfect prior means theta_true (1 + 0.2 n), n ~ N(0, 1)
+(as in Fig. 5). Policies for the prior precision P_theta of the three unknown entries:
+
+* fixed: one P_theta for all iterations, over the grid 10^-4 .. 10^8 (as in Fig. 4);
+* rhythmic: P_theta(k) = pi_0 exp(a sin(2 pi f k + phi)) over iterations k
+  (attend.rhythm.learning_schedule), the same schedule at every noise level (it does not know
+  the noise level).
+
+For each noise level the median parameter SSE over seeds of every policy is compared with the
+best fixed P_theta at that level (an oracle that knows the noise level and the truth):
+relative regret = median SSE / best fixed median SSE - 1 (scale-free: the SSE spans orders of
+magnitude across noise levels) and absolute regret = the difference. The worst case over noise
+levels of each policy is the figure of merit: the claim is that the rhythm's worst-case regret
+is lower than that of every fixed P_theta.
+
+The schedule's parameters (pi_0, a, f, phi in SETTINGS) were chosen by :func:`tune` on *tuning*
+seeds (10000 + k: other noise draws and other prior means) and on noise levels midway between
+the evaluation levels, never on the evaluation runs (``python benchmarks/bench_rhythm_learning.py
+--tune`` repeats the choice). Quick: 6 seeds x 6 noise levels x (13 fixed + 1 rhythmic);
+full: 20 x 11 x (25 + 1). The runs are cut into sweep tasks (:func:`learn_schedule_runs`) that
+run here or on a Dask cluster (``cluster=``, see attend.sweep) with the same numbers.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from attend.experiments._result import ExperimentResult
+from attend.experiments.fig4 import FREE, KNOWN_PRECISION, RUNS_PER_TASK, msd_logs
+from attend.perception.learning import learn_batch, parameter_vector
+from attend.rhythm.learning_schedule import prior_precision_schedule, rhythmic_prior_precision
+from attend.rhythm.oscillator import PrecisionOscillator
+from attend.sweep import chunk_slices, run_tasks
+from attend.systems import mass_spring_damper
+
+SETTINGS = dict(dt=0.1, duration=32.0, kernel_width=0.5, process_log_precision=8.0, embedding_order=6,
+                sensor_log_precision_range=[8.0, -2.0], prior_relative_spread=0.2, iterations=30,
+                fixed_log10_prior_precision_range=[-4.0, 8.0], known_prior_precision=KNOWN_PRECISION,
+                rhythm_baseline_precision=1000.0, rhythm_depth=2.0, rhythm_cycles_per_iteration=0.2,
+                rhythm_phase=float(np.pi / 2), tuning_seed_offset=10000)
+
+#: prior means of seed k are drawn with default_rng(PRIOR_RNG_OFFSET + k) (as in Fig. 5)
+PRIOR_RNG_OFFSET = 2000
+
+
+def schedule_oscillator(settings: dict) -> PrecisionOscillator:
+    """The oscillator of the rhythmic policy from SETTINGS-like keys (time unit: one iteration)."""
+    return PrecisionOscillator(frequency=settings["rhythm_cycles_per_iteration"], depth=settings["rhythm_depth"],
+                               baseline_gain=settings["rhythm_baseline_precision"], phase=settings["rhythm_phase"])
+
+
+def informed_priors(seeds, spread: float) -> np.ndarray:
+    """Prior means (len(seeds), 8): theta_true (1 + spread n) on theta3, theta4, theta6 (Fig. 5's choice)."""
+    theta = parameter_vector(mass_spring_damper())
+    eta = np.tile(theta, (len(seeds), 1))
+    for k, seed in enumerate(seeds):
+        noise = np.random.default_rng(PRIOR_RNG_OFFSET + int(seed)).standard_normal(FREE.sum())
+        eta[k, FREE] = theta[FREE] * (1 + spread * noise)
+    return eta
+
+
+def learn_schedule_runs(task: dict) -> dict:
+    """Learn one chunk of runs, each with its own per-iteration P_theta of the free entries.
+
+    ``task``: ``settings`` (dt, duration, kernel_width, embedding_order, iterations, process_std)
+    and per-run ``seed``, ``sensor_std``, ``prior_mean`` (R, 8) and ``schedule`` (R, iterations).
+    Logs are simulated from the seeds here; one batched learn_batch call. Returns ``parameters``
+    (R, 8) and ``log_precision`` (R, 2).
+    """
+    cfg = task["settings"]
+    seeds = np.asarray(task["seed"], dtype=int)
+    sensor_std = np.asarray(task["sensor_std"], dtype=float)
+    pairs, which = np.unique(np.stack([seeds.astype(float), sensor_std], axis=1), axis=0, return_inverse=True)
+    Y, U = msd_logs(pairs[:, 0].astype(int), pairs[:, 1], cfg["process_std"], cfg["dt"], cfg["duration"],
+                    cfg["kernel_width"])
+    which = np.asarray(which).ravel()
+    P = prior_precision_schedule(np.asarray(task["schedule"], dtype=float), FREE, KNOWN_PRECISION)
+    result = learn_batch(Y[which], U[which], cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"],
+                         prior_mean=np.asarray(task["prior_mean"], dtype=float), prior_precision=P,
+                         embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"])
+    return dict(parameters=result.parameters, log_precision=result.log_precision)
+
+
+def policy_sse(settings: dict, seeds, levels, schedules: np.ndarray, *, cluster=None, progress: bool = True,
+               runs_per_task: int = RUNS_PER_TASK, desc: str = "rhythm-learning") -> np.ndarray:
+    """Parameter SSE (n_policies, n_levels, n_seeds) of each schedule (n_policies, iterations)
+    on the logs of every (noise level, seed): sensor log-precision ``levels``, simulation seeds
+    ``seeds`` (prior means from the same seeds)."""
+    seeds = np.asarray(seeds, dtype=int)
+    levels = np.asarray(levels, dtype=float)
+    schedules = np.asarray(schedules, dtype=float)
+    n_pol, n_lev, n_sd = len(schedules), len(levels), len(seeds)
+    theta_true = parameter_vector(mass_spring_damper())
+    eta = informed_priors(seeds, settings["prior_relative_spread"])
+    # runs ordered (policy, level, seed)
+    pol = np.repeat(np.arange(n_pol), n_lev * n_sd)
+    lev = np.tile(np.repeat(np.arange(n_lev), n_sd), n_pol)
+    sd = np.tile(np.arange(n_sd), n_pol * n_lev)
+    keys = ("dt", "duration", "kernel_width", "embedding_order", "iterations")
+    shared = {k: settings[k] for k in keys}
+    shared["process_std"] = float(np.exp(-settings["process_log_precision"] / 2))
+    sensor_std = np.exp(-levels[lev] / 2)
+    tasks = [dict(settings=shared, seed=seeds[sd[s]], sensor_std=sensor_std[s], prior_mean=eta[sd[s]],
+                  schedule=schedules[pol[s]]) for s in chunk_slices(len(pol), runs_per_task)]
+    results = run_tasks(learn_schedule_runs, tasks, cluster=cluster, progress=progress,
+                        desc=f"{desc} ({len(pol)} runs, {len(tasks)} tasks)")
+    parameters = np.concatenate([r["parameters"] for r in results])
+    sse = np.sum((parameters[:, FREE] - theta_true[FREE]) ** 2, axis=1)
+    return sse.reshape(n_pol, n_lev, n_sd)
+
+
+def regrets(median_sse: np.ndarray, n_fixed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Relative and absolute regret (n_policies, n_levels) of each policy's median SSE to the best
+    of the first ``n_fixed`` (fixed) policies at each level."""
+    best = median_sse[:n_fixed].min(axis=0)
+    return median_sse / best - 1.0, median_sse - best
+
+
+def _schedules(settings: dict, fixed: np.ndarray, oscillators) -> np.ndarray:
+    n_it = settings["iterations"]
+    rows = [np.full(n_it, p) for p in fixed] + [rhythmic_prior_precision(o, n_it) for o in oscillators]
+    return np.array(rows)
+
+
+def tune(settings: dict | None = None, *, n_seeds: int = 6, n_levels: int = 5, candidates=None,
+         progress: bool = True, cluster=None) -> dict:
+    """Choose (pi_0, a, f, phi) of the rhythm by the lowest worst-case relative regret on tuning
+    runs: seeds ``tuning_seed_offset + k`` (other noise and prior draws than the evaluation) and
+    sensor log-precisions midway between evaluation levels. Returns the best candidate, its
+    tuning regret and the table of all candidates."""
+    cfg = dict(SETTINGS if settings is None else settings)
+    lo, hi = cfg["sensor_log_precision_range"]
+    grid = np.linspace(lo, hi, 2 * n_levels + 1)
+    levels = grid[1::2]  # midpoints of an evaluation grid of n_levels + 1 levels
+    seeds = cfg["tuning_seed_offset"] + np.arange(n_seeds)
+    fixed = np.logspace(*cfg["fixed_log10_prior_precision_range"], 13)
+    if candidates is None:
+        candidates = [dict(rhythm_baseline_precision=b, rhythm_depth=a, rhythm_cycles_per_iteration=f,
+                           rhythm_phase=ph)
+                      for b in (1e0, 1e1, 1e2, 1e3) for a in (2.0, 4.0, 6.0) for f in (0.1, 0.2)
+                      for ph in (0.0, np.pi / 2, np.pi, 3 * np.pi / 2)]
+    oscillators = [schedule_oscillator(dict(cfg, **c)) for c in candidates]
+    sse = policy_sse(cfg, seeds, levels, _schedules(cfg, fixed, oscillators), cluster=cluster, progress=progress,
+                     desc="rhythm-learning tuning")
+    rel, _ = regrets(np.median(sse, axis=2), len(fixed))
+    worst = rel.max(axis=1)
+    best = int(np.argmin(worst[len(fixed):]))
+    return dict(best=candidates[best], worst_case_relative_regret=float(worst[len(fixed) + best]),
+                fixed_worst_case_relative_regret=float(worst[: len(fixed)].min()),
+                table=[dict(c, worst_case_relative_regret=float(w)) for c, w in zip(candidates, worst[len(fixed):])],
+                levels=levels.tolist(), seeds=seeds.tolist())
+
+
+def run(quick: bool = True, out_dir=None, progress: bool = True, cluster=None) -> ExperimentResult:
+    """Median SSE vs sensor noise of the rhythmic and of every fixed P_theta, regrets to the best
+    fixed value per noise level, and each policy's worst-case regret (see the module docstring)."""
+    n_seeds, n_levels, n_fixed = (6, 6, 13) if quick else (20, 11, 25)
+    cfg = dict(SETTINGS, seeds=n_seeds, noise_levels=n_levels, fixed_prior_precisions=n_fixed)
+    levels = np.linspace(*cfg["sensor_log_precision_range"], n_levels)
+    fixed = np.logspace(*cfg["fixed_log10_prior_precision_range"], n_fixed)
+    schedule = rhythmic_prior_precision(schedule_oscillator(cfg), cfg["iterations"])
+    schedules = np.vstack([np.repeat(fixed[:, None], cfg["iterations"], axis=1), schedule[None]])
+    sse = policy_sse(cfg, np.arange(n_seeds), levels, schedules, cluster=cluster, progress=progress)
+    median = np.median(sse, axis=2)
+    rel, absolute = regrets(median, n_fixed)
+    worst_rel, worst_abs = rel.max(axis=1), absolute.max(axis=1)
+
+    out = ExperimentResult("rhythm-learning", settings=cfg)
+    out.add("rhythmic_worst_case_relative_regret", worst_rel[-1], "", None)
+    out.add("best_fixed_worst_case_relative_regret", worst_rel[:n_fixed].min(), "", None)
+    out.add("best_fixed_worst_case_prior_precision", fixed[np.argmin(worst_rel[:n_fixed])], "", None)
+    out.add("rhythmic_worst_case_absolute_regret", worst_abs[-1], "", None)
+    out.add("best_fixed_worst_case_absolute_regret", worst_abs[:n_fixed].min(), "", None)
+    out.add("fixed_policies_beaten_on_worst_case_relative_regret", np.sum(worst_rel[-1] < worst_rel[:n_fixed]),
+            "", None)
+    out.add("fixed_policies", n_fixed, "", None)
+    out.add("rhythmic_median_sse_lowest_noise", median[-1, 0], "", None)
+    out.add("rhythmic_median_sse_highest_noise", median[-1, -1], "", None)
+    out.data.update(sensor_log_precision=levels, fixed_prior_precision=fixed, schedule=schedule, sse=sse,
+                    median_sse=median, relative_regret=rel, absolute_regret=absolute)
+    if out_dir is not None:
+        out.figures.append(str(_plot(levels, fixed, schedule, median, rel, Path(out_dir))))
+        out.write(out_dir)
+    return out
+
+
+def _plot(levels, fixed, schedule, median, rel, out_dir: Path) -> Path:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fig = Figure(figsize=(15, 4.2))
+    FigureCanvasAgg(fig)
+    ax = fig.subplots(1, 3)
+    var = np.exp(-levels)
+    n_fixed = len(fixed)
+    colours = [(0.2 + 0.6 * i / max(n_fixed - 1, 1),) * 3 for i in range(n_fixed)]
+    ax[0].semilogy(np.arange(1, len(schedule) + 1), schedule, "r.-")
+    ax[0].set_xlabel("iteration")
+    ax[0].set_ylabel("P_theta of the unknown entries")
+    ax[0].set_title("a) rhythmic schedule")
+    for i in range(n_fixed):
+        ax[1].loglog(var, median[i], "-", color=colours[i], lw=0.8,
+                     label=f"fixed {fixed[i]:.0e}" if i in (0, n_fixed // 2, n_fixed - 1) else None)
+        ax[2].semilogx(var, rel[i], "-", color=colours[i], lw=0.8)
+    ax[1].loglog(var, median[-1], "r-o", lw=2, label="rhythmic")
+    ax[1].loglog(var, median[:n_fixed].min(axis=0), "k:", label="best fixed per level")
+    ax[1].set_xlabel("sensor noise variance exp(-lambda_z)")
+    ax[1].set_ylabel("median parameter SSE")
+    ax[1].set_title("b) SSE vs sensor noise")
+    ax[1].legend(fontsize=7)
+    ax[2].semilogx(var, rel[-1], "r-o", lw=2, label="rhythmic")
+    ax[2].set_yscale("symlog", linthresh=0.1)
+    ax[2].set_xlabel("sensor noise variance exp(-lambda_z)")
+    ax[2].set_ylabel("relative regret to the best fixed P_theta")
+    ax[2].set_title("c) regret (grey: fixed, dark = low P_theta)")
+    ax[2].legend(fontsize=7)
+    fig.tight_layout()
+    path = out_dir / "rhythm-learning.png"
+    fig.savefig(path, dpi=110)
+    return path

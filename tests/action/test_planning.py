@@ -117,3 +117,31 @@ def test_injected_false_detection_is_resolved_by_revisits():
     assert blob_mean[1] > 0.5  # the false detection looks like a person at first
     assert blob_mean[-1] < 0.4  # the lawnmower's revisits (no detection there) resolve it
     assert log.series("false_alarm_objects")[-1] == 0
+
+
+def test_coarse_grained_planning_gains_rank_candidates_like_exact_full_covariance():
+    from attend.action.camera import take_image
+    from attend.action.planners import _PlanningModel
+
+    field = make_field(0)
+    rng = np.random.default_rng(0)
+    setup_exact = PlanningSetup(field, planning_block_cells=1)
+    belief = OccupancyMap.prior(field.grid)
+    for pose in ([10, 0, 10], [0, 5, 14], [-8, -8, 8]):
+        image = take_image(field, setup_exact.camera, setup_exact.detector, pose, 0.0, rng)
+        belief.fuse(image.cells, image.measurements, image.noise_variance)
+    lattice = setup_exact.lattice()
+    visible = setup_exact.camera.visible_cells(lattice, field.grid)[:, None, :]
+    noise = setup_exact.detector.noise_variance(lattice[:, 2])[:, None]
+    gains = {}
+    for block in (1, 2):
+        model = _PlanningModel(belief, PlanningSetup(field, planning_block_cells=block), None)
+        gains[block], _ = model.gains(model.precision(visible, noise))
+    # exact trace reduction equals the dense posterior formula for one candidate
+    k = int(np.argmax(gains[1]))
+    d = visible[k, 0] / noise[k, 0]
+    posterior = np.linalg.inv(np.linalg.inv(belief.covariance) + np.diag(d))
+    assert gains[1][k] == pytest.approx(np.trace(belief.covariance) - np.trace(posterior), rel=1e-6)
+    ranks = [np.argsort(np.argsort(gains[b])) for b in (1, 2)]
+    assert np.corrcoef(*ranks)[0, 1] > 0.95
+    assert np.argmax(gains[2]) == k

@@ -24,6 +24,14 @@ the evaluation levels, never on the evaluation runs (``python benchmarks/bench_r
 --tune`` repeats the choice). Quick: 6 seeds x 6 noise levels x (13 fixed + 1 rhythmic);
 full: 20 x 11 x (25 + 1). The runs are cut into sweep tasks (:func:`learn_schedule_runs`) that
 run here or on a Dask cluster (``cluster=``, see attend.sweep) with the same numbers.
+
+Measured (benchmarks/bench_rhythm_learning.py): quick, worst-case relative regret 0.16 for the
+rhythm vs 0.31 for the best fixed value (1e3), lower than all 13; full (20 seeds, 11 levels, 25
+fixed values), 0.47 vs 0.32 for the fixed P_theta = 1e3, lower than 24 of 25. The claim does
+not hold at full size: the learner's posterior already weighs prior and data by their
+precisions (lambda_z is learned), so one fixed P_theta near the precision of the prior's error
+is good at every noise level; the rhythm, whose geometric mean is that value, gains a few per
+cent in the middle noise levels and loses 25-47 % at the ends.
 """
 
 from __future__ import annotations

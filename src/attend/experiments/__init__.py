@@ -18,6 +18,7 @@ EXPERIMENTS: dict[str, tuple[str, str]] = {
     "fig4": ("attend.experiments.fig4", "parameter error vs prior parameter precision: exploration vs exploitation (paper Fig. 4)"),
     "fig5": ("attend.experiments.fig5", "over-exposed vs biased learner across sensor noise; noise-precision learning (paper Fig. 5)"),
     "ipp": ("attend.experiments.ipp", "UAV search and rescue: informative path planning with precision maps (paper Figs. 6-9)"),
+    "rhythm-learning": ("attend.experiments.rhythm_learning", "rhythmic vs fixed prior precision in identification across sensor noise (paper §4.4)"),
     "vision": ("attend.experiments.vision", "active vision: saccades to the most informative location on a rhythm (paper Fig. 1)"),
 }
 

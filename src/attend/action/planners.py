@@ -355,7 +355,11 @@ class AdaptivePlanner(InformativePlanner):
 
 class ExpectedFreeEnergyPlanner(InformativePlanner):
     """Minimise expected free energy G = -(epistemic + pragmatic) per flight time; the pragmatic
-    term is ``preference_nats`` per expected detected cell (prior preference for seeing people)."""
+    term is ``preference_nats`` per expected detected cell (prior preference for seeing people).
+
+    preference_nats = 0.5 gave the lowest final RSE among {0, 0.1, 0.2, 0.5} on seeds 100-107
+    (disjoint from the evaluation seeds 0-24): RSE 3.91, 3.86, 3.90, 3.81; trace(P) 79.6, 81.5,
+    88.4, 105.8 - the preference buys map error and people found with precision."""
 
     name = "efe"
 

@@ -24,10 +24,13 @@ from attend.experiments._result import ExperimentResult
 PLANNER_NAMES = ("precision_gain", "adaptive", "efe", "lawnmower", "random")
 INFORMATIVE = ("precision_gain", "adaptive", "efe")
 BUDGET_S = 150.0
+FALSE_POSITIVE_SEED = 3
 
 
 def _one_trial(job: tuple[str, int, float, int]) -> EpisodeLog:
     name, seed, budget_s, cma_evaluations = job
+    if name == "false_positive_episode":
+        return false_positive_episode(seed=seed, budget_s=budget_s, cma_evaluations=cma_evaluations)[1]
     camera, detector, flight = Camera(), Detector(), FlightModel()
     field = make_field(seed)
     setup = PlanningSetup(field, camera, detector, flight, cma_evaluations=cma_evaluations)
@@ -37,11 +40,15 @@ def _one_trial(job: tuple[str, int, float, int]) -> EpisodeLog:
 
 def run_trials(
     planners=PLANNER_NAMES, trials: int = 25, budget_s: float = BUDGET_S, cma_evaluations: int = 24,
-    progress: bool = False, first_seed: int = 0, workers: int = 1,
+    progress: bool = False, first_seed: int = 0, workers: int = 1, with_false_positive_episode: bool = False,
 ) -> dict[str, list[EpisodeLog]]:
     """``trials`` seeded missions per planner (seed k: same field and detector noise for every
-    planner); ``workers`` > 1 runs them in that many processes (results identical)."""
+    planner); ``workers`` > 1 runs them in that many processes (results identical). With
+    ``with_false_positive_episode`` the Fig. 9 episode runs in the same pool (key
+    "false_positive_episode")."""
     jobs = [(name, seed, budget_s, cma_evaluations) for seed in range(first_seed, first_seed + trials) for name in planners]
+    if with_false_positive_episode:
+        jobs.insert(0, ("false_positive_episode", FALSE_POSITIVE_SEED, budget_s, cma_evaluations))
     if workers > 1:
         import multiprocessing
         import os
@@ -74,11 +81,13 @@ def run_trials(
         done = [_one_trial(job) for job in iterator]
     logs: dict[str, list[EpisodeLog]] = {name: [] for name in planners}
     for (name, _, _, _), log in zip(jobs, done):
-        logs[name].append(log)
+        logs.setdefault(name, []).append(log)
     return logs
 
 
-def false_positive_episode(planner: str = "efe", seed: int = 3, budget_s: float = BUDGET_S, cma_evaluations: int = 24):
+def false_positive_episode(
+    planner: str = "efe", seed: int = FALSE_POSITIVE_SEED, budget_s: float = BUDGET_S, cma_evaluations: int = 24
+):
     """Fig. 9: people in the lower half, one false blob injected in the first image."""
     camera, detector, flight = Camera(), Detector(), FlightModel()
     field = make_field(seed, people_region="lower_half")
@@ -98,8 +107,10 @@ def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentRe
     import os
 
     workers = max(1, min(2, os.cpu_count() or 1))
-    logs = run_trials(trials=trials, cma_evaluations=cma_evaluations, progress=progress, workers=workers)
-    fp_field, fp_log = false_positive_episode(cma_evaluations=cma_evaluations)
+    logs = run_trials(trials=trials, cma_evaluations=cma_evaluations, progress=progress, workers=workers,
+                      with_false_positive_episode=True)
+    fp_log = logs.pop("false_positive_episode")[0]
+    fp_field = make_field(FALSE_POSITIVE_SEED, people_region="lower_half")
     result = ExperimentResult(
         "ipp",
         settings={

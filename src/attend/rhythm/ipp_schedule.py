@@ -1,0 +1,383 @@
+"""When to stop flying and update/replan in informative path planning (seed §4.4, Fig. 10).
+
+The search-and-rescue UAV of :mod:`attend.action` plans a look-ahead path (w waypoints), flies
+it taking images (each image is fused into the map at once), and at some point stops following
+the plan and replans from the current belief. The anchors fix that point by a budget: replan
+after every segment, or after a fixed flight time per plan. Here *schedules* decide it:
+
+* :class:`SegmentSchedule`: replan at every waypoint (the :mod:`attend.action` default).
+* :class:`FixedBudgetSchedule`: replan after ``flight_time_s`` of flight on the plan (the
+  segment being flown is cut there).
+* :class:`OscillatorSchedule`: replan at each trough of a :class:`PrecisionOscillator` on the
+  mission clock (the rhythm alone decides; the first image of a plan is always taken).
+* :class:`PrecisionDrivenSchedule`: the precision dynamics decide, the rhythm is a prior.
+  After every image (belief just updated) it compares
+
+      stay rate   s = [tr P - tr P_post(remaining planned path)] / T(remaining path)
+      fresh rate  f = r_k * tr P / tr P_k
+
+  (r_k: the rate of the plan chosen at the last replan k, evaluated on the belief then, with
+  trace tr P_k; a fresh plan is expected to offer that rate scaled by the uncertainty left),
+  and replans iff  s < rho * f * exp(-kappa * sin theta(t))  (:func:`replan_decision`):
+  rho = ``tolerance``, theta(t) the oscillator phase (troughs, sin theta = -1, lower the bar
+  for replanning by e^kappa; kappa = ``prior_weight``; kappa = 0: precision dynamics alone).
+  The gains are covariance-only (no data needed: :func:`expected_trace_reduction`), exact on the
+  belief (full or per-cell covariance). A plan whose path is used up is always replanned.
+
+Every schedule also replans when the plan is used up. :func:`run_scheduled_episode` flies one
+mission under a schedule with any :class:`attend.action.Planner` and logs, besides every map
+metric at every image, the replan times, the planner wall time per replan and the wall time
+spent on the schedule's own decisions.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from dataclasses import field as dataclass_field
+from typing import Sequence
+
+import numpy as np
+import scipy.linalg
+
+from attend._validation import AttendInputError, positive_scalar
+from attend.action.belief import OccupancyMap
+from attend.action.camera import take_image
+from attend.action.episode import EpisodeLog, flight_position
+from attend.action.field import validate_pose
+from attend.action.metrics import map_metrics
+from attend.action.planners import Planner
+from attend.rhythm.oscillator import PrecisionOscillator, _finite
+
+__all__ = [
+    "FixedBudgetSchedule", "OscillatorSchedule", "PrecisionDrivenSchedule", "ReplanSchedule", "ScheduledEpisodeLog",
+    "SegmentSchedule", "expected_trace_reduction", "make_schedule", "path_gain", "replan_decision",
+    "run_scheduled_episode",
+]
+
+
+# ----------------------------------------------------------------------------------------------
+# Closed forms
+
+
+def expected_trace_reduction(belief: OccupancyMap, cell_precision: np.ndarray) -> float:
+    """trace(P) - trace(P_post) for measurement precision ``cell_precision`` (n,) per cell
+    (d_i = sum over images of 1 / sigma^2; P_post = (P^-1 + D)^-1, independent of the data).
+
+    Per-cell belief: sum_i v_i - 1 / (1 / v_i + d_i). Full covariance, observed set A:
+    tr(T^-1 D^1/2 (P P)_AA D^1/2) with T = I + D^1/2 P_AA D^1/2.
+    """
+    d = np.asarray(cell_precision, dtype=float)
+    if d.shape != (belief.grid.n_cells,) or np.any(d < 0) or not np.all(np.isfinite(d)):
+        raise AttendInputError(f"cell_precision: expected {belief.grid.n_cells} finite values >= 0, got shape {d.shape}")
+    observed = np.flatnonzero(d > 0)
+    if len(observed) == 0:
+        return 0.0
+    if belief.diagonal:
+        v = belief.covariance[observed]
+        return float(np.sum(v - 1.0 / (1.0 / v + d[observed])))
+    p = belief.covariance
+    root = np.sqrt(d[observed])
+    rows = p[observed]  # P_A: (m, n)
+    t = p[np.ix_(observed, observed)] * root[:, None] * root[None, :]
+    t[np.diag_indices_from(t)] += 1.0
+    square = (rows @ rows.T) * root[:, None] * root[None, :]  # D^1/2 (P P)_AA D^1/2
+    factor = scipy.linalg.cho_factor(t, lower=True, check_finite=False)
+    return float(np.trace(scipy.linalg.cho_solve(factor, square, check_finite=False)))
+
+
+def path_gain(planner: Planner, belief: OccupancyMap, pose: Sequence[float], waypoints: np.ndarray,
+              time_to_next_image_s: float, time_left_s: float) -> tuple[float, float]:
+    """Expected trace(P) reduction of the images a path would take and its flight time [s].
+
+    The path starts at rest at ``pose`` and visits ``waypoints`` (w, 3) with the planner's
+    flight, camera and detector models (images on the mission clock, first one after
+    ``time_to_next_image_s``, flight stopped after ``time_left_s``)."""
+    path = np.asarray(waypoints, dtype=float).reshape(-1, 3)
+    if len(path) == 0 or time_left_s <= 0:
+        return 0.0, 0.0
+    setup = planner.setup
+    poses, valid, total, _ = setup.flight.path_images(np.asarray(pose, float), path[None], time_to_next_image_s,
+                                                      time_left_s)
+    taken = poses[0][valid[0]]
+    if len(taken) == 0:
+        return 0.0, float(total[0])
+    visible = setup.camera.visible_cells(taken, setup.field.grid, setup.field.obstacles)
+    precision = (visible / setup.detector.noise_variance(taken[:, 2])[:, None]).sum(axis=0)
+    return expected_trace_reduction(belief, precision), float(total[0])
+
+
+def replan_decision(stay_rate: float, fresh_rate: float, phase_angle: float = 0.0, prior_weight: float = 0.0,
+                    tolerance: float = 1.0) -> bool:
+    """Replan iff  stay_rate < tolerance * fresh_rate * exp(-prior_weight * sin(phase_angle)).
+
+    stay_rate: expected gain per second of the rest of the current plan; fresh_rate: the gain
+    per second a fresh plan is expected to offer (same unit); phase_angle: oscillator phase
+    theta(t) [rad] (its troughs, sin = -1, favour replanning); prior_weight kappa >= 0;
+    tolerance rho > 0."""
+    prior = math.exp(-float(prior_weight) * math.sin(float(phase_angle)))
+    return float(stay_rate) < float(tolerance) * float(fresh_rate) * prior
+
+
+# ----------------------------------------------------------------------------------------------
+# Schedules
+
+
+@dataclass
+class PlanContext:
+    """What a schedule sees at a decision: the ``planner``, the ``belief`` (just updated), the
+    ``pose`` [m], the rest of the plan ``remaining`` (k, 3) [m], the mission ``time_s``, the time to
+    the next image and the flight time left [s]."""
+
+    planner: Planner
+    belief: OccupancyMap
+    pose: np.ndarray
+    remaining: np.ndarray
+    time_s: float
+    time_to_next_image_s: float
+    time_left_s: float
+
+
+class ReplanSchedule(ABC):
+    """Decides when the UAV stops following its plan and replans.
+
+    ``deadline(plan_start_s, first_image_s)``: mission time [s] at which the plan is cut (inf:
+    none); ``at_waypoint``: replan at every waypoint; ``start_plan(context)`` is called after
+    each replan; ``after_image(context)`` after each image: True to replan now."""
+
+    name = "schedule"
+    at_waypoint = False
+
+    def reset(self) -> None:
+        """Start a new mission."""
+
+    def deadline(self, plan_start_s: float, first_image_s: float) -> float:
+        """Mission time [s] at which the current plan is cut (inf: no deadline)."""
+        return math.inf
+
+    def start_plan(self, context: PlanContext) -> None:
+        """Called after every replan with the new plan in ``context.remaining``."""
+
+    def after_image(self, context: PlanContext) -> bool:
+        """Called after every image (the belief already holds it): replan now?"""
+        return False
+
+
+class SegmentSchedule(ReplanSchedule):
+    """Replan at every waypoint (after every segment)."""
+
+    name = "segment"
+    at_waypoint = True
+
+
+class FixedBudgetSchedule(ReplanSchedule):
+    """Replan after ``flight_time_s`` [s] of flight on each plan (or when the plan is used up)."""
+
+    def __init__(self, flight_time_s: float) -> None:
+        self.flight_time_s = positive_scalar(flight_time_s, "flight_time_s", "s")
+        self.name = f"fixed_{self.flight_time_s:g}s"
+
+    def deadline(self, plan_start_s: float, first_image_s: float) -> float:
+        return plan_start_s + self.flight_time_s
+
+
+class OscillatorSchedule(ReplanSchedule):
+    """Replan at the troughs of ``oscillator`` (mission clock, s); a plan always keeps its first
+    image (the first trough at or after it)."""
+
+    name = "oscillator"
+
+    def __init__(self, oscillator: PrecisionOscillator) -> None:
+        if not isinstance(oscillator, PrecisionOscillator):
+            raise AttendInputError(f"oscillator: expected a PrecisionOscillator, got {type(oscillator).__name__}")
+        self.oscillator = oscillator
+
+    def deadline(self, plan_start_s: float, first_image_s: float) -> float:
+        start = max(plan_start_s, first_image_s)
+        troughs = self.oscillator.trough_times(start, start + 2 * self.oscillator.period)
+        return float(troughs[0])
+
+
+class PrecisionDrivenSchedule(ReplanSchedule):
+    """Keep flying while the rest of the plan still pays: replan iff
+    stay rate < tolerance * fresh rate * exp(-prior_weight * sin theta(t)) (module docstring).
+
+    oscillator: the rhythm used as a prior on the timing (its phase theta(t) on the mission
+    clock); prior_weight kappa >= 0; tolerance rho > 0. ``decisions`` logs (time [s], stay rate,
+    fresh rate, replanned) of every decision of the current mission."""
+
+    name = "precision"
+
+    def __init__(self, oscillator: PrecisionOscillator, prior_weight: float = 0.5, tolerance: float = 1.0) -> None:
+        if not isinstance(oscillator, PrecisionOscillator):
+            raise AttendInputError(f"oscillator: expected a PrecisionOscillator, got {type(oscillator).__name__}")
+        self.oscillator = oscillator
+        weight = _finite(prior_weight, "prior_weight")
+        if weight < 0:
+            raise AttendInputError(f"prior_weight: expected a number >= 0, got {prior_weight!r}")
+        self.prior_weight = weight
+        self.tolerance = positive_scalar(tolerance, "tolerance")
+        self.reset()
+
+    def reset(self) -> None:
+        self.plan_rate = 0.0
+        self.plan_trace = 1.0
+        self.decisions: list[tuple[float, float, float, bool]] = []
+
+    def start_plan(self, context: PlanContext) -> None:
+        gain, duration = path_gain(context.planner, context.belief, context.pose, context.remaining,
+                                   context.time_to_next_image_s, context.time_left_s)
+        self.plan_rate = gain / duration if duration > 0 else 0.0
+        self.plan_trace = max(context.belief.trace(), 1e-12)
+
+    def fresh_rate(self, belief: OccupancyMap) -> float:
+        """r_k tr P / tr P_k: the last plan's rate scaled by the uncertainty left."""
+        return self.plan_rate * belief.trace() / self.plan_trace
+
+    def after_image(self, context: PlanContext) -> bool:
+        if len(context.remaining) == 0:
+            return True
+        gain, duration = path_gain(context.planner, context.belief, context.pose, context.remaining,
+                                   context.time_to_next_image_s, context.time_left_s)
+        stay = gain / duration if duration > 0 else 0.0
+        fresh = self.fresh_rate(context.belief)
+        phase = float(self.oscillator.phase_angle(context.time_s))
+        decision = replan_decision(stay, fresh, phase, self.prior_weight, self.tolerance)
+        self.decisions.append((context.time_s, stay, fresh, decision))
+        return decision
+
+
+def make_schedule(policy: str, oscillator_frequency_hz: float = 0.05, oscillator_phase_rad: float = 0.0,
+                  prior_weight: float = 0.5, tolerance: float = 1.0) -> ReplanSchedule:
+    """Schedule by name: "segment", "fixed_<T>s" (e.g. "fixed_20s"), "oscillator", "precision"
+    (with the oscillator prior) or "precision_no_prior" (kappa = 0)."""
+    if not isinstance(policy, str):
+        raise AttendInputError(f"policy: expected a policy name, got {policy!r}")
+    oscillator = PrecisionOscillator(frequency=oscillator_frequency_hz, phase=oscillator_phase_rad)
+    if policy == "segment":
+        return SegmentSchedule()
+    if policy.startswith("fixed_") and policy.endswith("s"):
+        try:
+            seconds = float(policy[len("fixed_"):-1])
+        except ValueError:
+            seconds = float("nan")
+        if math.isfinite(seconds) and seconds > 0:
+            return FixedBudgetSchedule(seconds)
+    if policy == "oscillator":
+        return OscillatorSchedule(oscillator)
+    if policy == "precision":
+        return PrecisionDrivenSchedule(oscillator, prior_weight, tolerance)
+    if policy == "precision_no_prior":
+        schedule = PrecisionDrivenSchedule(oscillator, 0.0, tolerance)
+        schedule.name = "precision_no_prior"
+        return schedule
+    raise AttendInputError(
+        f"policy: expected 'segment', 'fixed_<seconds>s', 'oscillator', 'precision' or 'precision_no_prior', "
+        f"got {policy!r}")
+
+
+# ----------------------------------------------------------------------------------------------
+# Episode
+
+
+@dataclass
+class ScheduledEpisodeLog(EpisodeLog):
+    """An :class:`attend.action.EpisodeLog` plus the schedule's record: ``schedule`` name,
+    ``replan_times_s`` (mission time of every replan, the first at 0), ``decision_times_s`` (wall
+    time of the schedule's own computations per plan) and ``decisions`` (precision-driven
+    schedules: (time s, stay rate, fresh rate, replanned) per image)."""
+
+    schedule: str = ""
+    replan_times_s: list[float] = dataclass_field(default_factory=list)
+    decision_times_s: list[float] = dataclass_field(default_factory=list)
+    decisions: list[tuple[float, float, float, bool]] = dataclass_field(default_factory=list)
+
+    @property
+    def n_replans(self) -> int:
+        """Number of plans made (the first included)."""
+        return len(self.replan_times_s)
+
+
+def run_scheduled_episode(field, planner: Planner, schedule: ReplanSchedule, budget_s: float = 150.0, seed: int = 0,
+                          diagonal: bool = False, keep_maps: bool = False) -> ScheduledEpisodeLog:
+    """Fly one mission of ``budget_s`` s [flight time]: plan, fly the plan taking and fusing
+    images, replan when ``schedule`` says so (or the plan is used up), until the budget is spent.
+
+    field: an :class:`attend.action.SearchField`; planner: any :class:`attend.action.Planner`
+    (its ``setup`` gives the camera, detector and flight models); seed: detector noise and
+    planner seed; diagonal: per-cell (diagonal) map covariance; keep_maps: log the map after
+    each image. Planning time is not charged against the budget (it is logged)."""
+    if not isinstance(schedule, ReplanSchedule):
+        raise AttendInputError(f"schedule: expected a ReplanSchedule, got {type(schedule).__name__}")
+    if not isinstance(planner, Planner):
+        raise AttendInputError(f"planner: expected an attend.action Planner, got {type(planner).__name__}")
+    budget_s = positive_scalar(budget_s, "budget_s", "s")
+    setup = planner.setup
+    camera, detector, flight = setup.camera, setup.detector, setup.flight
+    pose = validate_pose(field.start_pose_m, field.grid, field.altitude_limits_m, "start_pose_m")
+    rng = np.random.default_rng(seed)
+    planner.reset(seed)
+    schedule.reset()
+    belief = OccupancyMap.prior(field.grid, diagonal=diagonal)
+    truth = field.truth
+    log = ScheduledEpisodeLog(planner.name, seed, float(budget_s), len(field.people), schedule=schedule.name)
+
+    def record(image=None) -> None:
+        values = map_metrics(belief.mean, belief.variance, truth, field.person_cells, field.grid.shape)
+        for key, value in values.items():
+            log.metrics.setdefault(key, []).append(value)
+        if keep_maps:
+            log.means.append(belief.mean.copy())
+            log.variances.append(belief.variance.copy())
+        if image is not None:
+            log.times_s.append(image.time_s)
+            log.poses_m.append(image.pose_m)
+            log.clutter_cells.append(image.clutter_cells)
+
+    record()
+    log.waypoints_m.append(pose.copy())
+    elapsed, t_next = 0.0, 0.0
+    period = flight.image_period_s
+    while elapsed < budget_s - 1e-9:
+        tic = time.perf_counter()
+        plan = np.atleast_2d(planner.plan(belief, pose, budget_s - elapsed, t_next)).reshape(-1, 3)
+        log.planner_times_s.append(time.perf_counter() - tic)
+        log.replan_times_s.append(elapsed)
+        if len(plan) == 0:
+            break
+        tic = time.perf_counter()
+        schedule.start_plan(PlanContext(planner, belief, pose, plan, elapsed, t_next, budget_s - elapsed))
+        deciding = time.perf_counter() - tic
+        deadline = schedule.deadline(elapsed, elapsed + t_next)
+        for j, goal in enumerate(plan):
+            limit = min(budget_s, deadline) - elapsed
+            if limit <= 1e-9:
+                break
+            start = pose
+            travel = float(flight.segment_duration(np.linalg.norm(goal - start)))
+            poses, times, valid, duration, next_after = flight.segment_images(start, goal, t_next, limit)
+            flown, next_image, cut = float(duration[0]), float(next_after[0]), False
+            for image_pose, image_time in zip(poses[0][valid[0]], times[0][valid[0]]):
+                image = take_image(field, camera, detector, image_pose, elapsed + image_time, rng)
+                belief.fuse(image.cells, image.measurements, image.noise_variance)
+                record(image)
+                rest = plan[j + 1:] if image_time >= travel - 1e-9 else plan[j:]
+                tic = time.perf_counter()
+                cut = schedule.after_image(PlanContext(planner, belief, np.asarray(image_pose, float), rest,
+                                                       elapsed + image_time, period,
+                                                       budget_s - elapsed - image_time))
+                deciding += time.perf_counter() - tic
+                if cut:
+                    flown, next_image = float(image_time), period
+                    break
+            pose = np.asarray(goal, float) if flown >= travel - 1e-9 else flight_position(flight, start, goal, flown)
+            log.waypoints_m.append(pose.copy())
+            elapsed += flown
+            t_next = next_image
+            if cut or elapsed >= min(budget_s, deadline) - 1e-9 or schedule.at_waypoint:
+                break
+        log.decision_times_s.append(deciding)
+    log.decisions = list(getattr(schedule, "decisions", []))
+    return log

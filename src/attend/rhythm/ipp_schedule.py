@@ -308,7 +308,8 @@ def run_scheduled_episode(field, planner: Planner, schedule: ReplanSchedule, bud
     field: an :class:`attend.action.SearchField`; planner: any :class:`attend.action.Planner`
     (its ``setup`` gives the camera, detector and flight models); seed: detector noise and
     planner seed; diagonal: per-cell (diagonal) map covariance; keep_maps: log the map after
-    each image. Planning time is not charged against the budget (it is logged)."""
+    each image. Planning time is not charged against the budget (it is logged). The schedule is
+    consulted after every image except one taken where a plan starts (before it has flown)."""
     if not isinstance(schedule, ReplanSchedule):
         raise AttendInputError(f"schedule: expected a ReplanSchedule, got {type(schedule).__name__}")
     if not isinstance(planner, Planner):
@@ -363,6 +364,8 @@ def run_scheduled_episode(field, planner: Planner, schedule: ReplanSchedule, bud
                 image = take_image(field, camera, detector, image_pose, elapsed + image_time, rng)
                 belief.fuse(image.cells, image.measurements, image.noise_variance)
                 record(image)
+                if j == 0 and image_time <= 1e-9:
+                    continue  # taken where the plan starts, before any flight: no decision yet
                 rest = plan[j + 1:] if image_time >= travel - 1e-9 else plan[j:]
                 tic = time.perf_counter()
                 cut = schedule.after_image(PlanContext(planner, belief, np.asarray(image_pose, float), rest,

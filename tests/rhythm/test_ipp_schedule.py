@@ -160,3 +160,17 @@ def test_bad_input_names_the_field():
         rhythm_ipp.run(trials=0, progress=False)
     with pytest.raises(AttendInputError, match="policy"):
         rhythm_ipp.run(trials=1, policies=["segment", "never"], progress=False)
+
+
+def test_coarse_trace_reduction():
+    from attend.rhythm.ipp_schedule import coarse_trace_reduction
+
+    grid = Grid(8, 3.75)
+    belief = OccupancyMap.prior(grid)
+    d = np.zeros(grid.n_cells)
+    d[[0, 1, 8, 9, 20, 30]] = 2.0
+    exact = expected_trace_reduction(belief, d)
+    assert coarse_trace_reduction(belief, d, 1) == exact
+    assert coarse_trace_reduction(belief, d, 2) == pytest.approx(exact, rel=0.5)  # an approximation, same scale
+    with pytest.raises(AttendInputError, match="block_cells"):
+        coarse_trace_reduction(belief, d, 3)

@@ -21,8 +21,9 @@ after every segment, or after a fixed flight time per plan. Here *schedules* dec
   and replans iff  s < rho * f * exp(-kappa * sin theta(t))  (:func:`replan_decision`):
   rho = ``tolerance``, theta(t) the oscillator phase (troughs, sin theta = -1, lower the bar
   for replanning by e^kappa; kappa = ``prior_weight``; kappa = 0: precision dynamics alone).
-  The gains are covariance-only (no data needed: :func:`expected_trace_reduction`), exact on the
-  belief (full or per-cell covariance). A plan whose path is used up is always replanned.
+  The gains are covariance-only (no data needed: :func:`expected_trace_reduction`), scored
+  like the planner's (per-cell belief: exact; full covariance: coarse-grained over 2 x 2
+  blocks, :func:`coarse_trace_reduction`). A plan whose path is used up is always replanned.
 
 Every schedule also replans when the plan is used up. :func:`run_scheduled_episode` flies one
 mission under a schedule with any :class:`attend.action.Planner` and logs, besides every map
@@ -46,14 +47,14 @@ from attend._validation import AttendInputError, positive_scalar
 from attend.action.belief import OccupancyMap
 from attend.action.camera import take_image
 from attend.action.episode import EpisodeLog, flight_position
-from attend.action.field import validate_pose
+from attend.action.field import Grid, validate_pose
 from attend.action.metrics import map_metrics
 from attend.action.planners import Planner
 from attend.rhythm.oscillator import PrecisionOscillator, _finite
 
 __all__ = [
     "FixedBudgetSchedule", "OscillatorSchedule", "PrecisionDrivenSchedule", "ReplanSchedule", "ScheduledEpisodeLog",
-    "SegmentSchedule", "expected_trace_reduction", "make_schedule", "path_gain", "replan_decision",
+    "SegmentSchedule", "coarse_trace_reduction", "expected_trace_reduction", "make_schedule", "path_gain", "replan_decision",
     "run_scheduled_episode",
 ]
 
@@ -88,13 +89,34 @@ def expected_trace_reduction(belief: OccupancyMap, cell_precision: np.ndarray) -
     return float(np.trace(scipy.linalg.cho_solve(factor, square, check_finite=False)))
 
 
+def coarse_trace_reduction(belief: OccupancyMap, cell_precision: np.ndarray, block_cells: int) -> float:
+    """:func:`expected_trace_reduction` on the coarse-grained covariance the planners score with
+    (attend.action.planners): P_b = B P B' over blocks of ``block_cells``^2 cells (B averages a
+    block), precision summed per block, gain times the block area. ``block_cells`` = 1 (or a
+    per-cell belief): exact."""
+    block = int(block_cells)
+    side = belief.grid.cells_per_side
+    if belief.diagonal or block == 1:
+        return expected_trace_reduction(belief, cell_precision)
+    if block < 1 or side % block:
+        raise AttendInputError(f"block_cells: expected a divisor of cells_per_side={side}, got {block_cells!r}")
+    nb, n = side // block, belief.grid.n_cells
+    rows = belief.covariance.reshape(n, nb, block, nb, block).sum(axis=(2, 4)).reshape(n, nb * nb)
+    blocks = rows.T.reshape(nb * nb, nb, block, nb, block).sum(axis=(2, 4)).reshape(nb * nb, nb * nb)
+    coarse = OccupancyMap(Grid(nb, belief.grid.cell_size_m * block), np.zeros(nb * nb), blocks / block**4)
+    precision = np.asarray(cell_precision, float).reshape(nb, block, nb, block).sum(axis=(1, 3)).ravel()
+    return expected_trace_reduction(coarse, precision) * block**2
+
+
 def path_gain(planner: Planner, belief: OccupancyMap, pose: Sequence[float], waypoints: np.ndarray,
-              time_to_next_image_s: float, time_left_s: float) -> tuple[float, float]:
+              time_to_next_image_s: float, time_left_s: float, block_cells: int | None = None) -> tuple[float, float]:
     """Expected trace(P) reduction of the images a path would take and its flight time [s].
 
     The path starts at rest at ``pose`` and visits ``waypoints`` (w, 3) with the planner's
     flight, camera and detector models (images on the mission clock, first one after
-    ``time_to_next_image_s``, flight stopped after ``time_left_s``)."""
+    ``time_to_next_image_s``, flight stopped after ``time_left_s``). The gain is scored like
+    the planner's (coarse-grained over ``block_cells``^2 blocks, default the planner's
+    ``planning_block_cells``; 1: exact)."""
     path = np.asarray(waypoints, dtype=float).reshape(-1, 3)
     if len(path) == 0 or time_left_s <= 0:
         return 0.0, 0.0
@@ -106,7 +128,8 @@ def path_gain(planner: Planner, belief: OccupancyMap, pose: Sequence[float], way
         return 0.0, float(total[0])
     visible = setup.camera.visible_cells(taken, setup.field.grid, setup.field.obstacles)
     precision = (visible / setup.detector.noise_variance(taken[:, 2])[:, None]).sum(axis=0)
-    return expected_trace_reduction(belief, precision), float(total[0])
+    block = setup.planning_block_cells if block_cells is None else block_cells
+    return coarse_trace_reduction(belief, precision, block), float(total[0])
 
 
 def replan_decision(stay_rate: float, fresh_rate: float, phase_angle: float = 0.0, prior_weight: float = 0.0,

@@ -53,7 +53,8 @@ from attend.action.planners import Planner
 from attend.rhythm.oscillator import PrecisionOscillator, _finite
 
 __all__ = [
-    "FixedBudgetSchedule", "OscillatorSchedule", "PrecisionDrivenSchedule", "ReplanSchedule", "ScheduledEpisodeLog",
+    "FixedBudgetSchedule", "OscillatorSchedule", "PlanContext", "PrecisionDrivenSchedule", "ReplanSchedule",
+    "ScheduledEpisodeLog",
     "SegmentSchedule", "coarse_trace_reduction", "expected_trace_reduction", "make_schedule", "path_gain", "replan_decision",
     "run_scheduled_episode",
 ]

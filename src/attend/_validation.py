@@ -61,14 +61,17 @@ def order(value, field: str, maximum: int = 24) -> int:
     return int(value)
 
 
-def precision_matrix(value, size: int, field: str) -> np.ndarray:
-    """A precision given as a scalar (times I), a vector (diagonal) or a symmetric PSD matrix."""
+def symmetric_matrix(value, size: int, field: str, what: str = "precisions") -> np.ndarray:
+    """A PSD matrix given as a scalar (times I), a vector (diagonal) or a symmetric matrix.
+
+    ``what`` names the entries in the messages ("precisions", "variances").
+    """
     try:
         array = np.array(value, dtype=float)
     except (TypeError, ValueError):
         raise AttendInputError(f"{field}: expected a number, vector or matrix, got {value!r}") from None
     if not np.all(np.isfinite(array)):
-        raise AttendInputError(f"{field}: expected finite precisions, got {value!r}")
+        raise AttendInputError(f"{field}: expected finite {what}, got {value!r}")
     if array.ndim == 0:
         array = array * np.eye(size)
     elif array.ndim == 1:
@@ -77,8 +80,14 @@ def precision_matrix(value, size: int, field: str) -> np.ndarray:
         array = np.diag(array)
     elif array.shape != (size, size):
         raise AttendInputError(f"{field}: expected a {size}x{size} matrix, got shape {array.shape}")
-    if not np.allclose(array, array.T, rtol=1e-10, atol=1e-12 * max(1.0, np.abs(array).max())):
+    scale = max(1.0, float(np.abs(array).max()))
+    if not np.allclose(array, array.T, rtol=1e-10, atol=1e-12 * scale):
         raise AttendInputError(f"{field}: expected a symmetric matrix")
-    if np.linalg.eigvalsh(array).min() < -1e-12 * max(1.0, np.abs(array).max()):
-        raise AttendInputError(f"{field}: expected non-negative precisions (positive semi-definite)")
-    return array
+    if np.linalg.eigvalsh(array).min() < -1e-12 * scale:
+        raise AttendInputError(f"{field}: expected non-negative {what} (positive semi-definite)")
+    return 0.5 * (array + array.T)
+
+
+def precision_matrix(value, size: int, field: str) -> np.ndarray:
+    """A precision given as a scalar (times I), a vector (diagonal) or a symmetric PSD matrix."""
+    return symmetric_matrix(value, size, field, "precisions")

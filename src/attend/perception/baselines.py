@@ -37,7 +37,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, solve_discrete_are, solve_triangular
 
-from attend._validation import AttendInputError, as_matrix, positive_scalar, require_finite
+from attend._validation import AttendInputError, as_matrix, positive_scalar, require_finite, symmetric_matrix
 from attend.noise import autocorrelation, gaussian_kernel
 from attend.systems import LinearSystem
 
@@ -102,26 +102,7 @@ def _system(system) -> LinearSystem:
 
 def _covariance(value, size: int, field: str) -> np.ndarray:
     """A covariance given as a scalar (times I), a vector (diagonal) or a symmetric PSD matrix."""
-    try:
-        array = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise AttendInputError(f"{field}: expected a number, vector or matrix, got {value!r}") from None
-    if not np.all(np.isfinite(array)):
-        raise AttendInputError(f"{field}: expected finite variances, got {value!r}")
-    if array.ndim == 0:
-        array = array * np.eye(size)
-    elif array.ndim == 1:
-        if array.shape[0] != size:
-            raise AttendInputError(f"{field}: expected {size} diagonal entries, got {array.shape[0]}")
-        array = np.diag(array)
-    elif array.shape != (size, size):
-        raise AttendInputError(f"{field}: expected a {size}x{size} matrix, got shape {array.shape}")
-    scale = max(1.0, float(np.abs(array).max()))
-    if not np.allclose(array, array.T, rtol=1e-10, atol=1e-12 * scale):
-        raise AttendInputError(f"{field}: expected a symmetric matrix")
-    if np.linalg.eigvalsh(array).min() < -1e-12 * scale:
-        raise AttendInputError(f"{field}: expected a positive semi-definite covariance")
-    return 0.5 * (array + array.T)
+    return symmetric_matrix(value, size, field, "variances")
 
 
 def _std_vector(value, size: int, field: str) -> np.ndarray:

@@ -19,6 +19,7 @@ EXPERIMENTS: dict[str, tuple[str, str]] = {
     "fig5": ("attend.experiments.fig5", "over-exposed vs biased learner across sensor noise; noise-precision learning (paper Fig. 5)"),
     "ipp": ("attend.experiments.ipp", "UAV search and rescue: informative path planning with precision maps (paper Figs. 6-9)"),
     "rhythm-learning": ("attend.experiments.rhythm_learning", "rhythmic vs fixed prior precision in identification across sensor noise (paper §4.4)"),
+    "rhythm-ipp": ("attend.experiments.rhythm_ipp", "when to replan in UAV search: precision-driven / rhythmic vs fixed flight budgets (paper §4.4, Fig. 10)"),
     "vision": ("attend.experiments.vision", "active vision: saccades to the most informative location on a rhythm (paper Fig. 1)"),
 }
 

@@ -33,6 +33,18 @@ def _build_parser() -> argparse.ArgumentParser:
             "'Reclaiming saliency'). DEM state and input estimation in generalised coordinates, "
             "precision learning, informative path planning and rhythmic scheduling."
         ),
+        epilog=(
+            "examples:\n"
+            "  attend reproduce all --out results       every result of the paper + results/index.html\n"
+            "  attend reproduce list                    the experiments\n"
+            "  attend estimate --demo --out roll.csv    states of a real quadrotor from its log\n"
+            "  attend estimate model.toml log.csv       your own robot (formats: README.md)\n"
+            "  attend identify model.toml log.csv       learn its parameters and noise precisions\n"
+            "  attend search --planner efe --out run1   one UAV search-and-rescue mission\n"
+            "Units: seconds, metres, radians; precisions are inverse variances.\n"
+            "'attend COMMAND --help' explains each option."
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--debug", action="store_true", help="show full tracebacks on errors")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")

@@ -57,9 +57,10 @@ def test_bad_systems_name_the_field():
 
 
 def test_unstable_and_unobservable_models_warn():
-    with pytest.warns(ModelWarning, match="not asymptotically stable"):
+    with pytest.warns(ModelWarning, match="A is unstable"):
         LinearSystem([[0.5, 0], [0, -1]], [[1], [1]], [[1, 1]]).check()
     with pytest.warns(ModelWarning, match="unobservable"):
         LinearSystem([[-1, 0], [0, -2]], [[1], [1]], [[1, 0]]).check()
     assert convolution_model().check() == []
+    assert quadrotor_roll().check() == []  # a double integrator is marginally stable: no warning
     assert quadrotor_roll().is_observable()

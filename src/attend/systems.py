@@ -91,14 +91,16 @@ class LinearSystem:
         return observability_rank(self.A, self.C) == self.n_states
 
     def check(self) -> list[str]:
-        """Warn (ModelWarning) if the model is unstable or unobservable; return the messages."""
+        """Warn (ModelWarning) if A has an eigenvalue with positive real part (unstable) or (A, C)
+        is unobservable; return the messages."""
         messages = []
         eigenvalues = np.linalg.eigvals(self.A)
-        if np.max(eigenvalues.real) >= 0:
+        tolerance = 1e-9 * max(1.0, float(np.abs(eigenvalues).max()))
+        if np.max(eigenvalues.real) > tolerance:
             worst = eigenvalues[np.argmax(eigenvalues.real)]
             messages.append(
-                f"A is not asymptotically stable: eigenvalue {worst:.4g} has real part >= 0 "
-                "(simulated states may grow without bound)"
+                f"A is unstable: eigenvalue {worst:.4g} has a positive real part "
+                "(states grow exponentially; integrators, with real part 0, are not flagged)"
             )
         rank = observability_rank(self.A, self.C)
         if rank < self.n_states:

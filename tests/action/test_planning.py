@@ -35,16 +35,19 @@ def test_planners_return_feasible_waypoints(name, buildings_setup):
     assert not path_collides(path, field.obstacles, margin_m=0.0)[0]
 
 
-def test_precision_gain_choice_beats_random_candidates_on_its_objective():
+@pytest.mark.parametrize("exact_candidates", [0, 4])
+def test_precision_gain_choice_beats_lattice_candidates_on_its_objective(exact_candidates):
+    """Screening only: best on the coarse score; with exact re-scoring: best on the exact
+    full-covariance score (here the exact best is among the screened top 4)."""
     field = make_field(0)
-    setup = PlanningSetup(field, cma_evaluations=0, lookahead_waypoints=1)
+    setup = PlanningSetup(field, cma_evaluations=0, lookahead_waypoints=1, exact_candidates=exact_candidates)
     planner = make_planner("precision_gain", setup)
     belief = OccupancyMap.prior(field.grid)
     pose = np.array(field.start_pose_m)
     chosen = planner.plan(belief, pose, 150.0, 0.0)
-    from attend.action.planners import _PlanningModel
+    from attend.action.planners import _ExactModel, _PlanningModel
 
-    model = _PlanningModel(belief, setup, None)
+    model = _ExactModel(belief, None) if exact_candidates else _PlanningModel(belief, setup, None)
     candidates = np.vstack([chosen, setup.lattice()])
     scores = planner._score_paths(model, belief, pose, candidates[:, None, :], 0.0, 150.0)
     assert scores[0] >= scores[1:].max() - 1e-9
@@ -145,3 +148,65 @@ def test_coarse_grained_planning_gains_rank_candidates_like_exact_full_covarianc
     ranks = [np.argsort(np.argsort(gains[b])) for b in (1, 2)]
     assert np.corrcoef(*ranks)[0, 1] > 0.95
     assert np.argmax(gains[2]) == k
+
+
+def test_exact_rescoring_model_matches_dense_full_covariance_gains():
+    from attend.action.camera import take_image
+    from attend.action.planners import _ExactModel, _PlanningModel
+
+    field = make_field(0)
+    setup = PlanningSetup(field, planning_block_cells=1)
+    rng = np.random.default_rng(0)
+    belief = OccupancyMap.prior(field.grid)
+    for pose in ([10, 0, 10], [0, 5, 14]):
+        image = take_image(field, setup.camera, setup.detector, pose, 0.0, rng)
+        belief.fuse(image.cells, image.measurements, image.noise_variance)
+    lattice = setup.lattice()[::5]
+    visible = setup.camera.visible_cells(lattice, field.grid)[:, None, :]
+    noise = setup.detector.noise_variance(lattice[:, 2])[:, None]
+    weights = np.random.default_rng(1).random(field.grid.n_cells)
+    for cell_weights in (None, weights):
+        dense, exact = _PlanningModel(belief, setup, cell_weights), _ExactModel(belief, cell_weights)
+        for _ in range(2):  # before and after conditioning on one image
+            want = dense.gains(dense.precision(visible, noise), want_information=True)
+            got = exact.gains(exact.precision(visible, noise), want_information=True)
+            np.testing.assert_allclose(got[0], want[0], rtol=1e-9)
+            np.testing.assert_allclose(got[1], want[1], rtol=1e-9)
+            d = exact.precision(visible[:1], noise[:1])[0]
+            dense.condition(d)
+            exact.condition(d)
+        np.testing.assert_allclose(exact.dense, dense.covariance, atol=1e-12)
+    assert np.trace(belief.covariance) == pytest.approx(np.trace(exact.covariance))  # belief untouched
+
+
+def test_exact_candidates_is_validated():
+    with pytest.raises(ActionInputError, match="exact_candidates"):
+        PlanningSetup(make_field(0), exact_candidates=-1)
+
+
+@pytest.mark.parametrize("name", ["precision_gain", "efe"])
+def test_greedy_exact_value_from_segments_equals_exact_path_score(name):
+    """Chain rule: the exact segment values summed over the greedy path equal the exact score of
+    the whole path (so the greedy path need not be re-scored at the end)."""
+    from attend.action.camera import take_image
+    from attend.action.planners import _ExactModel
+
+    field = make_field(2)
+    setup = PlanningSetup(field, cma_evaluations=6)
+    planner = make_planner(name, setup, 0)
+    rng = np.random.default_rng(0)
+    belief = OccupancyMap.prior(field.grid)
+    for pose in ([10, 0, 10], [0, 5, 14]):
+        image = take_image(field, setup.camera, setup.detector, pose, 0.0, rng)
+        belief.fuse(image.cells, image.measurements, image.noise_variance)
+    seen = {}
+
+    def spy(belief_, pose_, greedy, t_next, budget, model, exact=None, greedy_exact=None):
+        exact_model = _ExactModel(belief_, planner.cell_weights(belief_))
+        seen["path"] = float(planner._score_paths(exact_model, belief_, pose_, greedy[None], t_next, budget)[0])
+        seen["segments"] = greedy_exact
+        return greedy
+
+    planner._refine = spy
+    planner.plan(belief, np.array([0.0, 0.0, 10.0]), 120.0, 2.0)
+    assert seen["segments"] == pytest.approx(seen["path"], rel=1e-9)

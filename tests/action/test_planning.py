@@ -210,3 +210,32 @@ def test_greedy_exact_value_from_segments_equals_exact_path_score(name):
     planner._refine = spy
     planner.plan(belief, np.array([0.0, 0.0, 10.0]), 120.0, 2.0)
     assert seen["segments"] == pytest.approx(seen["path"], rel=1e-9)
+
+
+def test_efe_confirmation_visits_the_unconfirmed_detection_once_the_field_is_covered():
+    field = make_field(0)
+    setup = PlanningSetup(field, cma_evaluations=0)
+    planner = make_planner("efe", setup, 0, confirm_altitude_m=8.0, confirm_after_coverage=0.9, confirm_visits=1)
+    belief = OccupancyMap.prior(field.grid)
+    pose = np.array([0.0, 0.0, 10.0])
+    assert planner._confirmation_target(belief, pose) is None  # nothing covered yet: search
+    belief.covariance = belief.covariance * 0.1  # covered
+    belief.mean[:] = 0.05
+    blob = np.array([[20, 30], [20, 31], [21, 30], [21, 31]])  # (iy, ix) cells
+    flat = blob[:, 0] * 40 + blob[:, 1]
+    belief.mean[flat] = [0.9, 0.9, 0.55, 0.45]  # detected, not yet confirmed
+    centre = field.grid.cell_centres()[flat].mean(axis=0)
+    waypoints = planner.plan(belief, pose, 100.0, 0.0)
+    np.testing.assert_allclose(waypoints, [[centre[0], centre[1], 8.0]])
+    assert planner._confirmation_target(belief, pose) is None  # visited confirm_visits times
+    belief.mean[flat] = 0.9  # confirmed: no target
+    planner.reset(0)
+    assert planner._confirmation_target(belief, pose) is None
+
+
+@pytest.mark.parametrize("kwargs, name", [({"confirm_altitude_m": 40.0}, "confirm_altitude_m"),
+                                          ({"confirm_after_coverage": 1.5}, "confirm_after_coverage"),
+                                          ({"confirm_visits": 0}, "confirm_visits")])
+def test_efe_confirmation_options_are_validated(kwargs, name):
+    with pytest.raises(ActionInputError, match=name):
+        make_planner("efe", PlanningSetup(make_field(0)), 0, **kwargs)

@@ -42,6 +42,7 @@ Model file (all times in seconds)::
     noise_prior_precision = 1.0     # P_lambda
     max_iterations = 50
     tolerance = 1e-3                # stop when an iteration raises F by less
+    states = "sample"               # "sample" (paper's eq. 8) or "path" (one state path, data counted once)
 
 Log file: CSV with a header row; the time column, the output columns and the known-input
 columns named in the model file (other columns are ignored).
@@ -77,7 +78,7 @@ _SECTIONS = {
     "log": {"time_column"},
     "learning": {
         "free", "free_prior_precision", "known_prior_precision", "noise_prior_mean",
-        "noise_prior_precision", "max_iterations", "tolerance",
+        "noise_prior_precision", "max_iterations", "tolerance", "states",
     },
     # written by `attend identify`; informative, not used by the observer
     "learned": {
@@ -369,7 +370,7 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
     settings = dict(model.learning or {})
     options = {key: settings[key] for key in (
         "free", "free_prior_precision", "known_prior_precision", "noise_prior_mean", "noise_prior_precision",
-        "max_iterations", "tolerance") if key in settings}
+        "max_iterations", "tolerance", "states") if key in settings}
     if "noise_prior_mean" in options:
         options["noise_prior_mean"] = tuple(options["noise_prior_mean"])
     return identify(model.system, outputs, inputs, dt, kernel_width=model.kernel_width,

@@ -51,6 +51,28 @@ def msd(seeds: int, embedding_order: int, states: str = "sample"):
     return np.median(rel, axis=0), res.log_precision[:, 0], res, Y, U
 
 
+def true_state_energy_ratios(embedding_order: int, seeds: int):
+    """exp(8) sum_t e' (S x I) e / (n_t (p+1) dim e) for the sensory error y~ - C~ x~ and the motion
+    error D x~ - A~ x~ - B~ u~ evaluated at the simulator's TRUE states (embedded like the data)."""
+    from attend.generalized import block_precisions, embed
+
+    system = mass_spring_damper()
+    P = embedding_order + 1
+    S_t, _ = block_precisions(embedding_order, embedding_order, S, "size")
+    t = np.arange(320) * DT
+    u = np.exp(-0.25 * (t - 12) ** 2)[:, None]
+    ratios = []
+    for seed in range(seeds):
+        log = simulate(system, u, DT, kernel_width=S, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=seed)
+        X = embed(log.states, P, DT).reshape(-1, P, 2)[P:-P]
+        Ut = embed(log.inputs, P, DT).reshape(-1, P, 1)[P:-P]
+        Yt = embed(log.outputs, P, DT).reshape(-1, P, 1)[P:-P]
+        DX = np.concatenate([X[:, 1:], np.zeros_like(X[:, :1])], axis=1)
+        errors = (Yt - X @ system.C.T, DX - X @ system.A.T - Ut @ system.B.T)
+        ratios.append([np.exp(8) * np.einsum("ij,tia,tja->", S_t, e, e) / (e.shape[0] * P * e.shape[2]) for e in errors])
+    return np.mean(ratios, axis=0)
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--seeds", type=int, default=20)
@@ -71,6 +93,12 @@ def main():
             line(f"{tag} median learned lambda_w (true 8)", f"{np.median(res_p.log_precision[:, 1]):.2f}",
                  "(reported)")
             line(f"{tag} wall time, {args.seeds} runs batched", f"{time.perf_counter() - t0:.1f} s", "-")
+
+    print("   why lambda_w is off: S-weighted errors at the TRUE states / their expected value n_t (p+1) dim")
+    for p in (4, 6, 8):
+        ratio_z, ratio_w = true_state_energy_ratios(p, seeds=10)
+        line(f"p = {p}: sensory error ratio, motion error ratio (10 seeds)", f"{ratio_z:.2f}, {ratio_w:.2f}",
+             "(1 if the noise matched S)")
 
     print("2. Entropy 2021 system: A, B free (prior U[-2, 2], P = exp(6)), C known (exp(32)), P_lambda = exp(3)")
     system = identification_system()

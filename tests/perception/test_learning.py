@@ -303,3 +303,40 @@ def test_unknown_states_mode_is_rejected():
     system, log = _msd_log(seed=0, n=100)
     with pytest.raises(AttendInputError, match="states"):
         L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5, free=FREE_MSD, states="window")
+
+
+def test_path_posterior_marks_only_the_failing_run():
+    """A run whose Pi_path is not positive definite gets F = -inf; the other runs are unaffected."""
+    system, log = _msd_log(seed=3, n=60)
+    theta = np.tile(L.parameter_vector(system), (2, 1))
+    st, Y, U = L._prepare(np.stack([log.outputs] * 2), np.stack([log.inputs] * 2), DT, 0.5, 2, 2,
+                          np.ones(8, bool), 2, True, "size", "path")
+    lam = np.array([[0.0, 0.0], [0.0, 0.0]])
+    alone = L._path_posterior(theta[:1], lam[:1], Y[:1], U[:1], st)
+    theta[1, 6:] = np.nan  # C of run 1 unusable: its precision is not finite
+    both = L._path_posterior(theta, lam, Y, U, st)
+    assert both.entropy[1] == -np.inf and np.all(np.isnan(both.mean[1]))
+    np.testing.assert_allclose(both.entropy[0], alone.entropy[0])
+    np.testing.assert_allclose(both.mean[0], alone.mean[0])
+
+
+def test_path_posterior_isolates_a_run_that_is_not_positive_definite(monkeypatch):
+    system, log = _msd_log(seed=3, n=60)
+    theta = np.tile(L.parameter_vector(system), (2, 1))
+    st, Y, U = L._prepare(np.stack([log.outputs] * 2), np.stack([log.inputs] * 2), DT, 0.5, 2, 2,
+                          np.ones(8, bool), 2, True, "size", "path")
+    lam = np.zeros((2, 2))
+    alone = L._path_posterior(theta[:1], lam[:1], Y[:1], U[:1], st)
+    observer = L._observer
+
+    def flipped(*args, **kwargs):
+        Pi_X, Sigma, CtVy, MtWB = observer(*args, **kwargs)
+        Pi_X = Pi_X.copy()
+        Pi_X[1] *= -1.0  # finite but negative definite: the batched Cholesky raises
+        return Pi_X, Sigma, CtVy, MtWB
+
+    monkeypatch.setattr(L, "_observer", flipped)
+    both = L._path_posterior(theta, lam, Y, U, st)
+    assert both.entropy[1] == -np.inf
+    np.testing.assert_allclose(both.entropy[0], alone.entropy[0])
+    np.testing.assert_allclose(both.mean[0], alone.mean[0])

@@ -408,8 +408,18 @@ def _path_posterior(theta, lam, Ytil, Util, st: "_Structure", want_mean: bool = 
         idx = np.flatnonzero(ok)
         try:
             Lk, Bk, Linv = _block_tridiagonal_cholesky(Dg[idx], Off[idx])
-        except np.linalg.LinAlgError:
-            return _PathPosterior(mean, sigma_mean, entropy)
+        except np.linalg.LinAlgError:  # some run's Pi_path is not positive definite: find which
+            positive = []
+            for k in idx:
+                try:
+                    _block_tridiagonal_cholesky(Dg[k:k + 1], Off[k:k + 1])
+                    positive.append(k)
+                except np.linalg.LinAlgError:
+                    pass
+            if not positive:
+                return _PathPosterior(mean, sigma_mean, entropy)
+            idx = np.array(positive)
+            Lk, Bk, Linv = _block_tridiagonal_cholesky(Dg[idx], Off[idx])
         logdet = 2 * np.log(np.diagonal(Lk, axis1=2, axis2=3)).sum(axis=(1, 2))
         entropy[idx] = -0.5 * logdet + 0.5 * n * covered.sum()
         Sd, Su = _block_tridiagonal_selected_inverse(Linv, Bk)

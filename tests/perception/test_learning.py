@@ -340,3 +340,11 @@ def test_path_posterior_isolates_a_run_that_is_not_positive_definite(monkeypatch
     assert both.entropy[1] == -np.inf
     np.testing.assert_allclose(both.entropy[0], alone.entropy[0])
     np.testing.assert_allclose(both.mean[0], alone.mean[0])
+
+
+def test_path_mode_warns_above_order_six():
+    system, log = _msd_log(seed=0, n=100)
+    with pytest.warns(L.LearningWarning, match="ill-conditioned"):
+        L.learn_batch(log.outputs[None], log.inputs[None], DT, n_states=2, kernel_width=0.5,
+                      prior_mean=L.parameter_vector(system)[None], prior_precision=np.where(FREE_MSD, 1.0, np.exp(15))[None],
+                      embedding_order=8, max_iterations=1, states="path")

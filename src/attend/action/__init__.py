@@ -8,7 +8,7 @@ adaptive, expected free energy; lawnmower and random baselines) -> run_episode /
 
 from attend.action.belief import OccupancyMap, kalman_update, kalman_update_diagonal, observation_gains, prior_covariance
 from attend.action.camera import Camera, Detector, Image, noise_variance, take_image
-from attend.action.episode import EpisodeLog, run_episode
+from attend.action.episode import EpisodeLog, PlanContext, ReplanPolicy, fly_mission, run_episode
 from attend.action.errors import ActionInputError
 from attend.action.field import Grid, Obstacle, Person, SearchField, make_field
 from attend.action.flight import FlightModel
@@ -41,13 +41,16 @@ __all__ = [
     "OccupancyMap",
     "PLANNERS",
     "Person",
+    "PlanContext",
     "Planner",
     "PlanningSetup",
     "PrecisionGainPlanner",
     "RandomPlanner",
+    "ReplanPolicy",
     "SearchField",
     "kalman_update",
     "kalman_update_diagonal",
+    "fly_mission",
     "make_field",
     "make_planner",
     "map_metrics",

@@ -25,7 +25,9 @@ class EpisodeLog:
     times_s (m,): image times; poses_m (m, 3): image poses; metrics: name -> (m,) per image
     (entry 0 is the prior at t = 0, before any image); planner_times_s: wall time per replan;
     waypoints_m (w, 3): the flown waypoints (start first); means / variances (m + 1, n): map
-    after each image (entry 0 the prior); clutter_cells: false blobs per image; people_total.
+    after each image (entry 0 the prior); clutter_cells: false blobs per image; people_total;
+    replan_times_s: mission time [s] of every replan (the first at 0); decision_times_s: wall
+    time [s] of the replan policy's own decisions per plan.
     """
 
     planner: str
@@ -40,6 +42,8 @@ class EpisodeLog:
     means: list[np.ndarray] = dataclass_field(default_factory=list)
     variances: list[np.ndarray] = dataclass_field(default_factory=list)
     clutter_cells: list[np.ndarray] = dataclass_field(default_factory=list)
+    replan_times_s: list[float] = dataclass_field(default_factory=list)
+    decision_times_s: list[float] = dataclass_field(default_factory=list)
 
     def series(self, name: str) -> np.ndarray:
         return np.asarray(self.metrics[name])
@@ -60,6 +64,51 @@ class EpisodeLog:
         """Step-interpolated metric at the given times (value after the last image before t)."""
         index = np.searchsorted(self.metric_times_s, np.asarray(times_s), side="right") - 1
         return self.series(name)[np.clip(index, 0, None)]
+
+
+@dataclass
+class PlanContext:
+    """What a replan policy sees at a decision: the ``planner``, the ``belief`` (just updated), the
+    ``pose`` [m], the rest of the plan ``remaining`` (k, 3) [m], the mission ``time_s``, the time to
+    the next image and the flight time left [s]."""
+
+    planner: Planner
+    belief: OccupancyMap
+    pose: np.ndarray
+    remaining: np.ndarray
+    time_s: float
+    time_to_next_image_s: float
+    time_left_s: float
+
+
+class ReplanPolicy:
+    """When the UAV stops following its plan and replans (the hook of :func:`fly_mission`).
+
+    This base policy is the plain episode: fly the planner's ``waypoints_per_replan`` waypoints
+    of each plan (all if None), then replan. Subclasses (attend.rhythm.ipp_schedule) override
+    ``waypoints_per_plan``, ``deadline(plan_start_s, first_image_s)`` (mission time [s] at which
+    a plan is cut), ``start_plan(context)`` (after each replan) and ``after_image(context)``
+    (after each image but one taken where a plan starts: True to replan now)."""
+
+    name = "planner"
+
+    def reset(self) -> None:
+        """Start a new mission."""
+
+    def waypoints_per_plan(self, planner: Planner) -> int | None:
+        """Waypoints of each plan to fly before replanning (None: all)."""
+        return planner.waypoints_per_replan
+
+    def deadline(self, plan_start_s: float, first_image_s: float) -> float:
+        """Mission time [s] at which the current plan is cut (inf: no deadline)."""
+        return float("inf")
+
+    def start_plan(self, context: PlanContext) -> None:
+        """Called after every replan with the new plan in ``context.remaining``."""
+
+    def after_image(self, context: PlanContext) -> bool:
+        """Called after every image (the belief already holds it): replan now?"""
+        return False
 
 
 def run_episode(
@@ -83,12 +132,27 @@ def run_episode(
     """
     if not (np.isfinite(budget_s) and budget_s > 0):
         raise ActionInputError(f"budget_s: expected a flight budget > 0 s, got {budget_s!r}")
+    log = EpisodeLog(planner.name, seed, float(budget_s), len(field.people))
+    return fly_mission(field, planner, camera, detector, flight, log, ReplanPolicy(), diagonal=diagonal,
+                       charge_planning_time=charge_planning_time,
+                       inject_false_detection_images=inject_false_detection_images, keep_maps=keep_maps)
+
+
+def fly_mission(field, planner: Planner, camera, detector, flight, log: EpisodeLog, policy: ReplanPolicy,
+                diagonal: bool = False, charge_planning_time: bool = False,
+                inject_false_detection_images: Sequence[int] = (), keep_maps: bool = True) -> EpisodeLog:
+    """The flight loop behind every episode: plan, fly the plan taking and fusing images (every
+    metric logged at each), replan when ``policy`` says so or the plan is flown, until
+    ``log.budget_s`` is spent. Detector noise and planner seed from ``log.seed``; ``log`` (an
+    empty :class:`EpisodeLog` or subclass) is filled and returned, including the mission time of
+    every replan (``replan_times_s``) and the wall time of the policy's decisions per plan."""
+    budget_s, seed = log.budget_s, log.seed
     pose = validate_pose(field.start_pose_m, field.grid, field.altitude_limits_m, "start_pose_m")
     rng = np.random.default_rng(seed)
     planner.reset(seed)
+    policy.reset()
     belief = OccupancyMap.prior(field.grid, diagonal=diagonal)
     truth = field.truth
-    log = EpisodeLog(planner.name, seed, float(budget_s), len(field.people))
 
     def record(image=None) -> None:
         values = map_metrics(belief.mean, belief.variance, truth, field.person_cells, field.grid.shape)
@@ -109,38 +173,55 @@ def run_episode(
     inject = set(int(i) for i in inject_false_detection_images)
     while elapsed < budget_s - 1e-9:
         tic = time.perf_counter()
-        waypoints = np.atleast_2d(planner.plan(belief, pose, budget_s - elapsed, time_to_next_image))
+        plan = np.atleast_2d(planner.plan(belief, pose, budget_s - elapsed, time_to_next_image)).reshape(-1, 3)
         planning = time.perf_counter() - tic
         log.planner_times_s.append(planning)
+        log.replan_times_s.append(elapsed)
         if charge_planning_time:
             elapsed += planning
             time_to_next_image = max(time_to_next_image - planning, 0.0)
             if elapsed >= budget_s:
                 break
-        if waypoints.size == 0:
+        if len(plan) == 0:
             break
-        to_fly = waypoints if planner.waypoints_per_replan is None else waypoints[: planner.waypoints_per_replan]
-        for goal in to_fly:
-            poses, times, valid, duration, next_after = flight.segment_images(
-                pose, goal, time_to_next_image, budget_s - elapsed
-            )
+        tic = time.perf_counter()
+        policy.start_plan(PlanContext(planner, belief, pose, plan, elapsed, time_to_next_image, budget_s - elapsed))
+        deciding = time.perf_counter() - tic
+        deadline = policy.deadline(elapsed, elapsed + time_to_next_image)
+        stop = min(budget_s, deadline)
+        count = policy.waypoints_per_plan(planner)
+        for j, goal in enumerate(plan if count is None else plan[:count]):
+            if stop - elapsed <= 1e-9:
+                break
+            start = pose
+            travel = float(flight.segment_duration(np.linalg.norm(goal - start)))
+            poses, times, valid, duration, next_after = flight.segment_images(start, goal, time_to_next_image,
+                                                                              stop - elapsed)
+            flown, next_image, cut = float(duration[0]), float(next_after[0]), False
             for image_pose, image_time in zip(poses[0][valid[0]], times[0][valid[0]]):
-                image = take_image(
-                    field, camera, detector, image_pose, elapsed + image_time, rng, inject_false_blob=n_images in inject
-                )
+                image = take_image(field, camera, detector, image_pose, elapsed + image_time, rng,
+                                   inject_false_blob=n_images in inject)
                 belief.fuse(image.cells, image.measurements, image.noise_variance)
                 record(image)
                 n_images += 1
-            travelled = float(duration[0])
-            if travelled < flight.segment_duration(np.linalg.norm(goal - pose)) - 1e-9:
-                pose = flight_position(flight, pose, goal, travelled)
-            else:
-                pose = np.asarray(goal, float)
+                if j == 0 and image_time <= 1e-9:
+                    continue  # taken where the plan starts, before any flight: no decision yet
+                rest = plan[j + 1:] if image_time >= travel - 1e-9 else plan[j:]
+                tic = time.perf_counter()
+                cut = policy.after_image(PlanContext(planner, belief, np.asarray(image_pose, float), rest,
+                                                     elapsed + image_time, flight.image_period_s,
+                                                     budget_s - elapsed - image_time))
+                deciding += time.perf_counter() - tic
+                if cut:
+                    flown, next_image = float(image_time), flight.image_period_s
+                    break
+            pose = np.asarray(goal, float) if flown >= travel - 1e-9 else flight_position(flight, start, goal, flown)
             log.waypoints_m.append(pose.copy())
-            elapsed += travelled
-            time_to_next_image = float(next_after[0])
-            if elapsed >= budget_s - 1e-9:
+            elapsed += flown
+            time_to_next_image = next_image
+            if cut or elapsed >= stop - 1e-9:
                 break
+        log.decision_times_s.append(deciding)
     return log
 
 

@@ -34,8 +34,6 @@ spent on the schedule's own decisions.
 from __future__ import annotations
 
 import math
-import time
-from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
 from typing import Sequence
@@ -45,10 +43,8 @@ import scipy.linalg
 
 from attend._validation import AttendInputError, positive_scalar
 from attend.action.belief import OccupancyMap
-from attend.action.camera import take_image
-from attend.action.episode import EpisodeLog, flight_position
-from attend.action.field import Grid, validate_pose
-from attend.action.metrics import map_metrics
+from attend.action.episode import EpisodeLog, PlanContext, ReplanPolicy, fly_mission
+from attend.action.field import Grid
 from attend.action.planners import Planner
 from attend.rhythm.oscillator import PrecisionOscillator, _finite
 
@@ -149,23 +145,9 @@ def replan_decision(stay_rate: float, fresh_rate: float, phase_angle: float = 0.
 # Schedules
 
 
-@dataclass
-class PlanContext:
-    """What a schedule sees at a decision: the ``planner``, the ``belief`` (just updated), the
-    ``pose`` [m], the rest of the plan ``remaining`` (k, 3) [m], the mission ``time_s``, the time to
-    the next image and the flight time left [s]."""
-
-    planner: Planner
-    belief: OccupancyMap
-    pose: np.ndarray
-    remaining: np.ndarray
-    time_s: float
-    time_to_next_image_s: float
-    time_left_s: float
-
-
-class ReplanSchedule(ABC):
-    """Decides when the UAV stops following its plan and replans.
+class ReplanSchedule(ReplanPolicy):
+    """Decides when the UAV stops following its plan and replans (an
+    :class:`attend.action.episode.ReplanPolicy` that flies whole plans).
 
     ``deadline(plan_start_s, first_image_s)``: mission time [s] at which the plan is cut (inf:
     none); ``at_waypoint``: replan at every waypoint; ``start_plan(context)`` is called after
@@ -174,19 +156,9 @@ class ReplanSchedule(ABC):
     name = "schedule"
     at_waypoint = False
 
-    def reset(self) -> None:
-        """Start a new mission."""
-
-    def deadline(self, plan_start_s: float, first_image_s: float) -> float:
-        """Mission time [s] at which the current plan is cut (inf: no deadline)."""
-        return math.inf
-
-    def start_plan(self, context: PlanContext) -> None:
-        """Called after every replan with the new plan in ``context.remaining``."""
-
-    def after_image(self, context: PlanContext) -> bool:
-        """Called after every image (the belief already holds it): replan now?"""
-        return False
+    def waypoints_per_plan(self, planner: Planner) -> int | None:
+        """1 if the schedule replans at every waypoint, else the whole plan (None)."""
+        return 1 if self.at_waypoint else None
 
 
 class SegmentSchedule(ReplanSchedule):
@@ -314,8 +286,6 @@ class ScheduledEpisodeLog(EpisodeLog):
     schedules: (time s, stay rate, fresh rate, replanned) per image)."""
 
     schedule: str = ""
-    replan_times_s: list[float] = dataclass_field(default_factory=list)
-    decision_times_s: list[float] = dataclass_field(default_factory=list)
     decisions: list[tuple[float, float, float, bool]] = dataclass_field(default_factory=list)
 
     @property
@@ -340,71 +310,8 @@ def run_scheduled_episode(field, planner: Planner, schedule: ReplanSchedule, bud
         raise AttendInputError(f"planner: expected an attend.action Planner, got {type(planner).__name__}")
     budget_s = positive_scalar(budget_s, "budget_s", "s")
     setup = planner.setup
-    camera, detector, flight = setup.camera, setup.detector, setup.flight
-    pose = validate_pose(field.start_pose_m, field.grid, field.altitude_limits_m, "start_pose_m")
-    rng = np.random.default_rng(seed)
-    planner.reset(seed)
-    schedule.reset()
-    belief = OccupancyMap.prior(field.grid, diagonal=diagonal)
-    truth = field.truth
     log = ScheduledEpisodeLog(planner.name, seed, float(budget_s), len(field.people), schedule=schedule.name)
-
-    def record(image=None) -> None:
-        values = map_metrics(belief.mean, belief.variance, truth, field.person_cells, field.grid.shape)
-        for key, value in values.items():
-            log.metrics.setdefault(key, []).append(value)
-        if keep_maps:
-            log.means.append(belief.mean.copy())
-            log.variances.append(belief.variance.copy())
-        if image is not None:
-            log.times_s.append(image.time_s)
-            log.poses_m.append(image.pose_m)
-            log.clutter_cells.append(image.clutter_cells)
-
-    record()
-    log.waypoints_m.append(pose.copy())
-    elapsed, t_next = 0.0, 0.0
-    period = flight.image_period_s
-    while elapsed < budget_s - 1e-9:
-        tic = time.perf_counter()
-        plan = np.atleast_2d(planner.plan(belief, pose, budget_s - elapsed, t_next)).reshape(-1, 3)
-        log.planner_times_s.append(time.perf_counter() - tic)
-        log.replan_times_s.append(elapsed)
-        if len(plan) == 0:
-            break
-        tic = time.perf_counter()
-        schedule.start_plan(PlanContext(planner, belief, pose, plan, elapsed, t_next, budget_s - elapsed))
-        deciding = time.perf_counter() - tic
-        deadline = schedule.deadline(elapsed, elapsed + t_next)
-        for j, goal in enumerate(plan):
-            limit = min(budget_s, deadline) - elapsed
-            if limit <= 1e-9:
-                break
-            start = pose
-            travel = float(flight.segment_duration(np.linalg.norm(goal - start)))
-            poses, times, valid, duration, next_after = flight.segment_images(start, goal, t_next, limit)
-            flown, next_image, cut = float(duration[0]), float(next_after[0]), False
-            for image_pose, image_time in zip(poses[0][valid[0]], times[0][valid[0]]):
-                image = take_image(field, camera, detector, image_pose, elapsed + image_time, rng)
-                belief.fuse(image.cells, image.measurements, image.noise_variance)
-                record(image)
-                if j == 0 and image_time <= 1e-9:
-                    continue  # taken where the plan starts, before any flight: no decision yet
-                rest = plan[j + 1:] if image_time >= travel - 1e-9 else plan[j:]
-                tic = time.perf_counter()
-                cut = schedule.after_image(PlanContext(planner, belief, np.asarray(image_pose, float), rest,
-                                                       elapsed + image_time, period,
-                                                       budget_s - elapsed - image_time))
-                deciding += time.perf_counter() - tic
-                if cut:
-                    flown, next_image = float(image_time), period
-                    break
-            pose = np.asarray(goal, float) if flown >= travel - 1e-9 else flight_position(flight, start, goal, flown)
-            log.waypoints_m.append(pose.copy())
-            elapsed += flown
-            t_next = next_image
-            if cut or elapsed >= min(budget_s, deadline) - 1e-9 or schedule.at_waypoint:
-                break
-        log.decision_times_s.append(deciding)
+    fly_mission(field, planner, setup.camera, setup.detector, setup.flight, log, schedule, diagonal=diagonal,
+                keep_maps=keep_maps)
     log.decisions = list(getattr(schedule, "decisions", []))
     return log

@@ -77,12 +77,14 @@ def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentRe
                     precision_history=result.precision_history[0],
                     log_precision_history=result.log_precision_history[0])
     if out_dir is not None:
-        out.figures.append(str(_plot(result, theta_true, cfg, Path(out_dir))))
+        out.figures.append(str(_plot(result, path, theta_true, cfg, Path(out_dir))))
         out.write(out_dir)
     return out
 
 
-def _plot(result, theta_true, cfg, out_dir: Path) -> Path:
+def _plot(result, path, theta_true, cfg, out_dir: Path) -> Path:
+    """Fig. 3 for seed 0 (the paper's learner, solid); panels a (bottom) and c also show path
+    mode on the same log (dashed)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -102,6 +104,9 @@ def _plot(result, theta_true, cfg, out_dir: Path) -> Path:
     lam = result.log_precision_history[0]
     ax[1, 0].plot(it, lam[:, 0], label="lambda_z")
     ax[1, 0].plot(it, lam[:, 1], label="lambda_w")
+    it_path = np.arange(path.log_precision_history.shape[1])
+    ax[1, 0].plot(it_path, path.log_precision_history[0, :, 0], "--", color="C0", label="lambda_z, path mode")
+    ax[1, 0].plot(it_path, path.log_precision_history[0, :, 1], "--", color="C1", label="lambda_w, path mode")
     ax[1, 0].axhline(cfg["noise_log_precision"], color="k", ls=":", label="true")
     ax[1, 0].set_title("a) noise log-precisions")
     ax[1, 0].set_xlabel("iteration")
@@ -112,8 +117,9 @@ def _plot(result, theta_true, cfg, out_dir: Path) -> Path:
     history = result.parameter_history[0]
     for j in np.flatnonzero(FREE):
         line, = ax[1, 1].plot(it, history[:, j], label=labels[j])
+        ax[1, 1].plot(it_path, path.parameter_history[0, :, j], "--", color=line.get_color())
         ax[1, 1].axhline(theta_true[j], color=line.get_color(), ls=":")
-    ax[1, 1].set_title("c) unknown parameters (dotted: true)")
+    ax[1, 1].set_title("c) unknown parameters (dotted: true; dashed: path mode)")
     ax[1, 1].set_xlabel("iteration")
     ax[1, 1].legend(fontsize=7)
     fig.tight_layout()

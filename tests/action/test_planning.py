@@ -224,7 +224,8 @@ def test_efe_confirmation_visits_the_unconfirmed_detection_once_the_field_is_cov
     blob = np.array([[20, 30], [20, 31], [21, 30], [21, 31]])  # (iy, ix) cells
     flat = blob[:, 0] * 40 + blob[:, 1]
     belief.mean[flat] = [0.9, 0.9, 0.55, 0.45]  # detected, not yet confirmed
-    centre = field.grid.cell_centres()[flat].mean(axis=0)
+    weights = belief.mean[flat]
+    centre = (field.grid.cell_centres()[flat] * weights[:, None]).sum(axis=0) / weights.sum()  # mean-weighted
     waypoints = planner.plan(belief, pose, 100.0, 0.0)
     np.testing.assert_allclose(waypoints, [[centre[0], centre[1], 8.0]])
     assert planner._confirmation_target(belief, pose) is None  # visited confirm_visits times

@@ -23,6 +23,7 @@ from attend.action.planners import (
     PlanningSetup,
     PrecisionGainPlanner,
     RandomPlanner,
+    SearchConfirmPlanner,
     make_planner,
 )
 
@@ -46,6 +47,7 @@ __all__ = [
     "PlanningSetup",
     "PrecisionGainPlanner",
     "RandomPlanner",
+    "SearchConfirmPlanner",
     "ReplanPolicy",
     "SearchField",
     "kalman_update",

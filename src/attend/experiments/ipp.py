@@ -1,6 +1,8 @@
 """Experiment "ipp": informative path planning for UAV search and rescue (seed §4.3, Figs. 6-9).
 
-Seeded trials per planner (25 in full mode, as in ICRA'19) with a 150 s budget: RSE, trace(P) and
+Seeded trials per planner (25 in full mode, as in ICRA'19) with a 150 s budget (planners: precision
+gain, adaptive, expected free energy, expected free energy in two phases - search at 14 m, then
+confirmation of detections at 8 m - lawnmower at 10 m, random): RSE, trace(P) and
 people found vs flight time, time to find all 7 people, false alarms and planner time per
 replan; paired differences against the lawnmower at 10 m; and one false-positive episode (Fig. 9:
 people in the lower half, a false 2 x 3-cell detection injected in the first image) showing the
@@ -21,8 +23,8 @@ from attend.action.flight import FlightModel
 from attend.action.planners import PlanningSetup, make_planner
 from attend.experiments._result import ExperimentResult
 
-PLANNER_NAMES = ("precision_gain", "adaptive", "efe", "lawnmower", "random")
-INFORMATIVE = ("precision_gain", "adaptive", "efe")
+PLANNER_NAMES = ("precision_gain", "adaptive", "efe", "efe_confirm", "lawnmower", "random")
+INFORMATIVE = ("precision_gain", "adaptive", "efe", "efe_confirm")
 BUDGET_S = 150.0
 FALSE_POSITIVE_SEED = 3
 

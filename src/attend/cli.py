@@ -145,7 +145,7 @@ def _command_identify(args) -> int:
     accepted = ", ".join(f"{step}: {count}" for step, count in result.steps_accepted.items())
     print(f"free energy: {result.free_energy[0]:.6g} -> {result.free_energy[-1]:.6g} over {result.iterations} "
           f"iterations ({result.message}); "
-          f"steps accepted {accepted}; {elapsed:.2f} s")
+          f"steps accepted {accepted}; {result.settings['state_model']} state model; {elapsed:.2f} s")
     path = io.write_learned_model(args.out, model, result)
     print(f"learned model -> {path}")
     return 0

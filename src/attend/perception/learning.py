@@ -1271,7 +1271,7 @@ def identify(
         prior_system=system_prior,
         settings=dict(dt=dt, kernel_width=kernel_width, embedding_order=p, input_order=d,
                       max_iterations=max_iterations, tolerance=tolerance,
-                      integration_time=integration_time, trim_edges=trim_edges,
+                      integration_time=integration_time, trim_edges=trim_edges, state_model=states,
                       noise_prior_mean=lam_eta.tolist(), noise_prior_precision=lam_prec.tolist(),
                       free_energy_trace=batch.free_energy_trace[0]),
     )

@@ -89,3 +89,12 @@ max_iterations = 20
     assert abs(learned.system.B[1, 0] - system.B[1, 0]) < 0.1  # 1/m = 0.714 from a prior of 1
     assert main(["estimate", str(out), str(tmp_path / "log.csv"), "--out", str(tmp_path / "e.csv")]) == 0
     assert main(["identify", str(tmp_path / "missing.toml"), str(tmp_path / "log.csv")]) == 2
+
+
+def test_search_offers_every_planner():
+    from attend.action.planners import PLANNERS
+    from attend.cli import _build_parser
+
+    parser = _build_parser()
+    search = next(a for a in parser._subparsers._group_actions[0].choices["search"]._actions if a.dest == "planner")
+    assert set(search.choices) == set(PLANNERS)

@@ -249,3 +249,16 @@ def test_no_wind_p_sweep_reported_without_published_value(result):
         metric = result[0].metric(f"dem_sse_no_wind_p{p}")
         assert metric.published is None
         assert metric.value == pytest.approx(value, rel=RELATIVE_TOLERANCE)
+
+
+def test_default_data_dir_finds_shared_beside_the_working_directory(tmp_path, monkeypatch):
+    """A non-editable install run from a clone finds ../shared beside the clone."""
+    logs = tmp_path / "shared" / "data" / "quadrotor-wind"
+    logs.mkdir(parents=True)
+    (logs / f"{quadrotor.WIND_FLIGHTS[0]}.csv").write_text("t\n0\n")
+    (tmp_path / "clone").mkdir()
+    monkeypatch.delenv("ATTEND_SHARED", raising=False)
+    monkeypatch.chdir(tmp_path / "clone")
+    assert quadrotor.default_data_dir() == logs.resolve()
+    monkeypatch.setenv("ATTEND_SHARED", str(tmp_path / "elsewhere"))
+    assert quadrotor.default_data_dir() == tmp_path / "elsewhere" / "data" / "quadrotor-wind"

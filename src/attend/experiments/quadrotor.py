@@ -137,11 +137,19 @@ NOT_REPRODUCED = {
 # --- data ----------------------------------------------------------------------------------
 
 def default_data_dir() -> Path:
-    """$ATTEND_SHARED/data/quadrotor-wind, else ../shared/data/quadrotor-wind beside the repo."""
+    """$ATTEND_SHARED/data/quadrotor-wind if set; else the first of ../shared/data/quadrotor-wind
+    beside the working directory (a clone of the repository), ./shared/... and ../shared/...
+    beside the source tree (an editable install) that holds the logs (the first, if none does)."""
     shared = os.environ.get("ATTEND_SHARED")
     if shared:
         return Path(shared) / "data" / "quadrotor-wind"
-    return Path(__file__).resolve().parents[4] / "shared" / "data" / "quadrotor-wind"
+    tail = Path("shared") / "data" / "quadrotor-wind"
+    here = Path.cwd().resolve()
+    candidates = [here.parent / tail, here / tail, Path(__file__).resolve().parents[4] / tail]
+    for candidate in candidates:
+        if (candidate / f"{WIND_FLIGHTS[0]}.csv").is_file():
+            return candidate
+    return candidates[0]
 
 
 def _data_dir(data_dir) -> Path:

@@ -219,6 +219,7 @@ def test_unidentifiable_model_warns():
     ("dt", dict(dt=-1.0), "dt"),
     ("noise_prior_precision", dict(noise_prior_precision=0.0), "noise_prior_precision"),
     ("outputs", dict(outputs=np.ones((10, 1)), inputs=np.ones((10, 1))), "at least"),
+    ("embedding_order", dict(embedding_order=0), "embedding_order: expected p >= 1"),
 ])
 def test_bad_input_names_the_field(field, kwargs, match):
     system, log = _msd_log(n=100)

@@ -1168,6 +1168,9 @@ def identify(
     dt = positive_scalar(dt, "dt", "s")
     kernel_width = positive_scalar(kernel_width, "kernel_width", "s")
     p = order(embedding_order, "embedding_order")
+    if p < 1:
+        raise AttendInputError("embedding_order: expected p >= 1 for learning (with p = 0 the model has no "
+                               "derivative dx/dt to compare with A x + B u, so A and B cannot be learned)")
     d = p if input_order is None else order(input_order, "input_order")
     y = as_matrix(outputs, "outputs", cols=m if np.ndim(outputs) == 2 else 1)
     if y.shape[1] != m:

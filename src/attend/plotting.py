@@ -11,6 +11,18 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
+def new_figure(out_dir, figsize: tuple[float, float], nrows: int = 1, ncols: int = 1, **figure_options):
+    """A figure (own Agg canvas, no pyplot state) with an (nrows, ncols) grid of axes; creates
+    ``out_dir``. Returns (figure, axes) as ``Figure.subplots`` does."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
+    fig = Figure(figsize=figsize, **figure_options)
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(nrows, ncols)
+
+
 def plot_estimates(path, time, system, estimate) -> Path:
     """One panel per state and input: estimate with a +-2 standard-deviation band."""
     names = list(system.state_names) + list(system.input_names)

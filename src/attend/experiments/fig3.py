@@ -85,13 +85,9 @@ def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentRe
 def _plot(result, path, theta_true, cfg, out_dir: Path) -> Path:
     """Fig. 3 for seed 0 (the paper's learner, solid); panels a (bottom) and c also show path
     mode on the same log (dashed)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from attend.plotting import new_figure
 
-    out_dir.mkdir(parents=True, exist_ok=True)
-    fig = Figure(figsize=(12, 7))
-    FigureCanvasAgg(fig)
-    ax = fig.subplots(2, 2)
+    fig, ax = new_figure(out_dir, (12, 7), 2, 2)
     it = np.arange(result.free_energy.shape[1])
     labels = ["theta1", "theta2", "theta3 = -k/m", "theta4 = -b/m", "theta5", "theta6 = 1/m", "theta7", "theta8"]
     prec = result.precision_history[0]

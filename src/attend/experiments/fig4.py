@@ -66,6 +66,19 @@ def random_priors(seeds, rng_offset: int = 1000) -> np.ndarray:
 RUNS_PER_TASK = 64
 
 
+def task_logs(task: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Outputs and inputs (R, T, 1) of a sweep task's runs, each distinct (seed, sensor_std)
+    simulated once (settings: process_std, dt, duration, kernel_width)."""
+    cfg = task["settings"]
+    seeds = np.asarray(task["seed"], dtype=int)
+    sensor_std = np.asarray(task["sensor_std"], dtype=float)
+    pairs, which = np.unique(np.stack([seeds.astype(float), sensor_std], axis=1), axis=0, return_inverse=True)
+    Y, U = msd_logs(pairs[:, 0].astype(int), pairs[:, 1], cfg["process_std"], cfg["dt"], cfg["duration"],
+                    cfg["kernel_width"])
+    which = np.asarray(which).ravel()
+    return Y[which], U[which]
+
+
 def learn_msd_runs(task: dict) -> dict:
     """Learn one chunk of mass-spring-damper runs: the sweep task of Figs. 4 and 5.
 
@@ -79,14 +92,9 @@ def learn_msd_runs(task: dict) -> dict:
     ``parameter_history`` (R, iterations + 1, 8; NaN after a run's last iteration).
     """
     cfg = task["settings"]
-    seeds = np.asarray(task["seed"], dtype=int)
-    sensor_std = np.asarray(task["sensor_std"], dtype=float)
-    pairs, which = np.unique(np.stack([seeds.astype(float), sensor_std], axis=1), axis=0, return_inverse=True)
-    Y, U = msd_logs(pairs[:, 0].astype(int), pairs[:, 1], cfg["process_std"], cfg["dt"], cfg["duration"],
-                    cfg["kernel_width"])
-    which = np.asarray(which).ravel()
+    Y, U = task_logs(task)
     P = np.where(FREE[None], np.asarray(task["prior_precision"], dtype=float)[:, None], KNOWN_PRECISION)
-    result = learn_batch(Y[which], U[which], cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"],
+    result = learn_batch(Y, U, cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"],
                          prior_mean=np.asarray(task["prior_mean"], dtype=float), prior_precision=P,
                          embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"])
     return dict(parameters=result.parameters, log_precision=result.log_precision,
@@ -159,13 +167,9 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, *, cluster=None
 
 
 def _plot(parameter_history, precisions, sse, theta_true, idx_prec, out_dir: Path) -> Path:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from attend.plotting import new_figure
 
-    out_dir.mkdir(parents=True, exist_ok=True)
-    fig = Figure(figsize=(13, 4))
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 3)
+    fig, axes = new_figure(out_dir, (13, 4), 1, 3)
     labels = ["theta3 = -k/m", "theta4 = -b/m", "theta6 = 1/m"]
     for ax, which, title in ((axes[0], 0, "a) over-exposed (lowest P_theta)"),
                              (axes[2], len(precisions) - 1, "c) biased (highest P_theta)")):

@@ -96,13 +96,9 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, *, cluster=None
 
 
 def _plot(levels, sse, lam_z, crossing, out_dir: Path) -> Path:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from attend.plotting import new_figure
 
-    out_dir.mkdir(parents=True, exist_ok=True)
-    fig = Figure(figsize=(11, 4))
-    FigureCanvasAgg(fig)
-    ax = fig.subplots(1, 2)
+    fig, ax = new_figure(out_dir, (11, 4), 1, 2)
     var = np.exp(-levels)
     for k, label in enumerate(("over-exposed (P_theta = 1e-2)", "biased (P_theta = 1e4)")):
         q1, q2, q3 = np.percentile(sse[k], [25, 50, 75], axis=1)

@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from attend.experiments._result import ExperimentResult
-from attend.experiments.fig4 import FREE, KNOWN_PRECISION, RUNS_PER_TASK, msd_logs
+from attend.experiments.fig4 import FREE, KNOWN_PRECISION, RUNS_PER_TASK, task_logs
 from attend.perception.learning import learn_batch, parameter_vector
 from attend.rhythm.learning_schedule import prior_precision_schedule, rhythmic_prior_precision
 from attend.rhythm.oscillator import PrecisionOscillator
@@ -83,14 +83,9 @@ def learn_schedule_runs(task: dict) -> dict:
     (R, 8) and ``log_precision`` (R, 2).
     """
     cfg = task["settings"]
-    seeds = np.asarray(task["seed"], dtype=int)
-    sensor_std = np.asarray(task["sensor_std"], dtype=float)
-    pairs, which = np.unique(np.stack([seeds.astype(float), sensor_std], axis=1), axis=0, return_inverse=True)
-    Y, U = msd_logs(pairs[:, 0].astype(int), pairs[:, 1], cfg["process_std"], cfg["dt"], cfg["duration"],
-                    cfg["kernel_width"])
-    which = np.asarray(which).ravel()
+    Y, U = task_logs(task)
     P = prior_precision_schedule(np.asarray(task["schedule"], dtype=float), FREE, KNOWN_PRECISION)
-    result = learn_batch(Y[which], U[which], cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"],
+    result = learn_batch(Y, U, cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"],
                          prior_mean=np.asarray(task["prior_mean"], dtype=float), prior_precision=P,
                          embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"])
     return dict(parameters=result.parameters, log_precision=result.log_precision)
@@ -200,13 +195,9 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, cluster=None) -
 
 
 def _plot(levels, fixed, schedule, median, rel, out_dir: Path) -> Path:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from attend.plotting import new_figure
 
-    out_dir.mkdir(parents=True, exist_ok=True)
-    fig = Figure(figsize=(15, 4.2))
-    FigureCanvasAgg(fig)
-    ax = fig.subplots(1, 3)
+    fig, ax = new_figure(out_dir, (15, 4.2), 1, 3)
     var = np.exp(-levels)
     n_fixed = len(fixed)
     colours = [(0.2 + 0.6 * i / max(n_fixed - 1, 1),) * 3 for i in range(n_fixed)]

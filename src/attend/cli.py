@@ -108,12 +108,13 @@ def _build_parser() -> argparse.ArgumentParser:
         "metrics vs time and an animated GIF.",
     )
     search.add_argument("--planner", default="efe",
-                        choices=["precision_gain", "adaptive", "efe", "efe_confirm", "lawnmower", "random"],
+                        choices=["precision_gain", "adaptive", "efe", "efe_confirm", "cover_confirm", "lawnmower", "random"],
                         help="precision_gain: trace(P) reduction per second of flight; adaptive: gain weighted by "
                         "optimistic occupancy and an altitude preference; efe: expected free energy (epistemic + "
                         "preference for observing people); efe_confirm: EFE search at 14 m, then confirmation "
-                        "views at 8 m of the uncertain detections (finds the most people); lawnmower (10 m) and "
-                        "random: baselines (default: %(default)s)")
+                        "views at 8 m of the uncertain detections; cover_confirm: two coverage passes at 13 m, then "
+                        "the views that most advance the least certain cell of every detection (finds the most "
+                        "people); lawnmower (10 m) and random: baselines (default: %(default)s)")
     search.add_argument("--seed", type=int, default=0, help="seed of the people placement, detector and planner")
     search.add_argument("--obstacles", default="none", choices=["none", "buildings"],
                         help="buildings: a 4x4x26 m tower and a 4x4x13 m block that block flight and hide the ground")

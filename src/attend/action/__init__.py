@@ -3,11 +3,12 @@ rescue (seed §4.3, Figs. 6-9).
 
 Data path: SearchField (people, obstacles) -> Camera + Detector (images at 0.15 Hz) ->
 OccupancyMap (GP prior, Kalman fusion, precision map) -> Planner (expected precision gain,
-adaptive, expected free energy; lawnmower and random baselines) -> run_episode / run_search.
+adaptive, expected free energy, cover-then-confirm; lawnmower and random baselines) -> run_episode / run_search.
 """
 
 from attend.action.belief import OccupancyMap, kalman_update, kalman_update_diagonal, observation_gains, prior_covariance
 from attend.action.camera import Camera, Detector, Image, noise_variance, take_image
+from attend.action.confirm import CoverConfirmPlanner, confirmation_value, detections
 from attend.action.episode import EpisodeLog, PlanContext, ReplanPolicy, fly_mission, run_episode
 from attend.action.errors import ActionInputError
 from attend.action.field import Grid, Obstacle, Person, SearchField, make_field
@@ -31,6 +32,7 @@ __all__ = [
     "ActionInputError",
     "AdaptivePlanner",
     "Camera",
+    "CoverConfirmPlanner",
     "Detector",
     "EpisodeLog",
     "ExpectedFreeEnergyPlanner",
@@ -50,6 +52,8 @@ __all__ = [
     "SearchConfirmPlanner",
     "ReplanPolicy",
     "SearchField",
+    "confirmation_value",
+    "detections",
     "kalman_update",
     "kalman_update_diagonal",
     "fly_mission",

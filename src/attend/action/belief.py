@@ -95,13 +95,23 @@ class OccupancyMap:
     """Belief N(mean, P) over the occupancy of the ``grid`` cells.
 
     mean: (n,) occupancy estimate; covariance: (n, n) P when ``diagonal`` is False, else the
-    (n,) per-cell variances diag(P).
+    (n,) per-cell variances diag(P). reading_precision, reading_sum: (n,) the data term of the
+    information form kept beside the map, sum over images of 1 / r and of z / r per cell (zeros
+    for the prior): the raw readings the map has fused, before the prior smooths them.
     """
 
     grid: Grid
     mean: np.ndarray
     covariance: np.ndarray
     diagonal: bool = False
+    reading_precision: np.ndarray | None = None
+    reading_sum: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.reading_precision is None:
+            self.reading_precision = np.zeros(self.grid.n_cells)
+        if self.reading_sum is None:
+            self.reading_sum = np.zeros(self.grid.n_cells)
 
     @classmethod
     def prior(cls, grid: Grid, diagonal: bool = False, prior_mean: float = PRIOR_MEAN) -> "OccupancyMap":
@@ -127,9 +137,19 @@ class OccupancyMap:
         """Kalman update with one image (in place)."""
         update = kalman_update_diagonal if self.diagonal else kalman_update
         self.mean, self.covariance = update(self.mean, self.covariance, cells, measurements, noise_variance)
+        cells = np.asarray(cells, dtype=int)
+        np.add.at(self.reading_precision, cells, 1.0 / noise_variance)
+        np.add.at(self.reading_sum, cells, np.asarray(measurements, dtype=float) / noise_variance)
+
+    def mean_reading(self) -> np.ndarray:
+        """Precision-weighted mean reading per cell, sum(z / r) / sum(1 / r) (n,): 1 where every
+        image detected the cell, 0.05 where none did; 0 for cells never observed."""
+        observed = self.reading_precision > 0
+        return np.where(observed, self.reading_sum / np.where(observed, self.reading_precision, 1.0), 0.0)
 
     def copy(self) -> "OccupancyMap":
-        return OccupancyMap(self.grid, self.mean.copy(), self.covariance.copy(), self.diagonal)
+        return OccupancyMap(self.grid, self.mean.copy(), self.covariance.copy(), self.diagonal,
+                            self.reading_precision.copy(), self.reading_sum.copy())
 
 
 def observation_gains(

@@ -42,7 +42,8 @@ def run_search(
     """Fly one mission and write its metrics, figures and animation to ``out_dir``.
 
     planner: "precision_gain", "adaptive", "efe", "efe_confirm" (EFE search at 14 m, then
-    confirmation of detections at 8 m), "lawnmower" or "random";
+    confirmation of detections at 8 m), "cover_confirm" (two coverage passes at 13 m, then
+    confirmation of every detection), "lawnmower" or "random";
     seed: seeds the people placement, the detector and the planner;
     obstacles: "none" or "buildings" (a 4 x 4 x 26 m tower at the centre, a 4 x 4 x 13 m block);
     people_region: "all" or "lower_half" (people only at y < 0);

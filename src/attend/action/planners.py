@@ -41,6 +41,9 @@ tr(W (P - P_post)) = ||L^-1 P_A: W^1/2||_F^2 with L L' = P_AA + D_A^-1 (m^2 n), 
 screening scores alone; ``planning_block_cells=1`` screens every candidate on the exact full
 covariance (~25x slower).
 
+Finding every person: CoverConfirmPlanner ("cover_confirm", attend.action.confirm) covers the
+field twice at 13 m, then confirms the detections (it registers itself in PLANNERS).
+
 Baselines: LawnmowerPlanner (serpentine coverage at 10 m, repeated until the budget is spent) and
 RandomPlanner (uniform random waypoints).
 """
@@ -764,11 +767,12 @@ PLANNERS = {
     "lawnmower": LawnmowerPlanner,
     "random": RandomPlanner,
 }
+# attend.action.confirm adds "cover_confirm" (it builds on this module; the package imports it).
 
 
 def make_planner(name: str, setup: PlanningSetup, seed: int = 0, **options) -> Planner:
-    """Planner by name: one of ``PLANNERS`` ("precision_gain", "adaptive", "efe", "efe_confirm", "lawnmower",
-    "random"); ``options`` go to the planner's constructor."""
+    """Planner by name: one of ``PLANNERS`` ("precision_gain", "adaptive", "efe", "efe_confirm", "cover_confirm",
+    "lawnmower", "random"); ``options`` go to the planner's constructor."""
     try:
         cls = PLANNERS[name]
     except KeyError:

@@ -23,8 +23,8 @@ from attend.action.flight import FlightModel
 from attend.action.planners import PlanningSetup, make_planner
 from attend.experiments._result import ExperimentResult
 
-PLANNER_NAMES = ("precision_gain", "adaptive", "efe", "efe_confirm", "lawnmower", "random")
-INFORMATIVE = ("precision_gain", "adaptive", "efe", "efe_confirm")
+PLANNER_NAMES = ("precision_gain", "adaptive", "efe", "efe_confirm", "cover_confirm", "lawnmower", "random")
+INFORMATIVE = ("precision_gain", "adaptive", "efe", "efe_confirm", "cover_confirm")
 BUDGET_S = 150.0
 FALSE_POSITIVE_SEED = 3
 

@@ -47,7 +47,7 @@ from attend.action.camera import DETECTED_VALUE, NOT_DETECTED_VALUE
 from attend.action.errors import ActionInputError
 from attend.action.flight import detour
 from attend.action.metrics import FOUND_THRESHOLD
-from attend.action.planners import PLANNERS, Planner, PlanningSetup
+from attend.action.planners import PLANNERS, Planner, PlanningSetup, coverage_stops
 
 CENTROID_ALTITUDES_M = (8.0, 10.0)
 PAIR_ALTITUDES_M = (10.0, 12.0)
@@ -113,7 +113,6 @@ class CoverConfirmPlanner(Planner):
     the route to one view (one image)."""
 
     name = "cover_confirm"
-    waypoints_per_replan = None
 
     def __init__(
         self, setup: PlanningSetup, seed: int = 0, cover_altitude_m: float = 13.0, cover_passes: int = 2,
@@ -149,15 +148,9 @@ class CoverConfirmPlanner(Planner):
         self._cover_stops = list(self.cover_pattern())
 
     def cover_pattern(self) -> np.ndarray:
-        """Stops (m, 3) of all cover passes: the minimal footprint-tiling lattice at the cover
-        altitude, serpentine, every other pass reversed; stops inside obstacles dropped."""
-        size = self.setup.field.grid.size_m
-        width_x, width_y = self.setup.camera.footprint_m(self.cover_altitude_m)
-        columns, rows = int(np.ceil(size / float(width_x))), int(np.ceil(size / float(width_y)))
-        xs = -size / 2 + (np.arange(columns) + 0.5) * size / columns
-        ys = -size / 2 + (np.arange(rows) + 0.5) * size / rows
-        one_pass = np.array([(x, y, self.cover_altitude_m) for r, y in enumerate(ys) for x in (xs if r % 2 == 0 else xs[::-1])])
-        one_pass = one_pass[~self.setup.inside_obstacle(one_pass)]
+        """Stops (m, 3) of all cover passes: :func:`coverage_stops` at the cover altitude, every
+        other pass reversed."""
+        one_pass = coverage_stops(self.setup, self.cover_altitude_m)
         passes = [one_pass if p % 2 == 0 else one_pass[::-1] for p in range(self.cover_passes)]
         return np.concatenate(passes) if passes else np.zeros((0, 3))
 

@@ -684,6 +684,20 @@ def occupancy_probability(mean: np.ndarray) -> np.ndarray:
     return np.clip((mean - NOT_DETECTED_VALUE) / (DETECTED_VALUE - NOT_DETECTED_VALUE), 0.0, 1.0)
 
 
+def coverage_stops(setup: PlanningSetup, altitude_m: float) -> np.ndarray:
+    """The fewest image stops (m, 3) whose footprints at ``altitude_m`` tile the field, serpentine:
+    columns spaced <= footprint width in x, rows <= footprint height in y; stops inside
+    obstacles dropped."""
+    size = setup.field.grid.size_m
+    width_x, width_y = setup.camera.footprint_m(altitude_m)
+    columns = int(np.ceil(size / float(width_x)))
+    rows = int(np.ceil(size / float(width_y)))
+    xs = -size / 2 + (np.arange(columns) + 0.5) * size / columns
+    ys = -size / 2 + (np.arange(rows) + 0.5) * size / rows
+    stops = np.array([(x, y, altitude_m) for r, y in enumerate(ys) for x in (xs if r % 2 == 0 else xs[::-1])])
+    return stops[~setup.inside_obstacle(stops)]
+
+
 class LawnmowerPlanner(Planner):
     """Serpentine coverage at ``altitude_m`` with footprint-spaced stops (one image each), the
     pattern repeated back and forth until the budget is spent."""
@@ -701,20 +715,8 @@ class LawnmowerPlanner(Planner):
         self._next = 0
 
     def pattern(self) -> np.ndarray:
-        """Stops (m, 3): columns spaced <= footprint width in x, rows <= footprint height in y."""
-        size = self.setup.field.grid.size_m
-        width_x, width_y = self.setup.camera.footprint_m(self.altitude_m)
-        columns = int(np.ceil(size / float(width_x)))
-        rows = int(np.ceil(size / float(width_y)))
-        xs = -size / 2 + (np.arange(columns) + 0.5) * size / columns
-        ys = -size / 2 + (np.arange(rows) + 0.5) * size / rows
-        stops = []
-        for r, y in enumerate(ys):
-            for x in xs if r % 2 == 0 else xs[::-1]:
-                stops.append((x, y, self.altitude_m))
-        stops = np.array(stops)
-        free = ~self.setup.inside_obstacle(stops)
-        return stops[free]
+        """Stops (m, 3) of :func:`coverage_stops` at the lawnmower altitude."""
+        return coverage_stops(self.setup, self.altitude_m)
 
     def plan(self, belief, pose, remaining_budget_s, time_to_next_image_s=0.0) -> np.ndarray:
         pose = np.asarray(pose, float)

@@ -47,6 +47,32 @@ def test_detections_are_the_marked_cells_without_the_halo():
     assert np.all(belief.mean[view[~np.isin(view, blob)]] < 0.5)
 
 
+def test_blob_detection_count_counts_only_person_sized_detections():
+    grid = _field().grid
+    belief = OccupancyMap.prior(grid)
+    blob = _blob(grid, 10, 10)
+    view = _blob(grid, 6, 6, width=10, height=10)
+    touching = blob.max() + 1  # right of the blob's last row, inside the view
+    assert touching in view
+    for _ in range(2):
+        belief.fuse(view, np.where(np.isin(view, blob), 1.0, 0.05), 0.4)
+    # an isolated false positive beside the blob, in a later image: marked by its mean reading
+    # but never part of a person-sized detection, so it does not join the detection
+    belief.fuse(np.array([touching]), np.ones(1), 0.1)
+    assert belief.mean_reading()[touching] >= 0.3
+    counts = np.zeros(grid.n_cells, dtype=int)
+    counts[blob] = 2
+    np.testing.assert_array_equal(belief.blob_detection_count, counts)
+    groups = detections(belief)
+    assert len(groups) == 1 and set(groups[0]) == set(blob)
+    # two neighbouring false positives from different images are no detection either
+    a, b = 30 * 40 + 30, 30 * 40 + 31
+    belief.fuse(np.array([a, b]), np.array([1.0, 0.05]), 0.4)
+    belief.fuse(np.array([a, b]), np.array([0.05, 1.0]), 0.4)
+    assert len(detections(belief)) == 1
+    assert belief.copy().blob_detection_count is not belief.blob_detection_count
+
+
 def test_confirmation_value_matches_exact_kalman_means_of_both_outcomes():
     field = _field()
     grid = field.grid

@@ -87,6 +87,23 @@ def test_images_every_period_along_path():
     assert next_after[0] == pytest.approx(2 / 0.15 - duration[0])
 
 
+def test_image_due_at_departure_belongs_to_the_start():
+    # 10 m takes 3.67 s < one period: image at the start (t = 0), then hover at the goal for the
+    # image one period later, so the goal is imaged too (the first segment of every episode)
+    flight = FlightModel(speed_m_s=5.0, acceleration_m_s2=3.0, image_rate_hz=0.15)
+    poses, times, valid, duration, next_after = flight.segment_images(
+        np.array([[0.0, 0, 10]]), np.array([[10.0, 0, 10]]), np.array([0.0]), np.array([100.0])
+    )
+    assert valid[0].sum() == 2
+    np.testing.assert_allclose(times[0, :2], [0.0, 1 / 0.15])
+    np.testing.assert_allclose(poses[0, 1], [10.0, 0, 10])
+    assert duration[0] == pytest.approx(1 / 0.15) and next_after[0] == pytest.approx(1 / 0.15)
+    # staying put with an image due now: one image, no wait
+    _, _, valid, duration, _ = flight.segment_images(
+        np.array([[0.0, 0, 10]]), np.array([[0.0, 0, 10]]), np.array([0.0]), np.array([100.0]))
+    assert valid[0].sum() == 1 and duration[0] == 0.0
+
+
 def test_collision_check():
     box = Obstacle(0.0, 0.0, 4.0, 4.0, 13.0)
     paths = np.array([[[-10, 0, 10], [10, 0, 10]], [[-10, 0, 20], [10, 0, 20]], [[-10, 8, 10], [10, 8, 10]]], float)

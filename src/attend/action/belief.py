@@ -21,6 +21,7 @@ from functools import lru_cache
 
 import numpy as np
 import scipy.linalg
+import scipy.ndimage
 
 from attend.action.field import Grid
 
@@ -97,7 +98,10 @@ class OccupancyMap:
     mean: (n,) occupancy estimate; covariance: (n, n) P when ``diagonal`` is False, else the
     (n,) per-cell variances diag(P). reading_precision, reading_sum: (n,) the data term of the
     information form kept beside the map, sum over images of 1 / r and of z / r per cell (zeros
-    for the prior): the raw readings the map has fused, before the prior smooths them.
+    for the prior): the raw readings the map has fused, before the prior smooths them;
+    blob_detection_count: (n,) how many of those readings were detections (z > 0.5) inside a
+    detected blob of at least 2 cells (8-neighbourhood) of the same image: person-sized
+    detections, not isolated false positives.
     """
 
     grid: Grid
@@ -106,12 +110,15 @@ class OccupancyMap:
     diagonal: bool = False
     reading_precision: np.ndarray | None = None
     reading_sum: np.ndarray | None = None
+    blob_detection_count: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.reading_precision is None:
             self.reading_precision = np.zeros(self.grid.n_cells)
         if self.reading_sum is None:
             self.reading_sum = np.zeros(self.grid.n_cells)
+        if self.blob_detection_count is None:
+            self.blob_detection_count = np.zeros(self.grid.n_cells, dtype=int)
 
     @classmethod
     def prior(cls, grid: Grid, diagonal: bool = False, prior_mean: float = PRIOR_MEAN) -> "OccupancyMap":
@@ -140,6 +147,13 @@ class OccupancyMap:
         cells = np.asarray(cells, dtype=int)
         np.add.at(self.reading_precision, cells, 1.0 / noise_variance)
         np.add.at(self.reading_sum, cells, np.asarray(measurements, dtype=float) / noise_variance)
+        detected = np.zeros(self.grid.n_cells, dtype=bool)
+        detected[cells[np.asarray(measurements, dtype=float) > 0.5]] = True
+        if detected.any():
+            labels, _ = scipy.ndimage.label(detected.reshape(self.grid.shape), structure=np.ones((3, 3)))
+            sizes = np.bincount(labels.ravel())
+            blob = (labels.ravel() > 0) & (sizes[labels.ravel()] >= 2)
+            self.blob_detection_count += blob
 
     def mean_reading(self) -> np.ndarray:
         """Precision-weighted mean reading per cell, sum(z / r) / sum(1 / r) (n,): 1 where every
@@ -149,7 +163,7 @@ class OccupancyMap:
 
     def copy(self) -> "OccupancyMap":
         return OccupancyMap(self.grid, self.mean.copy(), self.covariance.copy(), self.diagonal,
-                            self.reading_precision.copy(), self.reading_sum.copy())
+                            self.reading_precision.copy(), self.reading_sum.copy(), self.blob_detection_count.copy())
 
 
 def observation_gains(

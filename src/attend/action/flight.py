@@ -73,7 +73,9 @@ class FlightModel:
         """Images taken on k segments start -> end (arrays (k, 3)), vectorised.
 
         The UAV hovers at the end of a segment until the next image when the segment is shorter
-        than the time to that image (``hover_for_image``), so every waypoint yields an image.
+        than the time to that image (``hover_for_image``), so every waypoint reached before its
+        image yields one. An image due at departure (time to next image 0) is taken at the start
+        and belongs to it: a moving segment then waits for the image one period later.
         Flight stops at ``time_left_s``. Returns image poses (k, J, 3), image times since the
         segment start (k, J), valid mask (k, J), segment duration (k,) and the time from the
         segment end to the next image (k,).
@@ -86,7 +88,9 @@ class FlightModel:
         time_left = np.broadcast_to(np.asarray(time_left_s, float), (k,))
         length = np.linalg.norm(end - start, axis=1)
         travel = self.segment_duration(length)
-        duration = np.maximum(travel, first) if hover_for_image else travel
+        # an image due at departure is the start's; the goal waits for the following one
+        awaited = np.where((first <= 1e-9) & (travel > 1e-9), first + self.image_period_s, first)
+        duration = np.maximum(travel, awaited) if hover_for_image else travel
         duration = np.minimum(duration, time_left)
         period = self.image_period_s
         n_images = np.where(first <= duration + 1e-9, np.floor((duration - first + 1e-9) / period) + 1, 0).astype(int)

@@ -19,7 +19,6 @@ import contextlib
 import copy
 import importlib
 import io
-import os
 import re
 import shlex
 import sys

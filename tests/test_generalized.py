@@ -1,8 +1,6 @@
 """Generalised coordinates: S against the spec's check values and the paper's eq. 7, embedding
 weights against central differences, the shift operator."""
 
-from fractions import Fraction
-
 import numpy as np
 import pytest
 

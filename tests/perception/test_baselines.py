@@ -298,7 +298,7 @@ def test_bad_input_names_the_field(call, field):
 def test_exact_posterior_reduction_to_range_of_C_keeps_the_likelihood():
     """m = 4 > n = 2: the outputs are reduced to 2 channels; mean, stds and log p(y) stay exact."""
     system = convolution_model()
-    N, u = 30, np.ones((30, 1))
+    u = np.ones((30, 1))
     trajectory = simulate(system, u, DT, kernel_width=1e-3, process_std=0.3,
                           measurement_std=[0.02, 0.03, 0.01, 0.05], seed=2)
     exact = bl.exact_posterior(system, DT, trajectory.outputs, u, kernel_width=1e-3, process_std=0.3,

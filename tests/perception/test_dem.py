@@ -8,7 +8,7 @@ from attend._validation import AttendInputError
 from attend.generalized import embed
 from attend.perception.dem import DEMObserver
 from attend.perception.recurrence import _sequential, linear_recurrence
-from attend.systems import LinearSystem, convolution_model, mass_spring_damper, simulate
+from attend.systems import convolution_model, mass_spring_damper, simulate
 
 
 def _observer(**overrides):

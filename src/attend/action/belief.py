@@ -91,6 +91,16 @@ def kalman_update_diagonal(
     return new_mean, new_var
 
 
+def connected_groups(marked: np.ndarray, grid: Grid, min_cells: int = 1) -> list[np.ndarray]:
+    """Cell indices of each connected group (8-neighbourhood) of at least ``min_cells`` cells of
+    the (n,) mask ``marked``."""
+    if not marked.any():
+        return []
+    labels, n = scipy.ndimage.label(marked.reshape(grid.shape), structure=np.ones((3, 3)))
+    groups = [np.flatnonzero(labels.ravel() == g) for g in range(1, n + 1)]
+    return [cells for cells in groups if len(cells) >= min_cells]
+
+
 @dataclass
 class OccupancyMap:
     """Belief N(mean, P) over the occupancy of the ``grid`` cells.
@@ -149,11 +159,8 @@ class OccupancyMap:
         np.add.at(self.reading_sum, cells, np.asarray(measurements, dtype=float) / noise_variance)
         detected = np.zeros(self.grid.n_cells, dtype=bool)
         detected[cells[np.asarray(measurements, dtype=float) > 0.5]] = True
-        if detected.any():
-            labels, _ = scipy.ndimage.label(detected.reshape(self.grid.shape), structure=np.ones((3, 3)))
-            sizes = np.bincount(labels.ravel())
-            blob = (labels.ravel() > 0) & (sizes[labels.ravel()] >= 2)
-            self.blob_detection_count += blob
+        for blob in connected_groups(detected, self.grid, min_cells=2):
+            self.blob_detection_count[blob] += 1
 
     def mean_reading(self) -> np.ndarray:
         """Precision-weighted mean reading per cell, sum(z / r) / sum(1 / r) (n,): 1 where every

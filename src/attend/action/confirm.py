@@ -47,10 +47,9 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
-import scipy.ndimage
 import scipy.stats
 
-from attend.action.belief import OccupancyMap
+from attend.action.belief import OccupancyMap, connected_groups
 from attend.action.camera import DETECTED_VALUE, NOT_DETECTED_VALUE
 from attend.action.errors import ActionInputError
 from attend.action.flight import detour
@@ -69,9 +68,7 @@ def detections(belief: OccupancyMap, reading_threshold: float = 0.3, min_cells: 
     ``min_cells`` cells that were part of a person-sized detection at least once
     (``OccupancyMap.blob_detection_count``) and whose mean reading is >= ``reading_threshold``."""
     marked = (belief.blob_detection_count > 0) & (belief.mean_reading() >= reading_threshold)
-    labels, n = scipy.ndimage.label(marked.reshape(belief.grid.shape), structure=np.ones((3, 3)))
-    groups = [np.flatnonzero(labels.ravel() == g) for g in range(1, n + 1)]
-    return [cells for cells in groups if len(cells) >= min_cells]
+    return connected_groups(marked, belief.grid, min_cells)
 
 
 def _covariance_block(belief: OccupancyMap, rows: np.ndarray, columns: np.ndarray) -> np.ndarray:

@@ -1,0 +1,562 @@
+"""Kalman smoother and filter under the coloured-noise model: the estimator that keeps the past.
+
+The generative model is the one :func:`attend.systems.simulate` samples (spec §1)::
+
+    x[k] = Ad x[k-1] + Bd u[k-1] + dt w[k-1]        y[k] = C x[k] + z[k]
+    w = Lw e_w,  z = Lz e_z                          Lw Lw' = inv(Pi_w),  Lz Lz' = inv(Pi_z)
+    e_w, e_z: unit white noise convolved with a Gaussian kernel of width s_w, s_z [s]
+    unknown inputs: u = eta + Lu e_u, Lu Lu' = inv(P_v), e_u Gaussian-correlated with
+                    autocorrelation rho(tau) = exp(-tau^2 / (4 s_u^2))
+
+Each coloured channel e[k] is written as a small linear model (:func:`attend.noise.noise_state_space`:
+a minimum-phase spectral factor of its autocorrelation, 3 to 14 states, autocorrelation matched to
+~1e-7), and the plant state is augmented with those noise states. The Kalman filter on the
+augmented state is then the causal posterior mean E[x[k] | y[0..k]] and the Rauch-Tung-Striebel
+smoother the whole-log posterior mean E[x[k] | y[0..N-1]] of that model: up to the accuracy of
+the noise fit, the exact Gaussian posterior (:func:`attend.perception.baselines.exact_posterior`)
+in O(N). Kernel width 0 is white noise. Unlike the DEM observer, evidence from the whole past
+(and, in the smoother, the whole future) is carried with its precision.
+
+Speed: the gains do not depend on the data, so the covariance recursion runs only until it
+has converged (typically tens to a few hundred samples); from there on the means follow a
+time-invariant linear recurrence, evaluated with :func:`attend.perception.recurrence.linear_recurrence`.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve
+
+from attend._validation import AttendInputError, as_matrix, positive_scalar, precision_matrix, require_finite
+from attend.noise import (
+    NoiseStateSpace,
+    kernel_autocorrelation,
+    noise_state_space,
+    sampled_autocorrelation,
+    white_state_space,
+)
+from attend.perception.recurrence import linear_recurrence
+from attend.systems import LinearSystem, ModelWarning
+
+__all__ = ["KalmanEstimator", "StateEstimate", "OnlineKalman"]
+
+
+class StateEstimate(NamedTuple):
+    """Estimates at every sample: time (N,) [s]; states (N, n) posterior means; inputs (N, r)
+    posterior means of unknown inputs (the given ones when measured); state_std (N, n),
+    input_std (N, r) posterior standard deviations (0 for measured inputs); method: which
+    estimator produced them."""
+
+    time: np.ndarray
+    states: np.ndarray
+    inputs: np.ndarray
+    state_std: np.ndarray
+    input_std: np.ndarray
+    method: str
+
+
+def _width(value, field: str) -> float:
+    """A kernel width >= 0 [s] (0: white noise)."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise AttendInputError(f"{field}: expected a number >= 0 (s; 0 for white noise), got {value!r}") from None
+    if not np.isfinite(number) or number < 0:
+        raise AttendInputError(f"{field}: expected a finite number >= 0 (s; 0 for white noise), got {value!r}")
+    return number
+
+
+def _factor(precision: np.ndarray, field: str) -> np.ndarray:
+    """L with L L' = inv(precision); a singular precision (infinite variance somewhere) is an error."""
+    eigenvalues, vectors = np.linalg.eigh(precision)
+    if eigenvalues.min() <= 1e-300 or eigenvalues.min() <= 1e-14 * eigenvalues.max():
+        raise AttendInputError(
+            f"{field}: expected a positive definite precision (a zero precision means infinite noise: "
+            "the channel carries no information)"
+        )
+    return vectors / np.sqrt(eigenvalues)
+
+
+def _channel_model(dt: float, width: float, kind: str) -> NoiseStateSpace:
+    if width == 0:
+        return white_state_space()
+    sequence = kernel_autocorrelation(dt, width) if kind == "kernel" else sampled_autocorrelation(dt, width)
+    return noise_state_space(sequence)
+
+
+@dataclass(frozen=True, eq=False)
+class KalmanEstimator:
+    """Kalman smoother (batch) and filter (causal, online) for an LTI system under coloured noise.
+
+    system: the model (A, B, C) in continuous time [1/s]; dt: sample time [s];
+    sensor_precision Pi_z [1/output unit^2] and process_precision Pi_w [s^2/state unit^2], as for
+    :class:`attend.perception.dem.DEMObserver` (Pi_w = 1/sigma_w^2 for simulate(process_std=sigma_w));
+    kernel_width s [s] for both noises, or process_kernel_width / sensor_kernel_width separately
+    (0 = white); known_inputs: inputs measured (True) or estimated (False, then
+    input_prior_precision P_v [1/input unit^2] and input_kernel_width s_u [s], default the process
+    width, give the Gaussian-process prior of the inputs around the prior mean passed to estimate());
+    initial_state: prior mean of x[0] (default 0) and initial_state_std its standard deviation
+    (0: known; default: known when initial_state is given, else unknown: a diffuse prior, 1e3 times
+    the scale of the states seen through C).
+    """
+
+    system: LinearSystem
+    dt: float
+    sensor_precision: np.ndarray
+    process_precision: np.ndarray
+    kernel_width: float | None = None
+    process_kernel_width: float | None = None
+    sensor_kernel_width: float | None = None
+    input_prior_precision: np.ndarray | None = None
+    input_kernel_width: float | None = None
+    known_inputs: bool = True
+    initial_state: np.ndarray | None = None
+    initial_state_std: np.ndarray | float | None = None
+    _model: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self):
+        system = self.system
+        if not isinstance(system, LinearSystem):
+            raise AttendInputError("system: expected an attend.LinearSystem (a python-control StateSpace converts "
+                                   "with attend.interop.from_statespace)")
+        set_ = object.__setattr__
+        n, r, m = system.n_states, system.n_inputs, system.n_outputs
+        set_(self, "dt", positive_scalar(self.dt, "dt", "s"))
+        shared = None if self.kernel_width is None else _width(self.kernel_width, "kernel_width")
+        widths = {}
+        for name in ("process_kernel_width", "sensor_kernel_width"):
+            value = getattr(self, name)
+            if value is None and shared is None:
+                raise AttendInputError(f"{name}: required (or kernel_width for both noises); 0 means white noise")
+            widths[name] = shared if value is None else _width(value, name)
+            set_(self, name, widths[name])
+        set_(self, "sensor_precision", precision_matrix(self.sensor_precision, m, "sensor_precision"))
+        set_(self, "process_precision", precision_matrix(self.process_precision, n, "process_precision"))
+        if not self.known_inputs and r:
+            if self.input_prior_precision is None:
+                raise AttendInputError("input_prior_precision: required when the inputs are unknown")
+            set_(self, "input_prior_precision",
+                 precision_matrix(self.input_prior_precision, r, "input_prior_precision"))
+            width = self.input_kernel_width
+            if width is None:
+                width = widths["process_kernel_width"] or widths["sensor_kernel_width"]
+            width = _width(width, "input_kernel_width")
+            if width == 0:
+                raise AttendInputError("input_kernel_width: expected a width > 0 [s] for the unknown inputs' "
+                                       "prior (the noise widths are both 0)")
+            set_(self, "input_kernel_width", width)
+        if self.initial_state is not None:
+            mean = np.asarray(self.initial_state, dtype=float).reshape(-1)
+            if mean.shape != (n,):
+                raise AttendInputError(f"initial_state: expected {n} numbers (one per state), got shape "
+                                       f"{np.shape(self.initial_state)}")
+            require_finite(mean, "initial_state")
+            set_(self, "initial_state", mean)
+        if self.initial_state_std is not None:
+            std = np.broadcast_to(np.asarray(self.initial_state_std, dtype=float), (n,)).copy() \
+                if np.ndim(self.initial_state_std) == 0 else np.asarray(self.initial_state_std, dtype=float)
+            if std.shape != (n,) or not np.all(np.isfinite(std)) or np.any(std < 0):
+                raise AttendInputError(f"initial_state_std: expected a number or {n} numbers >= 0, got "
+                                       f"{self.initial_state_std!r}")
+            set_(self, "initial_state_std", std)
+        self._model.update(self._build())
+        self._check_observable()
+
+    # --- the augmented model -----------------------------------------------------------------
+
+    @property
+    def method(self) -> str:
+        """A short name of the estimator for reports."""
+        return "kalman (coloured-noise Kalman smoother)"
+
+    def _build(self) -> dict:
+        system, dt = self.system, self.dt
+        n, r, m = system.n_states, system.n_inputs, system.n_outputs
+        Ad, Bd = system.discretize(dt)
+        process = _channel_model(dt, self.process_kernel_width, "kernel")
+        sensor = _channel_model(dt, self.sensor_kernel_width, "kernel")
+        unknown = not self.known_inputs and r > 0
+        inputs = _channel_model(dt, self.input_kernel_width, "sampled") if unknown else None
+        blocks = [("x", n, None), ("w", n, process), ("z", m, sensor)]
+        if unknown:
+            blocks.append(("u", r, inputs))
+        slices, start = {}, 0
+        for name, channels, model in blocks:
+            size = channels if model is None else channels * (model.order + 1)
+            slices[name] = slice(start, start + size)
+            start += size
+        dim = start
+        T = np.zeros((dim, dim))
+        noise_in = np.zeros((dim, dim - n))
+        readout = {}
+        column = 0
+        for name, channels, model in blocks[1:]:
+            block = slices[name]
+            T[block, block] = np.kron(np.eye(channels), model.transition)
+            width = block.stop - block.start
+            noise_in[block, column: column + channels] = np.kron(np.eye(channels), model.noise_input[:, None])
+            column += channels
+            readout[name] = np.kron(np.eye(channels), model.output[None, :])  # (channels, width)
+        Lw = _factor(self.process_precision, "process_precision")
+        Lz = _factor(self.sensor_precision, "sensor_precision")
+        T[slices["x"], slices["x"]] = Ad
+        T[slices["x"], slices["w"]] = dt * Lw @ readout["w"]
+        H = np.zeros((m, dim))
+        H[:, slices["x"]] = system.C
+        H[:, slices["z"]] = Lz @ readout["z"]
+        output_map = np.zeros((n + r, dim))  # [x; u - eta] from the augmented state
+        output_map[:n, slices["x"]] = np.eye(n)
+        if unknown:
+            Lu = _factor(self.input_prior_precision, "input_prior_precision")
+            T[slices["x"], slices["u"]] = Bd @ Lu @ readout["u"]
+            output_map[n:, slices["u"]] = Lu @ readout["u"]
+        stationary = np.zeros((dim, dim))
+        for name, channels, model in blocks[1:]:
+            stationary[slices[name], slices[name]] = np.kron(np.eye(channels), model.stationary_covariance)
+        return dict(T=T, Q=noise_in @ noise_in.T, H=H, Ad=Ad, Bd=Bd, slices=slices, dim=dim,
+                    stationary=stationary, output_map=output_map, unknown=unknown,
+                    noise_orders={"process": process.order, "sensor": sensor.order,
+                                  "input": None if inputs is None else inputs.order})
+
+    def _check_observable(self) -> None:
+        """States (and unknown inputs, as constants) the outputs cannot see are an error when x[0] is unknown."""
+        system = self.system
+        n, r = system.n_states, system.n_inputs
+        Ad, Bd = self._model["Ad"], self._model["Bd"]
+        if self._model["unknown"]:
+            F = np.block([[Ad, Bd], [np.zeros((r, n)), np.eye(r)]])
+            Hx = np.hstack([system.C, np.zeros((system.n_outputs, r))])
+            names = list(system.state_names) + list(system.input_names)
+        else:
+            F, Hx, names = Ad, system.C, list(system.state_names)
+        size = F.shape[0]
+        blocks, power = [], np.eye(size)
+        for _ in range(size):
+            blocks.append(Hx @ power)
+            power = F @ power
+        observability = np.vstack(blocks)
+        scale = np.linalg.norm(observability) or 1.0
+        _, singular, Vt = np.linalg.svd(observability)
+        rank = int(np.sum(singular > 1e-10 * scale))
+        if rank == size:
+            return
+        null = Vt[rank:]
+        hidden = [names[i] for i in range(size) if np.linalg.norm(null[:, i]) > 1e-6]
+        unknown_start = self.initial_state_std is None and self.initial_state is None
+        hidden_states = [name for name in hidden if name in system.state_names]
+        message = (f"{', '.join(hidden)}: not observable from the outputs (the observability matrix has rank "
+                   f"{rank} < {size})")
+        if hidden_states and unknown_start:
+            raise AttendInputError(message + "; add outputs that see them, or give initial_state and "
+                                   "initial_state_std (their estimate is then the prior's)")
+        warnings.warn(message + "; their estimates follow the prior and its standard deviation", ModelWarning,
+                      stacklevel=3)
+
+    @property
+    def noise_orders(self) -> dict:
+        """Orders of the finite noise models (process, sensor, input; 0 = white)."""
+        return dict(self._model["noise_orders"])
+
+    # --- data --------------------------------------------------------------------------------
+
+    def _signals(self, outputs, inputs) -> tuple[np.ndarray, np.ndarray]:
+        system = self.system
+        m, r = system.n_outputs, system.n_inputs
+        y = as_matrix(outputs, "outputs", cols=m if np.ndim(outputs) == 2 else 1)
+        if y.shape[1] != m:
+            raise AttendInputError(f"outputs: expected {m} columns (one per output), got {y.shape[1]}")
+        if y.shape[0] < 2:
+            raise AttendInputError(f"outputs: expected at least 2 samples, got {y.shape[0]}")
+        field_name = "inputs" if self.known_inputs else "input_prior"
+        if inputs is None:
+            if self.known_inputs and r:
+                raise AttendInputError("inputs: the estimator was built with known_inputs=True; pass the measured inputs")
+            u = np.zeros((y.shape[0], r))
+        else:
+            u = as_matrix(inputs, field_name, cols=r if np.ndim(inputs) == 2 else 1)
+            if u.shape != (y.shape[0], r):
+                raise AttendInputError(f"{field_name}: expected shape ({y.shape[0]}, {r}), got {u.shape}")
+        return y, u
+
+    def _initial(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Prior mean and covariance of the augmented state at sample 0."""
+        model = self._model
+        n = self.system.n_states
+        mean = np.zeros(model["dim"])
+        cov = model["stationary"].copy()
+        x = model["slices"]["x"]
+        if self.initial_state is not None:
+            mean[x] = self.initial_state
+        if self.initial_state_std is not None:
+            cov[x, x] = np.diag(self.initial_state_std**2)
+        elif self.initial_state is not None:
+            cov[x, x] = 0.0
+        else:  # diffuse: 1e3 x the scale of the states seen through C (at least 1)
+            seen = np.linalg.lstsq(self.system.C, y[: min(len(y), 200)].T, rcond=None)[0]
+            scale = max(1.0, float(np.sqrt(np.mean(seen**2))))
+            cov[x, x] = np.eye(n) * (1e3 * scale) ** 2
+        return mean, cov
+
+    # --- estimation --------------------------------------------------------------------------
+
+    def estimate(self, outputs, inputs=None) -> StateEstimate:
+        """Posterior means and standard deviations given the whole log (Kalman + RTS smoother).
+
+        outputs (N, m); inputs (N, r): the measured inputs (known_inputs) or the inputs' prior
+        mean eta (unknown inputs; default 0).
+        """
+        return self._run(outputs, inputs, smooth=True)
+
+    def filter(self, outputs, inputs=None) -> StateEstimate:
+        """Causal estimates E[x[k] | y[0..k]] and their standard deviations (the Kalman filter)."""
+        return self._run(outputs, inputs, smooth=False)
+
+    def _run(self, outputs, inputs, smooth: bool) -> StateEstimate:
+        y, u = self._signals(outputs, inputs)
+        N = y.shape[0]
+        model = self._model
+        T, H = model["T"], model["H"]
+        mean0, cov0 = self._initial(y)
+        schedule = _gain_schedule(T, model["Q"], H, cov0, N)
+        drive = np.zeros((N, model["dim"]))
+        drive[:, model["slices"]["x"]] = u @ model["Bd"].T  # b[k] = Bd u[k] enters x[k+1]
+        predicted, innovations = _predicted_means(schedule, T, H, y, drive, mean0)
+        if smooth:
+            means = _smoothed_means(schedule, T, H, predicted, innovations)
+            covariance_diag = _smoother_variances(schedule, T, H, model["output_map"], N)
+        else:
+            means = _filtered_means(schedule, predicted, innovations)
+            covariance_diag = _filter_variances(schedule, H, model["output_map"], N)
+        readout = means @ model["output_map"].T
+        n = self.system.n_states
+        states = readout[:, :n]
+        std = np.sqrt(np.clip(covariance_diag, 0, None))
+        if model["unknown"]:
+            estimated_inputs = u + readout[:, n:]
+            input_std = std[:, n:]
+        else:
+            estimated_inputs, input_std = u, np.zeros_like(u)
+        if not (np.all(np.isfinite(states)) and np.all(np.isfinite(estimated_inputs))):
+            raise AttendInputError("outputs: the estimate went non-finite; check the scale of the log and of the "
+                                   "precisions")
+        method = "kalman smoother" if smooth else "kalman filter"
+        return StateEstimate(np.arange(N) * self.dt, states, estimated_inputs, std[:, :n], input_std, method)
+
+    def online(self) -> "OnlineKalman":
+        """A fixed-memory filter fed one sample at a time (see :class:`OnlineKalman`)."""
+        return OnlineKalman(self)
+
+
+# --- the recursions --------------------------------------------------------------------------
+#
+# Filter (sample k): a_p[k] = T a_f[k-1] + b[k-1], nu[k] = y[k] - H a_p[k], a_f[k] = a_p[k] + K[k] nu[k].
+# Smoother in the Bryson-Frazier form (no inverse of the predicted covariance, which the nearly
+# deterministic noise states make ill-conditioned):
+#     lam[k] = H' inv(S[k]) nu[k] + (I - K[k] H)' T' lam[k+1],      lam[N] = 0
+#     a_s[k] = a_p[k] + P_p[k] lam[k]
+#     Lam[k] = H' inv(S[k]) H + (I - K[k] H)' T' Lam[k+1] T (I - K[k] H),   P_s[k] = P_p[k] - P_p[k] Lam[k] P_p[k]
+
+class _GainSchedule(NamedTuple):
+    """Gains and covariances of samples 0..steady; from ``steady`` on they are constant."""
+
+    gains: np.ndarray          # (steady + 1, dim, m): K[k]
+    innovation_weights: np.ndarray  # (steady + 1, dim, m): H' inv(S[k])
+    predicted: np.ndarray      # (steady + 1, dim, dim): P_p[k] (P_p[0] = the prior)
+    steady: int                # first sample whose gain is the steady gain (or the last sample)
+
+
+def _gain_schedule(T, Q, H, P0, n_samples: int, tolerance: float = 1e-10, patience: int = 3) -> _GainSchedule:
+    """Covariance recursion of the filter until its gain stops changing (or the log ends)."""
+    gains, weights, predicted = [], [], []
+    P = 0.5 * (P0 + P0.T)
+    calm = 0
+    identity = np.eye(T.shape[0])
+    for k in range(n_samples):
+        if k:
+            A = identity - gains[-1] @ H
+            P = T @ (A @ predicted[-1] @ A.T) @ T.T + Q  # Joseph form of the update, then predict
+            P = 0.5 * (P + P.T)
+        try:
+            factor = cho_factor(H @ P @ H.T, lower=True)
+        except np.linalg.LinAlgError:
+            raise AttendInputError("sensor_precision: the predicted outputs' covariance is singular; "
+                                   "check sensor_precision and C") from None
+        weight = cho_solve(factor, H).T  # H' inv(S)
+        K = P @ weight
+        if gains:
+            change = np.max(np.abs(K - gains[-1]))
+            calm = calm + 1 if change <= tolerance * max(np.max(np.abs(K)), 1e-300) else 0
+        gains.append(K)
+        weights.append(weight)
+        predicted.append(P)
+        if calm >= patience:
+            break
+    return _GainSchedule(np.array(gains), np.array(weights), np.array(predicted), len(gains) - 1)
+
+
+def _at(array: np.ndarray, k: int) -> np.ndarray:
+    """Entry k of a schedule array, the steady (last) entry beyond it."""
+    return array[min(k, len(array) - 1)]
+
+
+def _predicted_means(schedule: _GainSchedule, T, H, y, drive, mean0) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted means a_p[k] and innovations nu[k] for every sample."""
+    N, dim = y.shape[0], T.shape[0]
+    predicted = np.empty((N, dim))
+    mean = mean0
+    head = min(schedule.steady + 1, N)
+    for k in range(head):
+        if k:
+            mean = T @ (mean + schedule.gains[k - 1] @ (y[k - 1] - H @ mean)) + drive[k - 1]
+        predicted[k] = mean
+    if head < N:  # a_p[k] = T (I - K H) a_p[k-1] + T K y[k-1] + b[k-1]
+        K = schedule.gains[-1]
+        transition = T @ (np.eye(dim) - K @ H)
+        forcing = y[head - 1: N - 1] @ (T @ K).T + drive[head - 1: N - 1]
+        predicted[head:] = linear_recurrence(transition, forcing, predicted[head - 1])
+    return predicted, y - predicted @ H.T
+
+
+def _filtered_means(schedule: _GainSchedule, predicted, innovations) -> np.ndarray:
+    N = predicted.shape[0]
+    head = min(schedule.steady, N)
+    out = predicted.copy()
+    for k in range(head):
+        out[k] += schedule.gains[k] @ innovations[k]
+    out[head:] += innovations[head:] @ schedule.gains[-1].T
+    return out
+
+
+def _smoothed_means(schedule: _GainSchedule, T, H, predicted, innovations) -> np.ndarray:
+    N, dim = predicted.shape
+    s = min(schedule.steady, N - 1)
+    lam = np.empty((N, dim))
+    scaled = np.empty((N, dim))  # H' inv(S[k]) nu[k]
+    scaled[s:] = innovations[s:] @ schedule.innovation_weights[-1].T
+    for k in range(s):
+        scaled[k] = schedule.innovation_weights[k] @ innovations[k]
+    # steady region: lam[k] = M lam[k+1] + scaled[k], M = (I - K H)' T'
+    K = schedule.gains[-1]
+    M = (np.eye(dim) - K @ H).T @ T.T
+    lam[s:] = linear_recurrence(M, scaled[s:][::-1], np.zeros(dim))[::-1]
+    for k in range(s - 1, -1, -1):
+        lam[k] = scaled[k] + (np.eye(dim) - schedule.gains[k] @ H).T @ (T.T @ lam[k + 1])
+    out = np.empty_like(predicted)
+    out[s:] = predicted[s:] + lam[s:] @ schedule.predicted[-1].T
+    for k in range(s):
+        out[k] = predicted[k] + schedule.predicted[k] @ lam[k]
+    return out
+
+
+def _filter_variances(schedule: _GainSchedule, H, output_map, N: int) -> np.ndarray:
+    out = np.empty((N, output_map.shape[0]))
+    identity = np.eye(H.shape[1])
+    for k in range(min(N, schedule.steady + 1)):
+        A = identity - schedule.gains[k] @ H
+        out[k] = np.einsum("ij,jl,il->i", output_map, A @ schedule.predicted[k] @ A.T, output_map)
+    out[schedule.steady + 1:] = out[min(N, schedule.steady + 1) - 1]
+    return out
+
+
+def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int, tolerance: float = 1e-10) -> np.ndarray:
+    """diag(O P_s[k] O') with the backward recursion of Lam; constant in the middle of long logs."""
+    dim = T.shape[0]
+    identity = np.eye(dim)
+    s = min(schedule.steady, N - 1)
+
+    def closed(k):
+        return identity - _at(schedule.gains, k) @ H
+
+    def variance(k, Lam):
+        P = _at(schedule.predicted, k)
+        return np.einsum("ij,jl,il->i", output_map, P - P @ Lam @ P, output_map)
+
+    out = np.empty((N, output_map.shape[0]))
+    Lam = _at(schedule.innovation_weights, N - 1) @ H
+    out[N - 1] = variance(N - 1, Lam)
+    k = N - 2
+    calm = 0
+    while k >= s:  # steady gains: Lam converges going backwards
+        A = closed(k)
+        new = schedule.innovation_weights[-1] @ H + A.T @ T.T @ Lam @ T @ A
+        new = 0.5 * (new + new.T)
+        change = np.max(np.abs(new - Lam))
+        calm = calm + 1 if change <= tolerance * max(np.max(np.abs(new)), 1e-300) else 0
+        Lam = new
+        out[k] = variance(k, Lam)
+        k -= 1
+        if calm >= 3:
+            out[s: k + 1] = out[k + 1]
+            k = s - 1
+            break
+    for j in range(k, -1, -1):
+        A = closed(j)
+        Lam = schedule.innovation_weights[j] @ H + A.T @ T.T @ Lam @ T @ A
+        Lam = 0.5 * (Lam + Lam.T)
+        out[j] = variance(j, Lam)
+    return out
+
+
+class OnlineKalman:
+    """The Kalman filter fed one sample at a time: ``step(y, u)`` returns (states, inputs,
+    state_std, input_std) of the same sample (no delay). Memory does not grow with the stream;
+    the gain becomes constant once the covariance has converged."""
+
+    def __init__(self, estimator: KalmanEstimator):
+        self.estimator = estimator
+        self._model = estimator._model
+        self._count = 0
+        self._mean = None
+        self._previous_drive = None
+        self._schedule = None
+        self._P = None
+
+    def step(self, output, input_value=None):
+        """Feed sample k (outputs (m,), measured input or input prior (r,)); return its estimate."""
+        est, model = self.estimator, self._model
+        m, r, n = est.system.n_outputs, est.system.n_inputs, est.system.n_states
+        try:
+            y = np.asarray(output, dtype=float).reshape(-1)
+            u = np.zeros(r) if input_value is None else np.asarray(input_value, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise AttendInputError(f"step: expected {m} output numbers and {r} input numbers") from None
+        if y.shape != (m,) or u.shape != (r,):
+            raise AttendInputError(f"step: expected {m} outputs and {r} inputs, got {y.shape[0]} and {u.shape[0]}")
+        require_finite(np.concatenate([y, u]), "step sample")
+        T, H = model["T"], model["H"]
+        if self._count == 0:
+            mean, P = est._initial(y[None, :])
+            self._P = P
+        else:
+            mean = T @ self._mean + self._previous_drive
+            if self._schedule is None:
+                self._P = T @ self._P @ T.T + model["Q"]
+        if self._schedule is None:
+            P = 0.5 * (self._P + self._P.T)
+            K = cho_solve(cho_factor(H @ P @ H.T, lower=True), H @ P).T
+            A = np.eye(model["dim"]) - K @ H
+            Pf = A @ P @ A.T
+            Pf = 0.5 * (Pf + Pf.T)
+            if self._count and np.max(np.abs(Pf - self._filtered)) <= 1e-11 * np.max(np.abs(np.diag(Pf))):
+                self._calm = getattr(self, "_calm", 0) + 1
+            else:
+                self._calm = 0
+            self._P, self._filtered, self._gain = Pf, Pf, K
+            self._variances = np.einsum("ij,jl,il->i", model["output_map"], Pf, model["output_map"])
+            if self._calm >= 3:
+                self._schedule = "steady"
+        mean = mean + self._gain @ (y - H @ mean)
+        self._mean = mean
+        drive = np.zeros(model["dim"])
+        drive[model["slices"]["x"]] = model["Bd"] @ u
+        self._previous_drive = drive
+        self._count += 1
+        readout = model["output_map"] @ mean
+        std = np.sqrt(np.clip(self._variances, 0, None))
+        if model["unknown"]:
+            return readout[:n], u + readout[n:], std[:n], std[n:]
+        return readout[:n], u, std[:n], np.zeros(r)

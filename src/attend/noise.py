@@ -42,7 +42,7 @@ def coloured_noise(
     std=1.0,
     seed: int | np.random.Generator | None = 0,
 ) -> np.ndarray:
-    """(n_samples, n_channels) of white noise convolved with the Gaussian kernel.
+    """(n_samples, n_channels) of white noise convolved with the Gaussian kernel (kernel_width 0: white).
 
     ``std`` is the standard deviation per sample: a scalar or one value per channel.
     The white noise is drawn with margins of the kernel's half-length on both sides, so every
@@ -54,6 +54,8 @@ def coloured_noise(
     if not np.all(np.isfinite(std)) or np.any(std < 0):
         raise AttendInputError(f"std: expected finite standard deviations >= 0, got {std}")
     rng = np.random.default_rng(seed)
+    if kernel_width == 0:
+        return rng.standard_normal((n_samples, n_channels)) * std
     kernel = gaussian_kernel(dt, kernel_width)
     margin = len(kernel) - 1
     white = rng.standard_normal((n_samples + margin, n_channels))
@@ -114,7 +116,7 @@ def white_state_space() -> NoiseStateSpace:
     return NoiseStateSpace(np.zeros((1, 1)), np.ones(1), np.ones(1), one, 0.0)
 
 
-def noise_state_space(autocorrelation_sequence, *, white_floor: float = 1e-6, accuracy: float = 1e-5) -> NoiseStateSpace:
+def noise_state_space(autocorrelation_sequence, *, white_floor: float = 1e-8, accuracy: float = 1e-5) -> NoiseStateSpace:
     """Fit a :class:`NoiseStateSpace` to the autocorrelation r[0], r[1], ... (r[0] = 1).
 
     Steps: (1) Hankel matrix of r[1..] and its SVD give (F, H, G_bar) with r[l] = H F^(l-1) G_bar

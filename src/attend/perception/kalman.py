@@ -100,8 +100,8 @@ class KalmanEstimator:
     input_prior_precision P_v [1/input unit^2] and input_kernel_width s_u [s], default the process
     width, give the Gaussian-process prior of the inputs around the prior mean passed to estimate());
     initial_state: prior mean of x[0] (default 0) and initial_state_std its standard deviation
-    (0: known; default: known when initial_state is given, else unknown: a diffuse prior, 1e3 times
-    the scale of the states seen through C).
+    (0: known; default: known when initial_state is given, else unknown: a broad prior, 100 times
+    the scale of the state seen through C in the first sample, or of the sensor noise if larger).
     """
 
     system: LinearSystem
@@ -295,10 +295,12 @@ class KalmanEstimator:
             cov[x, x] = np.diag(self.initial_state_std**2)
         elif self.initial_state is not None:
             cov[x, x] = 0.0
-        else:  # diffuse: 1e3 x the scale of the states seen through C (at least 1)
-            seen = np.linalg.lstsq(self.system.C, y[: min(len(y), 200)].T, rcond=None)[0]
-            scale = max(1.0, float(np.sqrt(np.mean(seen**2))))
-            cov[x, x] = np.eye(n) * (1e3 * scale) ** 2
+        else:  # diffuse: 100 x the scale of the state seen through C in the first sample
+            inverse = np.linalg.pinv(self.system.C)
+            seen = inverse @ y[0]
+            noise = np.sqrt(np.mean(np.diag(inverse @ np.linalg.pinv(self.sensor_precision) @ inverse.T)))
+            scale = max(float(np.sqrt(np.mean(seen**2))), float(noise), 1e-12)
+            cov[x, x] = np.eye(n) * (100 * scale) ** 2
         return mean, cov
 
     # --- estimation --------------------------------------------------------------------------
@@ -321,7 +323,9 @@ class KalmanEstimator:
         model = self._model
         T, H = model["T"], model["H"]
         mean0, cov0 = self._initial(y)
-        schedule = _gain_schedule(T, model["Q"], H, cov0, N)
+        if "steady_predicted" not in model:
+            model["steady_predicted"] = _steady_predicted_covariance(T, model["Q"], H)
+        schedule = _gain_schedule(T, model["Q"], H, cov0, N, model["steady_predicted"])
         drive = np.zeros((N, model["dim"]))
         drive[:, model["slices"]["x"]] = u @ model["Bd"].T  # b[k] = Bd u[k] enters x[k+1]
         predicted, innovations = _predicted_means(schedule, T, H, y, drive, mean0)
@@ -360,6 +364,14 @@ class KalmanEstimator:
 #     a_s[k] = a_p[k] + P_p[k] lam[k]
 #     Lam[k] = H' inv(S[k]) H + (I - K[k] H)' T' Lam[k+1] T (I - K[k] H),   P_s[k] = P_p[k] - P_p[k] Lam[k] P_p[k]
 
+STEADY_TOLERANCE = 1e-6
+"""Relative change of the gain (and of the smoother's Lam) below which the recursion is steady.
+
+The noise models' white floor (1e-8 of each noise's variance) makes the covariances
+ill-conditioned enough that rounding moves the gain by ~1e-7 relative from step to step, so the
+test cannot be much tighter; the estimates move by about this relative amount."""
+
+
 class _GainSchedule(NamedTuple):
     """Gains and covariances of samples 0..steady; from ``steady`` on they are constant."""
 
@@ -369,16 +381,49 @@ class _GainSchedule(NamedTuple):
     steady: int                # first sample whose gain is the steady gain (or the last sample)
 
 
-def _gain_schedule(T, Q, H, P0, n_samples: int, tolerance: float = 1e-10, patience: int = 3) -> _GainSchedule:
-    """Covariance recursion of the filter until its gain stops changing (or the log ends)."""
-    gains, weights, predicted = [], [], []
+def _steady_predicted_covariance(T, Q, H) -> np.ndarray | None:
+    """P_p of the steady filter from the discrete algebraic Riccati equation, or None.
+
+    The measurement noise lives in the state (R = 0); a white measurement variance of 1e-14 of
+    the predicted outputs' scale makes the equation regular without changing the result.
+    """
+    from scipy.linalg import solve_discrete_are
+
+    scale = max(float(np.max(np.abs(np.diag(H @ Q @ H.T)))), float(np.max(np.abs(np.diag(Q)))), 1e-300)
+    try:
+        with np.errstate(all="ignore"):
+            P = solve_discrete_are(T.T, H.T, Q, 1e-14 * scale * np.eye(H.shape[0]))
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    if not np.all(np.isfinite(P)):
+        return None
+    return 0.5 * (P + P.T)
+
+
+def _gain_stream(T, Q, H, P0, steady_predicted=None, patience: int = 3):
+    """Yield (K[k], H' inv(S[k]), P_p[k], steady) for k = 0, 1, ...
+
+    The covariance recursion runs until its gain is within STEADY_TOLERANCE (relative) of the
+    steady gain of the Riccati equation for ``patience`` samples; from then on the Riccati
+    solution itself is yielded with steady = True (every later sample uses it).
+    """
+    tolerance = STEADY_TOLERANCE
+    steady = None
+    if steady_predicted is not None:
+        try:
+            factor = cho_factor(H @ steady_predicted @ H.T, lower=True)
+            weight = cho_solve(factor, H).T
+            steady = (steady_predicted @ weight, weight, steady_predicted, True)
+        except np.linalg.LinAlgError:
+            steady = None
     P = 0.5 * (P0 + P0.T)
     calm = 0
     identity = np.eye(T.shape[0])
-    for k in range(n_samples):
-        if k:
-            A = identity - gains[-1] @ H
-            P = T @ (A @ predicted[-1] @ A.T) @ T.T + Q  # Joseph form of the update, then predict
+    K = None
+    while True:
+        if K is not None:
+            A = identity - K @ H
+            P = T @ (A @ P @ A.T) @ T.T + Q  # Joseph form of the update, then predict
             P = 0.5 * (P + P.T)
         try:
             factor = cho_factor(H @ P @ H.T, lower=True)
@@ -387,13 +432,23 @@ def _gain_schedule(T, Q, H, P0, n_samples: int, tolerance: float = 1e-10, patien
                                    "check sensor_precision and C") from None
         weight = cho_solve(factor, H).T  # H' inv(S)
         K = P @ weight
-        if gains:
-            change = np.max(np.abs(K - gains[-1]))
-            calm = calm + 1 if change <= tolerance * max(np.max(np.abs(K)), 1e-300) else 0
+        if steady is not None and tolerance >= 0:
+            distance = np.max(np.abs(K - steady[0]))
+            calm = calm + 1 if distance <= tolerance * max(np.max(np.abs(steady[0])), 1e-300) else 0
+        if calm >= patience:
+            while True:
+                yield steady
+        yield K, weight, P, False
+
+
+def _gain_schedule(T, Q, H, P0, n_samples: int, steady_predicted=None) -> _GainSchedule:
+    """The first samples of :func:`_gain_stream`: up to the first steady one, or the whole log."""
+    gains, weights, predicted = [], [], []
+    for k, (K, weight, P, steady) in zip(range(n_samples), _gain_stream(T, Q, H, P0, steady_predicted)):
         gains.append(K)
         weights.append(weight)
         predicted.append(P)
-        if calm >= patience:
+        if steady:
             break
     return _GainSchedule(np.array(gains), np.array(weights), np.array(predicted), len(gains) - 1)
 
@@ -462,8 +517,9 @@ def _filter_variances(schedule: _GainSchedule, H, output_map, N: int) -> np.ndar
     return out
 
 
-def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int, tolerance: float = 1e-10) -> np.ndarray:
+def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int) -> np.ndarray:
     """diag(O P_s[k] O') with the backward recursion of Lam; constant in the middle of long logs."""
+    tolerance = STEADY_TOLERANCE
     dim = T.shape[0]
     identity = np.eye(dim)
     s = min(schedule.steady, N - 1)
@@ -480,12 +536,16 @@ def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int, toler
     out[N - 1] = variance(N - 1, Lam)
     k = N - 2
     calm = 0
-    while k >= s:  # steady gains: Lam converges going backwards
+    previous_change = np.inf
+    while k >= s:  # steady gains: Lam converges geometrically going backwards
         A = closed(k)
         new = schedule.innovation_weights[-1] @ H + A.T @ T.T @ Lam @ T @ A
         new = 0.5 * (new + new.T)
         change = np.max(np.abs(new - Lam))
-        calm = calm + 1 if change <= tolerance * max(np.max(np.abs(new)), 1e-300) else 0
+        rate = min(change / previous_change, 0.999999) if previous_change > 0 else 0.0
+        previous_change = change
+        remaining = change * rate / (1 - rate)  # distance to the limit of a geometric sequence
+        calm = calm + 1 if remaining <= tolerance * max(np.max(np.abs(new)), 1e-300) else 0
         Lam = new
         out[k] = variance(k, Lam)
         k -= 1
@@ -503,8 +563,9 @@ def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int, toler
 
 class OnlineKalman:
     """The Kalman filter fed one sample at a time: ``step(y, u)`` returns (states, inputs,
-    state_std, input_std) of the same sample (no delay). Memory does not grow with the stream;
-    the gain becomes constant once the covariance has converged."""
+    state_std, input_std) of the same sample (no delay), equal to :meth:`KalmanEstimator.filter`
+    sample by sample. Memory does not grow with the stream; once the gain is steady each step is
+    two small matrix-vector products."""
 
     def __init__(self, estimator: KalmanEstimator):
         self.estimator = estimator
@@ -512,8 +573,8 @@ class OnlineKalman:
         self._count = 0
         self._mean = None
         self._previous_drive = None
-        self._schedule = None
-        self._P = None
+        self._stream = None
+        self._steady = False
 
     def step(self, output, input_value=None):
         """Feed sample k (outputs (m,), measured input or input prior (r,)); return its estimate."""
@@ -529,26 +590,17 @@ class OnlineKalman:
         require_finite(np.concatenate([y, u]), "step sample")
         T, H = model["T"], model["H"]
         if self._count == 0:
-            mean, P = est._initial(y[None, :])
-            self._P = P
+            if "steady_predicted" not in model:
+                model["steady_predicted"] = _steady_predicted_covariance(T, model["Q"], H)
+            mean, P0 = est._initial(y[None, :])
+            self._stream = _gain_stream(T, model["Q"], H, P0, model["steady_predicted"])
         else:
             mean = T @ self._mean + self._previous_drive
-            if self._schedule is None:
-                self._P = T @ self._P @ T.T + model["Q"]
-        if self._schedule is None:
-            P = 0.5 * (self._P + self._P.T)
-            K = cho_solve(cho_factor(H @ P @ H.T, lower=True), H @ P).T
+        if not self._steady:
+            K, _, P, self._steady = next(self._stream)
             A = np.eye(model["dim"]) - K @ H
-            Pf = A @ P @ A.T
-            Pf = 0.5 * (Pf + Pf.T)
-            if self._count and np.max(np.abs(Pf - self._filtered)) <= 1e-11 * np.max(np.abs(np.diag(Pf))):
-                self._calm = getattr(self, "_calm", 0) + 1
-            else:
-                self._calm = 0
-            self._P, self._filtered, self._gain = Pf, Pf, K
-            self._variances = np.einsum("ij,jl,il->i", model["output_map"], Pf, model["output_map"])
-            if self._calm >= 3:
-                self._schedule = "steady"
+            self._gain = K
+            self._variances = np.einsum("ij,jl,il->i", model["output_map"], A @ P @ A.T, model["output_map"])
         mean = mean + self._gain @ (y - H @ mean)
         self._mean = mean
         drive = np.zeros(model["dim"])

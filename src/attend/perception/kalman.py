@@ -96,9 +96,10 @@ class KalmanEstimator:
     sensor_precision Pi_z [1/output unit^2] and process_precision Pi_w [s^2/state unit^2], as for
     :class:`attend.perception.dem.DEMObserver` (Pi_w = 1/sigma_w^2 for simulate(process_std=sigma_w));
     kernel_width s [s] for both noises, or process_kernel_width / sensor_kernel_width separately
-    (0 = white); known_inputs: inputs measured (True) or estimated (False, then
-    input_prior_precision P_v [1/input unit^2] and input_kernel_width s_u [s], default the process
-    width, give the Gaussian-process prior of the inputs around the prior mean passed to estimate());
+    (0 = white); known_inputs: inputs measured (True), estimated (False), or one flag per input;
+    estimated inputs have a Gaussian-process prior around the prior mean passed to estimate(),
+    with precision input_prior_precision P_v [1/input unit^2] (for all r inputs; the block of the
+    estimated ones is used) and width input_kernel_width s_u [s] (default: the process width);
     initial_state: prior mean of x[0] (default 0) and initial_state_std its standard deviation
     (0: known; default: known when initial_state is given, else unknown: a broad prior, 100 times
     the scale of the state seen through C in the first sample, or of the sensor noise if larger).
@@ -136,11 +137,16 @@ class KalmanEstimator:
             set_(self, name, widths[name])
         set_(self, "sensor_precision", precision_matrix(self.sensor_precision, m, "sensor_precision"))
         set_(self, "process_precision", precision_matrix(self.process_precision, n, "process_precision"))
-        if not self.known_inputs and r:
+        known = np.broadcast_to(np.asarray(self.known_inputs, dtype=bool), (r,)) if np.ndim(self.known_inputs) == 0 \
+            else np.asarray(self.known_inputs, dtype=bool)
+        if known.shape != (r,):
+            raise AttendInputError(f"known_inputs: expected True, False or {r} flags (one per input)")
+        set_(self, "known_inputs", bool(known.all()) if known.all() or not known.any() else tuple(known.tolist()))
+        if not known.all():
             if self.input_prior_precision is None:
-                raise AttendInputError("input_prior_precision: required when the inputs are unknown")
-            set_(self, "input_prior_precision",
-                 precision_matrix(self.input_prior_precision, r, "input_prior_precision"))
+                raise AttendInputError("input_prior_precision: required when some inputs are unknown")
+            full = precision_matrix(self.input_prior_precision, r, "input_prior_precision")
+            set_(self, "input_prior_precision", full[np.ix_(~known, ~known)])
             width = self.input_kernel_width
             if width is None:
                 width = widths["process_kernel_width"] or widths["sensor_kernel_width"]
@@ -179,11 +185,12 @@ class KalmanEstimator:
         Ad, Bd = system.discretize(dt)
         process = _channel_model(dt, self.process_kernel_width, "kernel")
         sensor = _channel_model(dt, self.sensor_kernel_width, "kernel")
-        unknown = not self.known_inputs and r > 0
+        estimated = np.flatnonzero(~self._known_mask())
+        unknown = len(estimated) > 0
         inputs = _channel_model(dt, self.input_kernel_width, "sampled") if unknown else None
         blocks = [("x", n, None), ("w", n, process), ("z", m, sensor)]
         if unknown:
-            blocks.append(("u", r, inputs))
+            blocks.append(("u", len(estimated), inputs))
         slices, start = {}, 0
         for name, channels, model in blocks:
             size = channels if model is None else channels * (model.order + 1)
@@ -208,48 +215,43 @@ class KalmanEstimator:
         H = np.zeros((m, dim))
         H[:, slices["x"]] = system.C
         H[:, slices["z"]] = Lz @ readout["z"]
-        output_map = np.zeros((n + r, dim))  # [x; u - eta] from the augmented state
+        output_map = np.zeros((n + len(estimated), dim))  # [x; u - eta of the estimated inputs]
         output_map[:n, slices["x"]] = np.eye(n)
         if unknown:
             Lu = _factor(self.input_prior_precision, "input_prior_precision")
-            T[slices["x"], slices["u"]] = Bd @ Lu @ readout["u"]
+            T[slices["x"], slices["u"]] = Bd[:, estimated] @ Lu @ readout["u"]
             output_map[n:, slices["u"]] = Lu @ readout["u"]
         stationary = np.zeros((dim, dim))
         for name, channels, model in blocks[1:]:
             stationary[slices[name], slices[name]] = np.kron(np.eye(channels), model.stationary_covariance)
         return dict(T=T, Q=noise_in @ noise_in.T, H=H, Ad=Ad, Bd=Bd, slices=slices, dim=dim,
-                    stationary=stationary, output_map=output_map, unknown=unknown,
+                    stationary=stationary, output_map=output_map, unknown=unknown, estimated=estimated,
                     noise_orders={"process": process.order, "sensor": sensor.order,
                                   "input": None if inputs is None else inputs.order})
 
+    def _known_mask(self) -> np.ndarray:
+        """(r,) True where the input is measured."""
+        return np.broadcast_to(np.asarray(self.known_inputs, dtype=bool), (self.system.n_inputs,))
+
     def _check_observable(self) -> None:
-        """States (and unknown inputs, as constants) the outputs cannot see are an error when x[0] is unknown."""
+        """States (and estimated inputs, as constants) the outputs cannot see: an error when x[0] is unknown."""
         system = self.system
-        n, r = system.n_states, system.n_inputs
-        Ad, Bd = self._model["Ad"], self._model["Bd"]
-        if self._model["unknown"]:
-            F = np.block([[Ad, Bd], [np.zeros((r, n)), np.eye(r)]])
-            Hx = np.hstack([system.C, np.zeros((system.n_outputs, r))])
-            names = list(system.state_names) + list(system.input_names)
-        else:
-            F, Hx, names = Ad, system.C, list(system.state_names)
-        size = F.shape[0]
-        blocks, power = [], np.eye(size)
-        for _ in range(size):
-            blocks.append(Hx @ power)
-            power = F @ power
-        observability = np.vstack(blocks)
-        scale = np.linalg.norm(observability) or 1.0
-        _, singular, Vt = np.linalg.svd(observability)
-        rank = int(np.sum(singular > 1e-10 * scale))
-        if rank == size:
+        n = system.n_states
+        estimated = self._model["estimated"]
+        e = len(estimated)
+        A = np.zeros((n + e, n + e))  # continuous time: estimated inputs as constants
+        A[:n, :n] = system.A
+        A[:n, n:] = system.B[:, estimated]
+        C = np.hstack([system.C, np.zeros((system.n_outputs, e))])
+        names = list(system.state_names) + [system.input_names[i] for i in estimated]
+        basis = unobservable_directions(A, C)
+        if basis.shape[1] == 0:
             return
-        null = Vt[rank:]
-        hidden = [names[i] for i in range(size) if np.linalg.norm(null[:, i]) > 1e-6]
+        hidden = [names[i] for i in range(n + e) if np.linalg.norm(basis[i]) > 1e-6]
+        rank = n + e - basis.shape[1]
         unknown_start = self.initial_state_std is None and self.initial_state is None
         hidden_states = [name for name in hidden if name in system.state_names]
-        message = (f"{', '.join(hidden)}: not observable from the outputs (the observability matrix has rank "
-                   f"{rank} < {size})")
+        message = f"{', '.join(hidden)}: not observable from the outputs (observable dimension {rank} of {n + e})"
         if hidden_states and unknown_start:
             raise AttendInputError(message + "; add outputs that see them, or give initial_state and "
                                    "initial_state_std (their estimate is then the prior's)")
@@ -271,9 +273,9 @@ class KalmanEstimator:
             raise AttendInputError(f"outputs: expected {m} columns (one per output), got {y.shape[1]}")
         if y.shape[0] < 2:
             raise AttendInputError(f"outputs: expected at least 2 samples, got {y.shape[0]}")
-        field_name = "inputs" if self.known_inputs else "input_prior"
+        field_name = "inputs" if self.known_inputs is True else "input_prior"
         if inputs is None:
-            if self.known_inputs and r:
+            if self._known_mask().any():
                 raise AttendInputError("inputs: the estimator was built with known_inputs=True; pass the measured inputs")
             u = np.zeros((y.shape[0], r))
         else:
@@ -339,11 +341,9 @@ class KalmanEstimator:
         n = self.system.n_states
         states = readout[:, :n]
         std = np.sqrt(np.clip(covariance_diag, 0, None))
-        if model["unknown"]:
-            estimated_inputs = u + readout[:, n:]
-            input_std = std[:, n:]
-        else:
-            estimated_inputs, input_std = u, np.zeros_like(u)
+        estimated_inputs, input_std = u.copy(), np.zeros_like(u)
+        estimated_inputs[:, model["estimated"]] += readout[:, n:]
+        input_std[:, model["estimated"]] = std[:, n:]
         if not (np.all(np.isfinite(states)) and np.all(np.isfinite(estimated_inputs))):
             raise AttendInputError("outputs: the estimate went non-finite; check the scale of the log and of the "
                                    "precisions")
@@ -353,6 +353,33 @@ class KalmanEstimator:
     def online(self) -> "OnlineKalman":
         """A fixed-memory filter fed one sample at a time (see :class:`OnlineKalman`)."""
         return OnlineKalman(self)
+
+
+def unobservable_directions(A: np.ndarray, C: np.ndarray, tolerance: float = 1e-9) -> np.ndarray:
+    """Orthonormal basis (columns) of the unobservable subspace of (A, C).
+
+    The observable subspace is the Krylov space span{C', A' C', A'^2 C', ...}, built with an
+    orthogonalisation at every step (a staircase) instead of the powers of A, whose columns
+    become nearly parallel; a new direction counts when its norm exceeds ``tolerance`` times the
+    scale of A and C.
+    """
+    size = A.shape[0]
+    scale_A = max(np.linalg.norm(A, 2), 1e-300)
+    basis = np.zeros((size, 0))
+    block = C.T / max(np.linalg.norm(C, 2), 1e-300)
+    for _ in range(size + 1):
+        block = block - basis @ (basis.T @ block)
+        block = block - basis @ (basis.T @ block)
+        U, singular, _ = np.linalg.svd(block, full_matrices=False)
+        new = U[:, singular > tolerance]
+        if new.shape[1] == 0:
+            break
+        basis = np.hstack([basis, new])
+        block = A.T @ new / scale_A
+    if basis.shape[1] >= size:
+        return np.zeros((size, 0))
+    complement = np.linalg.svd(np.eye(size) - basis @ basis.T)[0][:, : size - basis.shape[1]]
+    return complement
 
 
 # --- the recursions --------------------------------------------------------------------------
@@ -397,7 +424,43 @@ def _steady_predicted_covariance(T, Q, H) -> np.ndarray | None:
         return None
     if not np.all(np.isfinite(P)):
         return None
+    # polish: iterate the filter's own recursion (Joseph form, as _gain_stream) to its fixed point,
+    # which the regularised solver misses by up to ~1e-5 when the noise models are ill-conditioned
+    identity = np.eye(T.shape[0])
+    best = np.inf
+    stalled = 0
+    for _ in range(500):
+        P = 0.5 * (P + P.T)
+        try:
+            K = cho_solve(cho_factor(H @ P @ H.T, lower=True), H @ P).T
+        except np.linalg.LinAlgError:
+            return None
+        A = identity - K @ H
+        new = T @ (A @ P @ A.T) @ T.T + Q
+        change = np.max(np.abs(new - P)) / max(np.max(np.abs(np.diag(new))), 1e-300)
+        P = new
+        if change < 1e-13:
+            break
+        stalled = stalled + 1 if change >= 0.5 * best else 0
+        best = min(best, change)
+        if stalled >= 10:  # at the rounding floor
+            break
     return 0.5 * (P + P.T)
+
+
+class _Plateau:
+    """Detects a recursion that has stopped converging: its distance to the limit is below 1e-3
+    and has not halved in ``window`` steps (rounding noise; going on would not get closer)."""
+
+    def __init__(self, window: int = 25):
+        self.window, self.best, self.since = window, np.inf, 0
+
+    def reached(self, distance: float) -> bool:
+        if distance < 0.5 * self.best:
+            self.best, self.since = distance, 0
+        else:
+            self.since += 1
+        return self.best < 1e-3 and self.since >= self.window
 
 
 def _gain_stream(T, Q, H, P0, steady_predicted=None, patience: int = 3):
@@ -418,6 +481,7 @@ def _gain_stream(T, Q, H, P0, steady_predicted=None, patience: int = 3):
             steady = None
     P = 0.5 * (P0 + P0.T)
     calm = 0
+    plateau = _Plateau()
     identity = np.eye(T.shape[0])
     K = None
     while True:
@@ -433,8 +497,10 @@ def _gain_stream(T, Q, H, P0, steady_predicted=None, patience: int = 3):
         weight = cho_solve(factor, H).T  # H' inv(S)
         K = P @ weight
         if steady is not None and tolerance >= 0:
-            distance = np.max(np.abs(K - steady[0]))
-            calm = calm + 1 if distance <= tolerance * max(np.max(np.abs(steady[0])), 1e-300) else 0
+            distance = np.max(np.abs(K - steady[0])) / max(np.max(np.abs(steady[0])), 1e-300)
+            calm = calm + 1 if distance <= tolerance else 0
+            if plateau.reached(distance):
+                calm = patience
         if calm >= patience:
             while True:
                 yield steady
@@ -537,6 +603,7 @@ def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int) -> np
     k = N - 2
     calm = 0
     previous_change = np.inf
+    plateau = _Plateau()
     while k >= s:  # steady gains: Lam converges geometrically going backwards
         A = closed(k)
         new = schedule.innovation_weights[-1] @ H + A.T @ T.T @ Lam @ T @ A
@@ -545,7 +612,10 @@ def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int) -> np
         rate = min(change / previous_change, 0.999999) if previous_change > 0 else 0.0
         previous_change = change
         remaining = change * rate / (1 - rate)  # distance to the limit of a geometric sequence
-        calm = calm + 1 if remaining <= tolerance * max(np.max(np.abs(new)), 1e-300) else 0
+        scale = max(np.max(np.abs(new)), 1e-300)
+        calm = calm + 1 if remaining <= tolerance * scale else 0
+        if plateau.reached(change / scale):
+            calm = 3
         Lam = new
         out[k] = variance(k, Lam)
         k -= 1
@@ -609,6 +679,7 @@ class OnlineKalman:
         self._count += 1
         readout = model["output_map"] @ mean
         std = np.sqrt(np.clip(self._variances, 0, None))
-        if model["unknown"]:
-            return readout[:n], u + readout[n:], std[:n], std[n:]
-        return readout[:n], u, std[:n], np.zeros(r)
+        inputs, input_std = u.copy(), np.zeros(r)
+        inputs[model["estimated"]] += readout[n:]
+        input_std[model["estimated"]] = std[n:]
+        return readout[:n], inputs, std[:n], input_std

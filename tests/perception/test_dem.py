@@ -150,8 +150,8 @@ def test_more_embedding_orders_help_under_coloured_noise():
 
 
 def test_standard_deviations_shrink_with_sensor_precision():
-    loose = _observer(sensor_precision=1.0).estimate(np.zeros((20, 4)))
-    tight = _observer(sensor_precision=1e4).estimate(np.zeros((20, 4)))
+    loose = _observer(sensor_precision=1e2).estimate(np.zeros((200, 4)))
+    tight = _observer(sensor_precision=1e4).estimate(np.zeros((200, 4)))
     assert np.all(tight.state_std[0] < loose.state_std[0])
 
 

@@ -58,9 +58,9 @@ from attend.systems import LinearSystem, ModelWarning
 AUTO_MAX_ORDER = 6
 #: embedding_order="auto" accepts an order only if cond(S) in sample units (s / dt) stays below this.
 AUTO_MAX_CONDITION = 1e8
-#: embedding_order="auto" accepts an order only if the start is forgotten (effective time constant
-#: of the start transient, see DEMAnalysis) within this many samples and kernel widths.
-AUTO_MAX_START_SAMPLES = 2000
+#: embedding_order="auto" accepts an order only if its start time constant (see DEMAnalysis) is at
+#: most this many sample times / kernel widths (or twice the best among the stable orders).
+AUTO_START_WIDTHS = 50
 #: A state / input is "unobservable" when its steady-state error variance exceeds this multiple of
 #: its prior (stationary) variance (the estimate is far worse than ignoring the data), is unbounded,
 #: or when the outputs do not change its conditional variance (see DEMObserver.analysis).
@@ -150,9 +150,11 @@ class DEMObserver:
     given (then it may be None); sensor_precision: Pi_z [1/output unit^2]; process_precision:
     Pi_w [s^2/state unit^2 as in dx/dt]; input_prior_precision: P_v [1/input unit^2] (unknown
     inputs); embedding_order: p (states/outputs have p + 1 orders), an int or "auto" (the
-    default: the largest p <= 6 whose observer is stable, forgets its start within
-    AUTO_MAX_START_SAMPLES samples and kernel widths, and has cond(S) <= AUTO_MAX_CONDITION in
-    sample units; after construction the attribute holds the int and analysis().automatic is
+    default: the largest p <= 6 whose observer is stable (spectral radius <= 1 - 1e-9), has
+    cond(S) <= AUTO_MAX_CONDITION in sample units, and forgets its start quickly: start time
+    constant <= max(AUTO_START_WIDTHS (50) sample times or kernel widths, twice the best of
+    the stable orders), since the highest orders are the ones that make the flow slow or
+    unstable; after construction the attribute holds the int and analysis().automatic is
     True); input_order: d; known_inputs: inputs measured (True) or estimated (False);
     precision_convention: "size" (SPM) or "max" (Meera: invert V at max(p, d) then truncate);
     window_offset: the embedding window of row k is centred on sample k + window_offset (0
@@ -232,7 +234,7 @@ class DEMObserver:
         if automatic:
             if self.embedding_order != "auto":
                 raise AttendInputError(f"embedding_order: expected an integer or 'auto', got {self.embedding_order!r}")
-            p, matrices = self._choose_order()
+            p, matrices = self._choose_order()  # caches the start time constant
             set_(self, "embedding_order", p)
             self._matrices.update(matrices)
         else:
@@ -258,10 +260,10 @@ class DEMObserver:
         return f"use p <= {p} or embedding_order='auto'"
 
     def _choose_order(self) -> tuple[int, dict]:
-        """embedding_order="auto": the largest p <= AUTO_MAX_ORDER that passes the checks of the
-        class docstring (first the cheap ones: cond(S), spectral radius; then the start)."""
-        limit = AUTO_MAX_START_SAMPLES * max(self.dt, self.process_kernel_width, self.sensor_kernel_width)
-        rejected = []
+        """embedding_order="auto": among p = 0..AUTO_MAX_ORDER with cond(S) <= AUTO_MAX_CONDITION
+        (sample units) and spectral radius <= 1 - 1e-9, the largest p whose start time constant
+        is at most max(AUTO_START_WIDTHS * max(dt, s_w, s_z), 2 * the smallest one among them)."""
+        rejected, candidates = [], []
         for p in range(AUTO_MAX_ORDER, -1, -1):
             condition = self._condition_S(p)
             if condition > AUTO_MAX_CONDITION:
@@ -271,16 +273,18 @@ class DEMObserver:
             if matrices["radius"] >= 1.0 - 1e-9:
                 rejected.append(f"p = {p}: spectral radius {matrices['radius']:.6g}")
                 continue
-            tau = self._start_time_constant(matrices, p)
-            if tau > limit:
-                rejected.append(f"p = {p}: start time constant {tau:.3g} s")
-                continue
-            return p, matrices
-        raise AttendInputError(
-            "embedding_order: 'auto' found no order 0..6 with a stable DEM observer for this model ("
-            + "; ".join(rejected) + "); check the precisions, kernel widths and input_order, or pass "
-            "an explicit embedding_order with allow_unstable=True"
-        )
+            candidates.append((p, matrices, self._start_time_constant(matrices, p)))
+        if not candidates:
+            raise AttendInputError(
+                "embedding_order: 'auto' found no order 0..6 with a stable DEM observer for this model ("
+                + "; ".join(rejected) + "); check the precisions, kernel widths and input_order, or pass "
+                "an explicit embedding_order with allow_unstable=True"
+            )
+        scale = max(self.dt, self.process_kernel_width, self.sensor_kernel_width)
+        limit = max(AUTO_START_WIDTHS * scale, 2.0 * min(tau for _, _, tau in candidates))
+        p, matrices, tau = next(c for c in candidates if c[2] <= limit)
+        self._cache["start_time_constant"] = tau
+        return p, matrices
 
     def _condition_S(self, p: int) -> float:
         d = self.input_order
@@ -531,19 +535,16 @@ class DEMObserver:
         ``initial_state`` sets its order-0 states).
         Raises AttendInputError when the log is shorter than DRIFT_FACTOR start time constants
         (analysis().start_time_constant): the start would still matter at its end. The std
-        columns are those of :meth:`analysis` (steady state under the model, edges excluded).
+        columns are those of :meth:`analysis` (steady state under the model, edges excluded);
+        with known inputs the state std adds the mean square, over the middle 80 % of the log, of
+        the filter's own error on the noise-free response to the given inputs (see
+        :meth:`_known_input_error`), so it depends on the log.
         """
         signals = self._signals(outputs, inputs)
         n_samples = signals.shape[0]
-        mats = self._matrices
-        n, r, p = self.system.n_states, self.system.n_inputs, self.embedding_order
-        n_x = n * (p + 1)
-        size = mats["transition"].shape[0]
+        n, r = self.system.n_states, self.system.n_inputs
+        size = self._matrices["transition"].shape[0]
         self._check_log_length(n_samples)
-        states = np.empty((n_samples, n))
-        inputs_out = np.empty((n_samples, r))
-        generalized = np.empty((n_samples, size)) if keep_generalized else None
-        gain_t = mats["window_gain"].T
         if initial_state is None:
             state = None
         else:
@@ -552,6 +553,33 @@ class DEMObserver:
                 raise AttendInputError(f"initial_state: expected the generalised start X0 of size {size}, "
                                        f"got shape {np.shape(initial_state)}")
             require_finite(state, "initial_state")
+        states, inputs_out, generalized = self._run(signals, state, keep_generalized, segment)
+        analysis = self.analysis()
+        if analysis.unobservable:
+            warnings.warn(
+                f"{', '.join(analysis.unobservable)}: not informed by the outputs under these precisions "
+                "(unobservable given C and sensor_precision, or an unbounded steady-state error); "
+                "their std is NaN and their estimates follow the model and the prior only",
+                ModelWarning, stacklevel=2,
+            )
+        state_std = analysis.state_std
+        if self.known_inputs and np.all(np.isfinite(state_std)) and n_samples >= 10:
+            state_std = np.sqrt(state_std**2 + self._known_input_error(signals, segment))
+        state_std = np.broadcast_to(state_std, (n_samples, n))
+        input_std = np.broadcast_to(analysis.input_std, (n_samples, r))
+        return DEMEstimate(np.arange(n_samples) * self.dt, states, inputs_out, state_std, input_std, generalized)
+
+    def _run(self, signals: np.ndarray, state, keep_generalized: bool, segment: int):
+        """The flow over the whole log: (states (N, n), inputs (N, r), generalised X or None)."""
+        mats = self._matrices
+        n_samples = signals.shape[0]
+        n, r = self.system.n_states, self.system.n_inputs
+        n_x = self.n_state_coordinates
+        size = mats["transition"].shape[0]
+        states = np.empty((n_samples, n))
+        inputs_out = np.empty((n_samples, r))
+        generalized = np.empty((n_samples, size)) if keep_generalized else None
+        gain_t = mats["window_gain"].T
         for start in range(0, n_samples, segment):
             stop = min(start + segment, n_samples)
             windows = self._raw_windows(signals, start, stop)
@@ -570,17 +598,28 @@ class DEMObserver:
                 inputs_out[start:stop] = X[:, n_x: n_x + r]
             if keep_generalized:
                 generalized[start:stop] = X
-        analysis = self.analysis()
-        if analysis.unobservable:
-            warnings.warn(
-                f"{', '.join(analysis.unobservable)}: not informed by the outputs under these precisions "
-                "(unobservable given C and sensor_precision, or an unbounded steady-state error); "
-                "their std is NaN and their estimates follow the model and the prior only",
-                ModelWarning, stacklevel=2,
-            )
-        state_std = np.broadcast_to(analysis.state_std, (n_samples, n))
-        input_std = np.broadcast_to(analysis.input_std, (n_samples, r))
-        return DEMEstimate(np.arange(n_samples) * self.dt, states, inputs_out, state_std, input_std, generalized)
+        return states, inputs_out, generalized
+
+    def _known_input_error(self, signals: np.ndarray, segment: int) -> np.ndarray:
+        """Mean square (n,) of the DEM filter's own error on the noise-free response to the known
+        inputs, over the middle 80 % of the log.
+
+        The plant x[k] = Ad x[k-1] + Bd u[k-1] (from x = 0) and DEM's generalised motion
+        dx/dt = A x + B u (embedded u) respond differently to the same input (sample-and-hold
+        delay, finite-difference derivatives); that deterministic error depends on the input
+        signal, so it is measured on the given one and added to the noise-driven variance."""
+        system = self.system
+        m, n = system.n_outputs, system.n_states
+        u = signals[:, m:]
+        Ad, Bd = system.discretize(self.dt)
+        response = np.zeros((signals.shape[0], n))
+        with np.errstate(over="ignore", invalid="ignore"):
+            response[1:] = linear_recurrence(Ad, u[:-1] @ Bd.T, np.zeros(n))
+            clean = np.hstack([response @ system.C.T, u])
+            states = self._run(clean, None, False, segment)[0]
+        middle = slice(signals.shape[0] // 10, signals.shape[0] - signals.shape[0] // 10)
+        error = np.mean((states[middle] - response[middle]) ** 2, axis=0)
+        return np.where(np.isfinite(error), error, np.inf)
 
     def _check_log_length(self, n_samples: int) -> None:
         """Drifting: a start error of one natural unit (see DEMAnalysis.start_time_constant) still

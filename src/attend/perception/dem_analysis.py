@@ -241,7 +241,7 @@ def steady_state_error_variance(transition, window_gain, offsets, rows_x, rows_v
         ex = power(through_y @ Pw, Lw) * Sw[:, None] + power(RxHy, Lz) * Sz[:, None]
         ev = power(v_through_y @ Pw, Lw) * Sw[:, None] + power(RvHy, Lz) * Sz[:, None]
         px = power(Pw, Lw) * Sw[:, None]
-        pv = np.zeros((len(z), r))
+        pv = np.zeros((len(z), r_v))
         ux = power(through_y @ Pw, Uw) * Sw[:, None]
         uv = power(v_through_y @ Pw, Uw) * Sw[:, None]
         upx = power(Pw, Uw) * Sw[:, None]

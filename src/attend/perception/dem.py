@@ -630,7 +630,11 @@ class DEMObserver:
         first = int(np.ceil(n_samples / DRIFT_FACTOR))
         if self._start_constant() < first * self.dt:
             return
-        influence = start_influence(*self._start_problem(self._matrices, self.embedding_order), first, n_samples)
+        key = ("start_influence", n_samples)
+        if key not in self._cache:
+            self._cache[key] = start_influence(*self._start_problem(self._matrices, self.embedding_order),
+                                               first, n_samples)
+        influence = self._cache[key]
         if influence < np.exp(-1.0):
             return
         length = n_samples * self.dt

@@ -204,9 +204,12 @@ def _describe_estimator(estimator) -> str:
     from attend.perception.dem import DEMObserver
 
     if isinstance(estimator, DEMObserver):
-        return (f"method dem (DEM observer): embedding order p = {estimator.embedding_order}, input order "
-                f"d = {estimator.input_order}, kernel width s = {estimator.kernel_width:g} s, delay of the online "
-                f"observer: {estimator.delay} samples")
+        analysis = estimator.analysis()
+        chosen = " (automatic)" if analysis.automatic else ""
+        return (f"method dem (DEM observer): embedding order p = {estimator.embedding_order}{chosen}, input order "
+                f"d = {estimator.input_order}, kernel widths {estimator.process_kernel_width:g} s (process), "
+                f"{estimator.sensor_kernel_width:g} s (sensor), spectral radius {analysis.spectral_radius:.6f}, "
+                f"delay of the online observer: {estimator.delay} samples")
     orders = estimator.noise_orders
     noise = ", ".join(f"{name} {'white' if order == 0 else f'order {order}'}"
                       for name, order in orders.items() if order is not None)

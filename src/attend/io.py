@@ -31,7 +31,7 @@ Model file (all times in seconds)::
     process_precision = [1e3, 1e2]  # Pi_w: scalar, per-state list, or matrix
     # initial_state = [0.0, 0.0]    # prior mean of x[0] (default: unknown, a broad prior) ...
     # initial_state_std = 0.1       # ... and its std (default 0 when initial_state is given)
-    embedding_order = 6             # DEM only: p
+    embedding_order = "auto"        # DEM only: p (default "auto": the largest stable, well-conditioned p <= 6)
     input_order = 2                 # DEM only: d
     precision_convention = "size"   # DEM only: "size" (SPM) or "max" (Meera)
     known_input_precision = 7.9e13  # DEM only: prior precision given to measured inputs when some
@@ -121,7 +121,7 @@ class ModelFile:
     output_columns: tuple[str, ...]
     inputs: tuple[InputSpec, ...]
     kernel_width: float | None
-    embedding_order: int
+    embedding_order: int | str
     input_order: int
     sensor_precision: object
     process_precision: object
@@ -166,20 +166,20 @@ class ModelFile:
         All inputs measured: the known-input observer. Otherwise inputs are unknowns; measured
         ones get their measurement as prior mean with precision ``known_input_precision``.
         """
-        if self.kernel_width is None or self.process_kernel_width not in (None, self.kernel_width) \
-                or self.sensor_kernel_width not in (None, self.kernel_width):
-            raise AttendInputError(f"{self.path}: [observer] method = \"dem\" needs one kernel_width > 0 for "
-                                   "both noises (DEM's generalised coordinates have one smoothness); "
-                                   "use method = \"kalman\" for separate widths")
         all_known = all(spec.known for spec in self.inputs)
         prior = None if all_known else np.array(
             [self.known_input_precision if s.known else s.prior_precision for s in self.inputs]
         )
-        return DEMObserver(
-            self.system, dt, self.kernel_width, self.sensor_precision, self.process_precision,
-            prior, self.embedding_order, self.input_order, known_inputs=all_known,
-            precision_convention=self.precision_convention,
-        )
+        try:
+            return DEMObserver(
+                self.system, dt, self.kernel_width, self.sensor_precision, self.process_precision,
+                prior, self.embedding_order, self.input_order, known_inputs=all_known,
+                precision_convention=self.precision_convention,
+                process_kernel_width=self.process_kernel_width, sensor_kernel_width=self.sensor_kernel_width,
+                initial_state=None if self.initial_state is None else np.array(self.initial_state),
+            )
+        except AttendInputError as error:
+            raise AttendInputError(f"{self.path}: [observer] {error}") from None
 
 
 def _check_keys(table: dict, allowed: set[str], where: str, path: str) -> None:
@@ -298,7 +298,7 @@ def read_model(path: str | Path) -> ModelFile:
         output_columns=tuple(outputs),
         inputs=tuple(inputs),
         kernel_width=kernel_width,
-        embedding_order=observer.get("embedding_order", 6),
+        embedding_order=observer.get("embedding_order", "auto"),
         input_order=observer.get("input_order", 2),
         sensor_precision=observer["sensor_precision"],
         process_precision=observer["process_precision"],

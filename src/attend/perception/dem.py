@@ -32,6 +32,7 @@ from scipy.linalg import expm
 from attend._validation import (
     AttendInputError,
     as_matrix,
+    numeric_array,
     order,
     positive_scalar,
     precision_matrix,
@@ -39,7 +40,7 @@ from attend._validation import (
 )
 from attend.generalized import block_precisions, embedding_weights, shift_operator
 from attend.perception.recurrence import linear_recurrence
-from attend.systems import LinearSystem, ModelWarning
+from attend.systems import LinearSystem, ModelWarning, as_linear_system
 
 
 class DEMEstimate(NamedTuple):
@@ -59,7 +60,8 @@ class DEMEstimate(NamedTuple):
 class DEMObserver:
     """A DEM state (and unknown-input) observer for an LTI system.
 
-    system: the model (A, B, C); dt: sample time [s]; kernel_width: s of the Gaussian noise
+    system: the model (A, B, C; a python-control StateSpace is converted with
+    :func:`attend.interop.from_statespace`); dt: sample time [s]; kernel_width: s of the Gaussian noise
     kernel [s]; sensor_precision: Pi_z [1/output unit^2]; process_precision: Pi_w
     [s^2/state unit^2 as in dx/dt]; input_prior_precision: P_v [1/input unit^2] (unknown inputs);
     embedding_order: p (states/outputs have p + 1 orders); input_order: d; known_inputs: inputs
@@ -87,10 +89,9 @@ class DEMObserver:
     _matrices: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
-        system = self.system
-        if not isinstance(system, LinearSystem):
-            raise AttendInputError("system: expected an attend.LinearSystem")
+        system = as_linear_system(self.system)
         set_ = object.__setattr__
+        set_(self, "system", system)
         set_(self, "dt", positive_scalar(self.dt, "dt", "s"))
         set_(self, "kernel_width", positive_scalar(self.kernel_width, "kernel_width", "s"))
         set_(self, "embedding_order", order(self.embedding_order, "embedding_order"))
@@ -175,8 +176,10 @@ class DEMObserver:
         transition, gain = exponential[:size, :size], exponential[:size, size:]
         if not np.all(np.isfinite(exponential)):
             raise AttendInputError(
-                "precisions: the observer's flow matrix could not be discretised (overflow); "
-                "check the scale of sensor_precision, process_precision and input_prior_precision"
+                f"kernel_width: the observer's flow matrix overflows for kernel_width = {self.kernel_width:g} s "
+                f"with dt = {self.dt:g} s and embedding orders p = {self.embedding_order}, d = {self.input_order} "
+                "(the precision of derivative order i grows like kernel_width^(2i)); expected a kernel_width "
+                "of a few sample times, lower embedding orders, or smaller precisions"
             )
         radius = np.max(np.abs(np.linalg.eigvals(transition)))
         if radius >= 1.0:
@@ -386,8 +389,9 @@ class OnlineDEM:
     def step(self, output, input_value=None):
         """Feed sample k (outputs (m,), input or input prior (r,)); return (states, inputs) of
         sample k - delay, or None while the first window fills."""
-        sample = np.concatenate([np.ravel(np.asarray(output, dtype=float)),
-                                 np.zeros(self._r) if input_value is None else np.ravel(np.asarray(input_value, dtype=float))])
+        output = np.ravel(numeric_array(output, "step: output"))
+        input_value = np.zeros(self._r) if input_value is None else np.ravel(numeric_array(input_value, "step: input_value"))
+        sample = np.concatenate([output, input_value])
         if sample.shape[0] != self._width:
             raise AttendInputError(f"step: expected {self._width - self._r} outputs and {self._r} inputs")
         require_finite(sample, "step sample")

@@ -537,10 +537,17 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
         raise AttendInputError(
             f"{model.path}: identify needs measured inputs; input(s) {', '.join(map(repr, unknown))} have no column"
         )
+    if model.system.n_inputs == 0:
+        raise AttendInputError(
+            f"{model.path}: identify needs at least one measured input (an [[inputs]] table with a column "
+            "and a column of B); models without inputs cannot be identified yet"
+        )
     window = max(model.embedding_order, model.input_order) + 1
     dt = _check_samples(model, log, 3 * window, f"3 embedding windows of order {window - 1}")
     outputs = log.matrix(model.output_columns)
-    inputs = np.column_stack([log.matrix([spec.column])[:, 0] - spec.operating_point for spec in model.inputs])
+    inputs = np.zeros((len(log.time), model.system.n_inputs))
+    for j, spec in enumerate(model.inputs):
+        inputs[:, j] = log.matrix([spec.column])[:, 0] - spec.operating_point
     settings = dict(model.learning or {})
     options = {key: settings[key] for key in (
         "free", "free_prior_precision", "known_prior_precision", "noise_prior_mean", "noise_prior_precision",

@@ -105,7 +105,7 @@ def test_bad_logs_name_the_problem(tmp_path):
     rows = np.column_stack([np.arange(50) * 0.1, np.ones(50), np.ones(50)])
     rows[7, 1] = np.nan
     model_path, log_path = _write(tmp_path, rows=rows)
-    with pytest.raises(AttendInputError, match="expected finite numbers"):
+    with pytest.raises(AttendInputError, match="line 9 .sample 8., column .y1.: expected a finite number"):
         io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
     model_path, log_path = _write(tmp_path, rows=np.column_stack([np.arange(3) * 0.1, np.ones(3), np.ones(3)]))
     with pytest.raises(AttendInputError, match="at least 5 samples"):

@@ -247,6 +247,8 @@ def read_model(path: str | Path) -> ModelFile:
             raise AttendInputError(f"{path}: [{section}] must be a table")
         if allowed is not None:
             _check_keys(data.get(section, {}), allowed, section, str(path))
+    if not data:
+        raise AttendInputError(f"{path}: the model file is empty; expected [model], [outputs] and [observer] sections")
     model = data.get("model", {})
     for key in ("A", "B", "C"):
         if key not in model:
@@ -296,7 +298,9 @@ def read_model(path: str | Path) -> ModelFile:
             _file_number(spec, "operating_point", f"{where} operating_point", 0.0),
         ))
     outputs = data.get("outputs", {}).get("columns")
-    if outputs is None or not isinstance(outputs, list) or len(outputs) != system.n_outputs:
+    if outputs is None:
+        raise AttendInputError(f"{path}: [outputs] needs columns (the CSV columns of the {system.n_outputs} outputs, one per row of C)")
+    if not isinstance(outputs, list) or len(outputs) != system.n_outputs:
         raise AttendInputError(
             f"{path}: [outputs] columns: expected {system.n_outputs} column names (one per row of C), got {outputs!r}"
         )

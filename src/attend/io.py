@@ -488,8 +488,9 @@ def _check_samples(model: ModelFile, log: Log, minimum: int, why: str) -> float:
 def _observer_of(model: ModelFile, dt: float) -> DEMObserver:
     try:
         return model.observer(dt)
-    except AttendInputError as error:
-        raise AttendInputError(f"{model.path}: [observer] {error}") from None
+    except AttendInputError as error:  # in the file's words: P_v is the [[inputs]] prior_precision
+        message = str(error).replace("input_prior_precision", "[[inputs]] prior_precision")
+        raise AttendInputError(f"{model.path}: [observer] {message}") from None
 
 
 def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEstimate]:

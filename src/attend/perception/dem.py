@@ -175,11 +175,13 @@ class DEMObserver:
             exponential = expm(block)
         transition, gain = exponential[:size, :size], exponential[:size, size:]
         if not np.all(np.isfinite(exponential)):
+            suspect = ("kernel_width" if self.kernel_width > 50 * self.dt
+                       else "sensor_precision, process_precision, input_prior_precision")
             raise AttendInputError(
-                f"kernel_width: the observer's flow matrix overflows for kernel_width = {self.kernel_width:g} s "
-                f"with dt = {self.dt:g} s and embedding orders p = {self.embedding_order}, d = {self.input_order} "
-                "(the precision of derivative order i grows like kernel_width^(2i)); expected a kernel_width "
-                "of a few sample times, lower embedding orders, or smaller precisions"
+                f"{suspect}: the observer's flow matrix could not be discretised (overflow) with kernel_width = "
+                f"{self.kernel_width:g} s, dt = {self.dt:g} s, p = {self.embedding_order}, d = {self.input_order} "
+                "(derivative order i is weighted by about kernel_width^(2i)); expected a kernel_width of a few "
+                "sample times, smaller precisions or lower embedding orders"
             )
         radius = np.max(np.abs(np.linalg.eigvals(transition)))
         if radius >= 1.0:

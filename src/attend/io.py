@@ -163,7 +163,7 @@ def _check_keys(table: dict, allowed: set[str], where: str, path: str) -> None:
         )
 
 
-def read_text(path: str | Path, what: str) -> str:
+def _read_text(path: str | Path, what: str) -> str:
     """The text of a user's file (UTF-8, an optional BOM dropped); a missing file, a directory,
     a permission problem or binary content is an AttendInputError naming the file."""
     path = Path(path)
@@ -233,7 +233,7 @@ def read_model(path: str | Path) -> ModelFile:
     """Parse and validate a model TOML file (format in the module docstring)."""
     path = Path(path)
     try:
-        data = tomllib.loads(read_text(path, "model file"))
+        data = tomllib.loads(_read_text(path, "model file"))
     except tomllib.TOMLDecodeError as error:
         raise AttendInputError(f"{path}: not valid TOML ({error})") from None
     unknown = sorted(set(data) - set(_SECTIONS))
@@ -417,7 +417,7 @@ def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: fl
     ``relative_tolerance`` of the mean step.
     """
     path = Path(path)
-    text = read_text(path, "log")
+    text = _read_text(path, "log")
     try:
         lines = list(csv.reader(_text_io.StringIO(text, newline=None)))
     except csv.Error as error:
@@ -495,8 +495,6 @@ def _observer_of(model: ModelFile, dt: float) -> DEMObserver:
 
 def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEstimate]:
     """Run the model file's observer on the log (checks columns, finiteness and sample time)."""
-    window = max(model.embedding_order, model.input_order) + 1
-    dt = _check_samples(model, log, max(2, window), f"the embedding window of order {window - 1}")
     outputs = log.matrix(model.output_columns)
     signals = np.zeros((len(log.time), model.system.n_inputs))
     for j, spec in enumerate(model.inputs):
@@ -504,6 +502,8 @@ def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEst
             signals[:, j] = log.matrix([spec.column])[:, 0] - spec.operating_point
         else:
             signals[:, j] = spec.prior_mean
+    window = max(model.embedding_order, model.input_order) + 1
+    dt = _check_samples(model, log, max(2, window), f"the embedding window of order {window - 1}")
     observer = _observer_of(model, dt)
     with np.errstate(over="ignore", invalid="ignore"):
         estimate = observer.estimate(outputs, signals)
@@ -547,12 +547,12 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
             f"{model.path}: identify needs at least one measured input (an [[inputs]] table with a column "
             "and a column of B); models without inputs cannot be identified yet"
         )
-    window = max(model.embedding_order, model.input_order) + 1
-    dt = _check_samples(model, log, 3 * window, f"3 embedding windows of order {window - 1}")
     outputs = log.matrix(model.output_columns)
     inputs = np.zeros((len(log.time), model.system.n_inputs))
     for j, spec in enumerate(model.inputs):
         inputs[:, j] = log.matrix([spec.column])[:, 0] - spec.operating_point
+    window = max(model.embedding_order, model.input_order) + 1
+    dt = _check_samples(model, log, 3 * window, f"3 embedding windows of order {window - 1}")
     settings = dict(model.learning or {})
     options = {key: settings[key] for key in (
         "free", "free_prior_precision", "known_prior_precision", "noise_prior_mean", "noise_prior_precision",
@@ -591,7 +591,7 @@ def write_learned_model(path: str | Path, model: ModelFile, result) -> Path:
     import tomli_w
 
     system = result.system()
-    data = tomllib.loads(Path(model.path).read_text()) if model.path else {}
+    data = tomllib.loads(Path(model.path).read_text(encoding="utf-8-sig")) if model.path else {}
     data.setdefault("model", {})
     data["model"]["A"] = system.A.tolist()
     data["model"]["B"] = system.B.tolist()

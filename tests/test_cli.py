@@ -326,3 +326,26 @@ def test_search_shows_progress_unless_asked_not_to(tmp_path, capsys):
     assert main(["search", "--planner", "lawnmower", "--budget", "12", "--no-gif", "--diagonal",
                  "--out", str(tmp_path / "b"), "--no-progress"]) == 0
     assert "s flown" not in capsys.readouterr().err
+
+
+def test_reproduce_all_reports_bad_input_and_bugs_of_experiments_apart(tmp_path, capsys, monkeypatch):
+    import types
+
+    from attend import experiments
+    from attend._validation import AttendInputError
+
+    def failing(error):
+        def run(quick=True, out_dir=None, progress=True):
+            raise error
+        return types.SimpleNamespace(run=run)
+
+    modules = {"needs_data": failing(AttendInputError("data_dir: the flight logs are missing")),
+               "buggy": failing(RuntimeError("slip"))}
+    monkeypatch.setattr(experiments, "available", lambda: {name: name for name in modules})
+    monkeypatch.setattr(experiments, "load", modules.__getitem__)
+    assert main(["reproduce", "all", "--out", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "attend: error: experiment needs_data: data_dir: the flight logs are missing" in err
+    assert "attend: internal error: experiment buggy failed: RuntimeError: slip; please report it" in err
+    del modules["buggy"]
+    assert main(["reproduce", "all", "--out", str(tmp_path)]) == 2

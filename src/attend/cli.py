@@ -274,19 +274,15 @@ def _command_reproduce(args) -> int:
             if args.cluster is not None and "cluster" in inspect.signature(module.run).parameters:
                 options["cluster"] = args.cluster
             result = module.run(**options)
-        except OSError as error:
-            if _user_path_problem(error):  # a full disk or a read-only folder stops every experiment
-                raise
-            if len(names) == 1 or args.debug:
-                raise
-            failures.append(name)
-            print(f"attend: error: experiment {name} failed: {type(error).__name__}: {error}", file=sys.stderr)
-            continue
         except Exception as error:  # one failing experiment must not hide the others' results
-            if len(names) == 1 or args.debug:
-                raise
-            failures.append(name)
-            print(f"attend: error: experiment {name} failed: {type(error).__name__}: {error}", file=sys.stderr)
+            if len(names) == 1 or args.debug or (isinstance(error, OSError) and _user_path_problem(error)):
+                raise  # a full disk or a read-only folder stops every experiment
+            bad_input = isinstance(error, AttendInputError)
+            failures.append((name, bad_input))
+            if bad_input:
+                print(f"attend: error: experiment {name}: {_one_line(error)}", file=sys.stderr)
+            else:
+                _report_internal(error, f"experiment {name} failed: ")
             continue
         result.settings.setdefault("quick", quick)
         result.runtime_s = time.perf_counter() - started
@@ -300,8 +296,9 @@ def _command_reproduce(args) -> int:
         page = report.write_report(out, results, available, command, time.perf_counter() - started_all)
         print(f"report -> {page} ({time.perf_counter() - started_all:.1f} s in all)")
     if failures:
-        print(f"attend: error: {len(failures)} experiment(s) failed: {', '.join(failures)}", file=sys.stderr)
-        return 1
+        print(f"attend: {len(failures)} experiment(s) failed: {', '.join(name for name, _ in failures)}",
+              file=sys.stderr)
+        return 2 if all(bad_input for _, bad_input in failures) else 1
     return 0
 
 
@@ -381,8 +378,8 @@ def main(argv=None) -> int:
         return 1
 
 
-def _report_internal(error: BaseException) -> None:
-    print(f"attend: internal error: {type(error).__name__}: {_one_line(error)}; please report it "
+def _report_internal(error: BaseException, context: str = "") -> None:
+    print(f"attend: internal error: {context}{type(error).__name__}: {_one_line(error)}; please report it "
           "(run with --debug for the traceback)", file=sys.stderr)
 
 

@@ -156,6 +156,8 @@ def test_directories_instead_of_files_are_one_line_errors(tmp_path, capsys):
     _one_error_line(capsys, "--plot", "is a directory")
     assert main(["identify", str(model), str(log), "--out", str(tmp_path)]) == 2
     _one_error_line(capsys, "--out", "is a directory")
+    assert main(["estimate", str(model), str(log), "--out", str(log / "deeper" / "e.csv")]) == 2
+    _one_error_line(capsys, "--out", f"{log} is a file; expected a folder there")
 
 
 def test_missing_parent_folders_of_outputs_are_created(tmp_path, capsys):

@@ -146,6 +146,8 @@ def test_bad_logs_name_the_problem(tmp_path):
         (lambda m: m + '[learning]\nmax_iterations = "5"\n', r"\[learning\] max_iterations: expected an integer"),
         (lambda m: m + "[learning]\nstates = 'paths'\n", r"\[learning\] states: expected \"sample\" or \"path\""),
         (lambda m: "", r"the model file is empty"),
+        (lambda m: m.replace("prior_mean = 0.0\nprior_precision = 0.01", 'column = "y2"\noperating_point = "172"'),
+         r"\[\[inputs\]\] 'u' operating_point: expected a number, got '172'"),
     ],
 )
 def test_model_files_are_strict_and_speak_in_their_own_keys(tmp_path, edit, message):

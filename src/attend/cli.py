@@ -157,8 +157,18 @@ def _output_file(path: str, option: str, example: str) -> Path:
     path = Path(path)
     if path.is_dir():
         raise AttendInputError(f"{option} {path}: is a directory; expected a file name, e.g. {path / example}")
+    _require_folders(path.parent, option, path)
     path.parent.mkdir(parents=True, exist_ok=True)
     return path
+
+
+def _require_folders(folder: Path, option: str, target: Path) -> None:
+    """Every existing part of ``folder`` must be a folder, not a file."""
+    for part in (folder, *folder.parents):
+        if part.exists():
+            if not part.is_dir():
+                raise AttendInputError(f"{option} {target}: {part} is a file; expected a folder there")
+            return
 
 
 def _output_directory(path: str, option: str) -> Path:
@@ -166,6 +176,7 @@ def _output_directory(path: str, option: str) -> Path:
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise AttendInputError(f"{option} {path}: is a file; expected a directory")
+    _require_folders(path.parent, option, path)
     path.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryFile(dir=path):
         pass  # raises an OSError naming the folder when it is not writable
@@ -312,7 +323,7 @@ _ERRNO_MEANING = {
     errno.EPERM: "operation not permitted",
     errno.EISDIR: "is a directory; expected a file",
     errno.ENOTDIR: "a part of the path is a file; expected folders",
-    errno.ENOENT: "does not exist",
+    errno.ENOENT: "does not exist, or cannot be created there",
     errno.EEXIST: "already exists",
     errno.ENAMETOOLONG: "the name is too long",
 }

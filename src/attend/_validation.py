@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from numbers import Real
+
 import numpy as np
 
 
@@ -24,7 +26,7 @@ def numeric_array(value, field: str, what: str = "numbers") -> np.ndarray:
         for item in _flatten(value):
             if isinstance(item, (str, bytes, bool, np.bool_, np.str_)):
                 raise AttendInputError(f"{field}: expected {what}, got {_short(item)} (text and true/false are not numbers)")
-            if not isinstance(item, (int, float, np.integer, np.floating)):
+            if not isinstance(item, Real):
                 raise AttendInputError(f"{field}: expected {what}, got {_short(item)}")
     elif raw.dtype.kind not in "iuf":
         raise AttendInputError(f"{field}: expected {what}, got an array of {raw.dtype}")
@@ -51,7 +53,7 @@ def _short(value, limit: int = 60) -> str:
 
 def number(value, field: str) -> float:
     """One real number (int or float); text and booleans are errors."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, Real):
         raise AttendInputError(f"{field}: expected a number, got {_short(value)}")
     return float(value)
 
@@ -115,7 +117,7 @@ def positive_scalar(value, field: str, unit: str = "") -> float:
     """A finite number > 0 (text is an error, not converted)."""
     if isinstance(value, np.ndarray) and value.size == 1:
         value = value.reshape(()).item()
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, Real):
         raise AttendInputError(f"{field}: expected a number > 0{unit and ' (' + unit + ')'}, got {_short(value)}")
     number = float(value)
     if not np.isfinite(number) or number <= 0:
@@ -125,7 +127,7 @@ def positive_scalar(value, field: str, unit: str = "") -> float:
 
 def order(value, field: str, maximum: int = 24) -> int:
     """A non-negative integer embedding order."""
-    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating))
+    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, Real)
             or not np.isfinite(value) or int(value) != value or not 0 <= int(value) <= maximum):
         raise AttendInputError(f"{field}: expected an integer in 0..{maximum}, got {value!r}")
     return int(value)

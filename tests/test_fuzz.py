@@ -10,7 +10,8 @@ from hypothesis import HealthCheck, given, settings
 from fuzz_cases import ALLOWED, fuzz_case, run_case
 
 
-@settings(max_examples=100, deadline=None, database=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=100, deadline=None, database=None, derandomize=True,
+          suppress_health_check=list(HealthCheck))
 @given(case=fuzz_case())
 def test_generated_files_give_results_or_one_line_errors(case):
     with tempfile.TemporaryDirectory() as folder, warnings.catch_warnings():

@@ -1,5 +1,7 @@
 """The command line: help texts, the demo, and one-line errors instead of tracebacks."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -98,3 +100,254 @@ def test_search_offers_every_planner():
     parser = _build_parser()
     search = next(a for a in parser._subparsers._group_actions[0].choices["search"]._actions if a.dest == "planner")
     assert set(search.choices) == set(PLANNERS)
+
+
+# --- the user's path never fails silently ------------------------------------------------------
+
+MODEL = """
+[model]
+A = [[-0.25, 1.0], [-0.5, -0.25]]
+B = [[1.0], [0.0]]
+C = [[0.125, 0.1633]]
+states = ["phi", "rate"]
+[outputs]
+columns = ["y"]
+[[inputs]]
+name = "u"
+prior_mean = 0.0
+prior_precision = 0.01
+[observer]
+kernel_width = 0.5
+embedding_order = 4
+sensor_precision = 2980.0
+process_precision = 2980.0
+"""
+
+
+def _files(folder, model=MODEL, log=None):
+    model_path, log_path = folder / "model.toml", folder / "log.csv"
+    model_path.write_text(model)
+    if log is None:
+        t = np.arange(60) * 0.1
+        log = "t,y\n" + "\n".join(f"{a:.10g},{b:.10g}" for a, b in zip(t, np.sin(t))) + "\n"
+    log_path.write_text(log) if isinstance(log, str) else log_path.write_bytes(log)
+    return model_path, log_path
+
+
+def _one_error_line(capsys, *fragments):
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if not line.startswith("attend: warning:")]
+    assert len(lines) == 1 and lines[0].startswith("attend: error: "), err
+    assert "Traceback" not in err
+    for fragment in fragments:
+        assert fragment in lines[0], (fragment, lines[0])
+    return lines[0]
+
+
+def test_directories_instead_of_files_are_one_line_errors(tmp_path, capsys):
+    model, log = _files(tmp_path)
+    assert main(["estimate", str(tmp_path), str(log)]) == 2
+    _one_error_line(capsys, str(tmp_path), "is a directory")
+    assert main(["estimate", str(model), str(tmp_path)]) == 2
+    _one_error_line(capsys, "log", "is a directory")
+    assert main(["estimate", str(model), str(log), "--out", str(tmp_path)]) == 2
+    _one_error_line(capsys, "--out", "is a directory", "estimates.csv")
+    assert main(["estimate", str(model), str(log), "--out", str(tmp_path / "e.csv"), "--plot", str(tmp_path)]) == 2
+    _one_error_line(capsys, "--plot", "is a directory")
+    assert main(["identify", str(model), str(log), "--out", str(tmp_path)]) == 2
+    _one_error_line(capsys, "--out", "is a directory")
+    assert main(["estimate", str(model), str(log), "--out", str(log / "deeper" / "e.csv")]) == 2
+    _one_error_line(capsys, "--out", f"{log} is a file; expected a folder there")
+
+
+def test_missing_parent_folders_of_outputs_are_created(tmp_path, capsys):
+    model, log = _files(tmp_path)
+    out = tmp_path / "new" / "deeper" / "estimates.csv"
+    assert main(["estimate", str(model), str(log), "--out", str(out)]) == 0
+    assert out.is_file()
+
+
+@pytest.mark.parametrize("number, meaning", [(30, "read-only file system"), (13, "permission denied"),
+                                             (28, "no space left on the device")])
+def test_os_errors_on_outputs_are_one_line_errors(tmp_path, capsys, monkeypatch, number, meaning):
+    from attend import io
+
+    model, log = _files(tmp_path)
+    out = tmp_path / "e.csv"
+
+    def failing_write(path, *args, **kwargs):
+        raise OSError(number, "simulated", str(path) if number != 28 else None)
+
+    monkeypatch.setattr(io, "write_estimates", failing_write)
+    assert main(["estimate", str(model), str(log), "--out", str(out)]) == 2
+    _one_error_line(capsys, meaning)
+
+
+def test_read_only_locations_for_plot_reproduce_and_search(tmp_path, capsys, monkeypatch):
+    import errno
+
+    import attend.plotting
+    from attend import cli
+
+    model, log = _files(tmp_path)
+
+    def read_only(path, *args, **kwargs):
+        raise OSError(errno.EROFS, "Read-only file system", str(path))
+
+    monkeypatch.setattr(attend.plotting, "plot_estimates", read_only)
+    assert main(["estimate", str(model), str(log), "--out", str(tmp_path / "e.csv"), "--plot",
+                 str(tmp_path / "e.png")]) == 2
+    _one_error_line(capsys, "e.png", "read-only")
+    monkeypatch.setattr(cli.tempfile, "TemporaryFile", lambda dir: read_only(dir))
+    assert main(["reproduce", "all", "--out", str(tmp_path / "results")]) == 2
+    _one_error_line(capsys, "results", "read-only")
+    assert main(["search", "--out", str(tmp_path / "search")]) == 2
+    _one_error_line(capsys, "search", "read-only")
+    (tmp_path / "file").write_text("")
+    assert main(["search", "--out", str(tmp_path / "file")]) == 2
+    _one_error_line(capsys, "--out", "is a file; expected a directory")
+
+
+def test_debug_is_accepted_before_or_after_the_command(tmp_path):
+    from attend._validation import AttendInputError
+
+    for argv in (["--debug", "estimate", "missing.toml", "missing.csv"],
+                 ["estimate", "missing.toml", "missing.csv", "--debug"]):
+        with pytest.raises(AttendInputError, match="does not exist"):
+            main(argv)
+
+
+def test_internal_errors_are_not_blamed_on_the_user(tmp_path, capsys, monkeypatch):
+    from attend import io
+
+    model, log = _files(tmp_path)
+
+    def bug(*args, **kwargs):
+        raise ValueError("an internal slip")
+
+    monkeypatch.setattr(io, "estimate_from_files", bug)
+    assert main(["estimate", str(model), str(log), "--out", str(tmp_path / "e.csv")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("attend: internal error: ValueError: an internal slip; please report it")
+    assert "--debug" in err and "Traceback" not in err
+    with pytest.raises(ValueError, match="internal slip"):
+        main(["estimate", str(model), str(log), "--out", str(tmp_path / "e.csv"), "--debug"])
+
+
+@pytest.mark.parametrize("where", ["one", "every"])
+def test_huge_values_in_a_log_are_errors_naming_file_column_and_line(tmp_path, capsys, where):
+    t = np.arange(60) * 0.1
+    y = np.sin(t)
+    if where == "one":
+        y[9] = 1e300
+    else:
+        y[:] = 1e300
+    log = "t,y\n" + "\n".join(f"{a:.10g},{b:.10g}" for a, b in zip(t, y)) + "\n"
+    model, log_path = _files(tmp_path, log=log)
+    assert main(["estimate", str(model), str(log_path), "--out", str(tmp_path / "e.csv")]) == 2
+    line = 11 if where == "one" else 2
+    _one_error_line(capsys, str(log_path), f"line {line}", "column 'y'", "1e+300")
+
+
+def test_excel_bom_and_crlf_logs_are_read(tmp_path, capsys):
+    t = np.arange(60) * 0.1
+    text = "t,y\r\n" + "\r\n".join(f"{a:.10g},{b:.10g}" for a, b in zip(t, np.sin(t))) + "\r\n"
+    model, log = _files(tmp_path, log=b"\xef\xbb\xbf" + text.encode())
+    assert main(["estimate", str(model), str(log), "--out", str(tmp_path / "e.csv")]) == 0
+    table = np.loadtxt(tmp_path / "e.csv", delimiter=",", skiprows=1)
+    assert table.shape == (60, 7) and np.all(np.isfinite(table))
+
+
+def test_binary_files_are_named(tmp_path, capsys):
+    model, log = _files(tmp_path, log=b"\x89PNG\r\n\x1a\n\xd0\xff")
+    assert main(["estimate", str(model), str(log)]) == 2
+    _one_error_line(capsys, str(log), "UTF-8", "0x89")
+    model.write_bytes(b"\xd0\xcf\x11\xe0")
+    assert main(["estimate", str(model), str(log)]) == 2
+    _one_error_line(capsys, str(model), "UTF-8")
+
+
+def test_short_logs_name_the_file(tmp_path, capsys):
+    model, log = _files(tmp_path, log="t,y\n0,1\n0.1,2\n0.2,3\n")
+    assert main(["estimate", str(model), str(log)]) == 2
+    _one_error_line(capsys, str(log), "at least 5 samples")
+    assert main(["identify", str(model), str(log)]) == 2
+    _one_error_line(capsys, str(model), "identify needs measured inputs")
+
+
+def test_reproduce_with_a_relative_out_embeds_every_figure_and_caches(tmp_path, capsys, monkeypatch):
+    """Experiments that store figure paths as out_dir / name (relative --out) must not lose their
+    figures in the report nor miss the cache."""
+    import types
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    from attend import experiments
+    from attend.experiments._result import ExperimentResult
+
+    calls = []
+
+    def fake_experiment(name, n_figures):
+        def run(quick=True, out_dir=None, progress=True):
+            calls.append(name)
+            result = ExperimentResult(name)
+            result.add("value", 1.0, "")
+            for i in range(n_figures):
+                path = Path(out_dir) / f"{name}_{i}.png"  # the pattern of the experiments: out_dir / name
+                figure = Figure(figsize=(1, 1))
+                figure.add_subplot().plot([0, 1])
+                figure.savefig(path)
+                result.figures.append(str(path))
+            result.write(out_dir)
+            return result
+        return types.SimpleNamespace(run=run)
+
+    modules = {"first": fake_experiment("first", 2), "second": fake_experiment("second", 3)}
+    monkeypatch.setattr(experiments, "available", lambda: {name: f"{name} experiment" for name in modules})
+    monkeypatch.setattr(experiments, "load", modules.__getitem__)
+    monkeypatch.chdir(tmp_path)
+    assert main(["reproduce", "all", "--out", "results", "--no-progress"]) == 0
+    page = (tmp_path / "results" / "index.html").read_text()
+    written = sorted((tmp_path / "results").glob("*.png"))
+    assert len(written) == 5 and page.count("data:image/png;base64,") == len(written)
+    assert calls == ["first", "second"]
+    assert main(["reproduce", "all", "--out", "results", "--no-progress"]) == 0
+    assert calls == ["first", "second"]  # both cached
+    assert capsys.readouterr().out.count("cached") == 2
+    page = (tmp_path / "results" / "index.html").read_text()
+    assert page.count("data:image/png;base64,") == 5
+
+
+def test_search_shows_progress_unless_asked_not_to(tmp_path, capsys):
+    assert main(["search", "--planner", "lawnmower", "--budget", "12", "--no-gif", "--diagonal",
+                 "--out", str(tmp_path / "a")]) == 0
+    assert "s flown" in capsys.readouterr().err
+    assert main(["search", "--planner", "lawnmower", "--budget", "12", "--no-gif", "--diagonal",
+                 "--out", str(tmp_path / "b"), "--no-progress"]) == 0
+    assert "s flown" not in capsys.readouterr().err
+
+
+def test_reproduce_all_reports_bad_input_and_bugs_of_experiments_apart(tmp_path, capsys, monkeypatch):
+    import types
+
+    from attend import experiments
+    from attend._validation import AttendInputError
+
+    def failing(error):
+        def run(quick=True, out_dir=None, progress=True):
+            raise error
+        return types.SimpleNamespace(run=run)
+
+    modules = {"needs_data": failing(AttendInputError("data_dir: the flight logs are missing")),
+               "buggy": failing(RuntimeError("slip"))}
+    monkeypatch.setattr(experiments, "available", lambda: {name: name for name in modules})
+    monkeypatch.setattr(experiments, "load", modules.__getitem__)
+    assert main(["reproduce", "all", "--out", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "attend: error: experiment needs_data: data_dir: the flight logs are missing" in err
+    assert "attend: internal error: experiment buggy failed: RuntimeError: slip; please report it" in err
+    del modules["buggy"]
+    assert main(["reproduce", "all", "--out", str(tmp_path)]) == 2

@@ -111,7 +111,7 @@ def test_bad_logs_name_the_problem(tmp_path):
     rows = np.column_stack([np.arange(50) * 0.1, np.ones(50), np.ones(50)])
     rows[7, 1] = np.nan
     model_path, log_path = _write(tmp_path, rows=rows)
-    with pytest.raises(AttendInputError, match="expected finite numbers"):
+    with pytest.raises(AttendInputError, match="line 9 .sample 8., column .y1.: expected a finite number"):
         io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
     model_path, log_path = _write(tmp_path, rows=np.column_stack([np.arange(1) * 0.1, np.ones(1), np.ones(1)]))
     with pytest.raises(AttendInputError, match="at least 2 samples"):
@@ -132,3 +132,76 @@ def test_bad_logs_name_the_problem(tmp_path):
     log_path.write_text("t,y1,y2\n0,1,abc\n")
     with pytest.raises(AttendInputError, match="column 'y2': expected a number"):
         io.read_log(log_path)
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda m: m.replace("A = [[-0.25, 1.0]", 'A = [["-0.25", 1.0]'), r"\[model\] A: expected a matrix of numbers.*'-0.25'"),
+        (lambda m: m.replace("sensor_precision = 2980.0", 'sensor_precision = "2980"'), r"\[observer\] sensor_precision: expected .*'2980'"),
+        (lambda m: m.replace("kernel_width = 0.5", 'kernel_width = "0.5"'), r"\[observer\] kernel_width: expected a number"),
+        (lambda m: m.replace("embedding_order = 4", 'embedding_order = "4"'), r"\[observer\] embedding_order: expected an integer"),
+        (lambda m: m.replace("prior_precision = 0.01", 'prior_precision = "0.01"'), r"\[\[inputs\]\] 'u' prior_precision: expected a number"),
+        (lambda m: m.replace("prior_mean = 0.0", "prior_mean = 1e200"), r"prior_mean: expected values within"),
+        (lambda m: m.replace("A = [[-0.25, 1.0]", "A = [[-1e300, 1.0]"), r"\[model\] A: expected values within \+-1e\+150"),
+        (lambda m: m.replace("dt = 0.1", 'dt = "0.1"'), r"\[model\] dt: expected a number"),
+        (lambda m: m.replace("[model]", '[model]\nstates = ["phi", "phi"]'), r"\[model\] states: the name 'phi' appears twice"),
+        (lambda m: m.replace("[model]", '[model]\nstates = ["phi"]'), r"\[model\] states: expected 2 state names, got 1"),
+        (lambda m: m.replace('columns = ["y1", "y2"]', 'columns = ["y1", "y1"]'), r"\[outputs\] columns: the name 'y1' appears twice"),
+        (lambda m: m.replace("B = [[1.0], [0.0]]", "B = [[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]"),
+         r"\[model\] B has 3 columns but the file has 1 \[\[inputs\]\] table"),
+        (lambda m: m.replace("kernel_width = 0.5", "kernel_width = 1000"), r"\[observer\] kernel_width: the observer's flow matrix could not be discretised .* kernel_width = 1000 s"),
+        (lambda m: m.replace('precision_convention', 'x') + 'precision_convention = "spm"\n', r"precision_convention: expected"),
+        (lambda m: m + "[learning]\nnoise_prior_mean = [0.0]\n", r"\[learning\] noise_prior_mean: expected a number or a pair"),
+        (lambda m: m + '[learning]\nmax_iterations = "5"\n', r"\[learning\] max_iterations: expected an integer"),
+        (lambda m: m + "[learning]\nstates = 'paths'\n", r"\[learning\] states: expected \"sample\" or \"path\""),
+        (lambda m: "", r"the model file is empty"),
+        (lambda m: m.replace("prior_mean = 0.0\nprior_precision = 0.01", 'column = "y2"\noperating_point = "172"'),
+         r"\[\[inputs\]\] 'u' operating_point: expected a number, got '172'"),
+    ],
+)
+def test_model_files_are_strict_and_speak_in_their_own_keys(tmp_path, edit, message):
+    model_path, log_path = _write(tmp_path, edit(MODEL))
+    with pytest.raises(AttendInputError, match=message):
+        model = io.read_model(model_path)
+        io.estimate_from_files(model, io.read_log(log_path))
+
+
+def test_log_errors_name_the_file_line_and_column(tmp_path):
+    rows = np.column_stack([np.arange(50) * 0.1, np.ones(50), np.ones(50)])
+    rows[4, 2] = 2e150
+    model_path, log_path = _write(tmp_path, rows=rows)
+    with pytest.raises(AttendInputError, match=rf"{log_path}: line 6 \(sample 5\), column 'y2': expected a value within"):
+        io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
+    log_path.write_text("t,y1,y1\n0,1,2\n")
+    with pytest.raises(AttendInputError, match=rf"{log_path}: header: the name 'y1' appears twice"):
+        io.read_log(log_path)
+    log_path.write_bytes(b"\xef\xbb\xbft,y1,y2\r\n0,1,2\r\n0.1,1,2\r\n")
+    log = io.read_log(log_path)
+    assert list(log.columns) == ["t", "y1", "y2"] and len(log.time) == 2
+    log_path.write_bytes(b"t,y1\n\xd0\xcf")
+    with pytest.raises(AttendInputError, match=rf"{log_path}: expected a UTF-8 text log, found byte 0xd0"):
+        io.read_log(log_path)
+    with pytest.raises(AttendInputError, match=rf"log: {tmp_path} is a directory"):
+        io.read_log(tmp_path)
+    with pytest.raises(AttendInputError, match=rf"model file: {tmp_path} is a directory"):
+        io.read_model(tmp_path)
+    # unused columns may hold anything numeric, even NaN
+    rows = np.column_stack([np.arange(50) * 0.1, np.ones(50), np.ones(50), np.full(50, np.nan)])
+    model_path, log_path = _write(tmp_path, rows=rows, header="t,y1,y2,spare")
+    io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
+
+
+def test_a_three_row_log_names_the_file(tmp_path):
+    model_path, log_path = _write(tmp_path, rows=np.column_stack([np.arange(3) * 0.1, np.ones(3), np.ones(3)]))
+    with pytest.raises(AttendInputError, match=rf"{log_path}: expected at least 5 samples"):
+        io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
+
+
+def test_identify_checks_the_learning_section_against_the_files(tmp_path):
+    model = MODEL.replace("prior_mean = 0.0\nprior_precision = 0.01", 'column = "u"') + "[learning]\nfree = [\"A[9,9]\"]\n"
+    t = np.arange(60) * 0.1
+    model_path, log_path = _write(tmp_path, model, rows=np.column_stack([t, np.sin(t), np.cos(t), np.sin(2 * t)]),
+                                  header="t,y1,y2,u")
+    with pytest.raises(AttendInputError, match=rf"{model_path}: \[learning\] free"):
+        io.identify_from_files(io.read_model(model_path), io.read_log(log_path))

@@ -64,3 +64,23 @@ def test_unstable_and_unobservable_models_warn():
     assert convolution_model().check() == []
     assert quadrotor_roll().check() == []  # a double integrator is marginally stable: no warning
     assert quadrotor_roll().is_observable()
+
+
+def test_text_and_repeated_names_are_errors_not_coerced():
+    with pytest.raises(AttendInputError, match="A: expected a matrix of numbers, got '0'"):
+        LinearSystem([["0", 1], [0, 0]], [[0], [1]], [[1, 0]])
+    with pytest.raises(AttendInputError, match="B: expected a matrix of numbers, got True"):
+        LinearSystem(np.eye(2), [[True], [1]], [[1, 0]])
+    with pytest.raises(AttendInputError, match="state_names: the name 'phi' appears twice"):
+        LinearSystem(np.eye(2), np.zeros((2, 1)), [[1, 0]], state_names=("phi", "phi"))
+
+
+def test_simulate_accepts_a_python_control_statespace():
+    control = pytest.importorskip("control")
+    system = mass_spring_damper()
+    u = np.ones((20, 1))
+    direct = simulate(system, u, 0.1, kernel_width=0.2)
+    converted = simulate(control.ss(system.A, system.B, system.C, 0), u, 0.1, kernel_width=0.2)
+    np.testing.assert_allclose(converted.outputs, direct.outputs)
+    with pytest.raises(AttendInputError, match="attend.interop.from_statespace"):
+        simulate("mass-spring-damper", u, 0.1, kernel_width=0.2)

@@ -1,14 +1,19 @@
 """The ``attend`` command line: estimate, reproduce, and the rest of the paper's pipeline.
 
-Every error from bad input is reported in one line that names the field and what was
-expected (exit status 2); tracebacks are shown only with ``--debug``.
+Exit status: 0 done; 2 bad input: one line ``attend: error: <file or field>: <what was expected>``
+(a malformed file or option, or an operating-system problem with a path the user gave: a
+directory, a permission, a full disk); 1 an internal error (a bug: please report it). Tracebacks
+are shown only with ``--debug``, which may stand before or after the command. ``main`` returns
+the status; argparse's own usage errors and ``--help`` raise SystemExit as usual.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import inspect
 import sys
+import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -26,6 +31,10 @@ format and a worked example on the bundled quadrotor flight:
 
 
 def _build_parser() -> argparse.ArgumentParser:
+    # --debug is accepted after the command too; SUPPRESS keeps a subcommand from resetting it
+    debug_anywhere = argparse.ArgumentParser(add_help=False)
+    debug_anywhere.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                                help="show full tracebacks on errors")
     parser = argparse.ArgumentParser(
         prog="attend",
         description=(
@@ -48,6 +57,12 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--debug", action="store_true", help="show full tracebacks on errors")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+    add_command = commands.add_parser
+
+    def add_parser(name, **options):
+        return add_command(name, parents=[debug_anywhere], **options)
+
+    commands.add_parser = add_parser
 
     estimate = commands.add_parser(
         "estimate",
@@ -134,8 +149,40 @@ def _build_parser() -> argparse.ArgumentParser:
     search.add_argument("--diagonal", action="store_true",
                         help="fast per-cell (diagonal) Kalman map instead of the full 1600x1600 covariance")
     search.add_argument("--no-gif", action="store_true", help="skip the animated GIF (faster)")
+    search.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     search.add_argument("--out", default="search_out", help="output directory (default: %(default)s)")
     return parser
+
+
+def _output_file(path: str, option: str, example: str) -> Path:
+    """An output file the user named: not a directory; its missing parent folders are created."""
+    path = Path(path)
+    if path.is_dir():
+        raise AttendInputError(f"{option} {path}: is a directory; expected a file name, e.g. {path / example}")
+    _require_folders(path.parent, option, path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _require_folders(folder: Path, option: str, target: Path) -> None:
+    """Every existing part of ``folder`` must be a folder, not a file."""
+    for part in (folder, *folder.parents):
+        if part.exists():
+            if not part.is_dir():
+                raise AttendInputError(f"{option} {target}: {part} is a file; expected a folder there")
+            return
+
+
+def _output_directory(path: str, option: str) -> Path:
+    """An output directory the user named: created with its parents, and writable."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise AttendInputError(f"{option} {path}: is a file; expected a directory")
+    _require_folders(path.parent, option, path)
+    path.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryFile(dir=path):
+        pass  # raises an OSError naming the folder when it is not writable
+    return path
 
 
 def _command_identify(args) -> int:
@@ -143,6 +190,7 @@ def _command_identify(args) -> int:
 
     model = io.read_model(args.model)
     log = io.read_log(args.log, model.time_column)
+    _output_file(args.out, "--out", "learned_model.toml")
     started = time.perf_counter()
     result = io.identify_from_files(model, log, progress=not args.no_progress)
     elapsed = time.perf_counter() - started
@@ -159,12 +207,14 @@ def _command_identify(args) -> int:
 def _command_search(args) -> int:
     from attend.action.mission import run_search
 
+    _output_directory(args.out, "--out")
     started = time.perf_counter()
     paths = run_search(
         planner=args.planner, seed=args.seed, obstacles=args.obstacles, people_region=args.people,
         budget_s=args.budget, out_dir=args.out, start_pose_m=tuple(args.start), fov_deg=tuple(args.fov),
         altitude_limits_m=tuple(args.altitude_limits), speed_m_s=args.speed,
         clutter_rate_per_image=args.clutter, diagonal=args.diagonal, gif=not args.no_gif,
+        progress=not args.no_progress,
     )
     print(f"mission with the {args.planner} planner done in {time.perf_counter() - started:.1f} s")
     for name, path in paths.items():
@@ -185,6 +235,9 @@ def _command_estimate(args) -> int:
     model = io.read_model(model_path)
     log = io.read_log(log_path, model.time_column)
     model.system.check()
+    _output_file(args.out, "--out", "estimates.csv")
+    if args.plot:
+        _output_file(args.plot, "--plot", "estimates.png")
     started = time.perf_counter()
     observer, estimate = io.estimate_from_files(model, log)
     elapsed = time.perf_counter() - started
@@ -232,7 +285,7 @@ def _command_reproduce(args) -> int:
             raise AttendInputError(
                 f"reproduce: unknown experiment {name!r}; expected one of {', '.join(available)} or 'all'"
             )
-    out = Path(args.out)
+    out = _output_directory(args.out, "--out")
     quick = not args.full
     code_hash = report.source_hash()
     results, failures = [], []
@@ -253,10 +306,14 @@ def _command_reproduce(args) -> int:
                 options["cluster"] = args.cluster
             result = module.run(**options)
         except Exception as error:  # one failing experiment must not hide the others' results
-            if len(names) == 1 or args.debug:
-                raise
-            failures.append(name)
-            print(f"attend: error: experiment {name} failed: {type(error).__name__}: {error}", file=sys.stderr)
+            if len(names) == 1 or args.debug or (isinstance(error, OSError) and _user_path_problem(error)):
+                raise  # a full disk or a read-only folder stops every experiment
+            bad_input = isinstance(error, AttendInputError)
+            failures.append((name, bad_input))
+            if bad_input:
+                print(f"attend: error: experiment {name}: {_one_line(error)}", file=sys.stderr)
+            else:
+                _report_internal(error, f"experiment {name} failed: ")
             continue
         result.settings.setdefault("quick", quick)
         result.runtime_s = time.perf_counter() - started
@@ -270,31 +327,91 @@ def _command_reproduce(args) -> int:
         page = report.write_report(out, results, available, command, time.perf_counter() - started_all)
         print(f"report -> {page} ({time.perf_counter() - started_all:.1f} s in all)")
     if failures:
-        print(f"attend: error: {len(failures)} experiment(s) failed: {', '.join(failures)}", file=sys.stderr)
-        return 1
+        print(f"attend: {len(failures)} experiment(s) failed: {', '.join(name for name, _ in failures)}",
+              file=sys.stderr)
+        return 2 if all(bad_input for _, bad_input in failures) else 1
     return 0
 
 
+_USER_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EISDIR,
+                errno.ENOTDIR, errno.ENOENT, errno.EEXIST, errno.ENAMETOOLONG}
+_ERRNO_MEANING = {
+    errno.ENOSPC: "no space left on the device (disk full)",
+    errno.EDQUOT: "disk quota exceeded",
+    errno.EROFS: "read-only file system; expected a writable location",
+    errno.EACCES: "permission denied; expected a location you may write to",
+    errno.EPERM: "operation not permitted",
+    errno.EISDIR: "is a directory; expected a file",
+    errno.ENOTDIR: "a part of the path is a file; expected folders",
+    errno.ENOENT: "does not exist, or cannot be created there",
+    errno.EEXIST: "already exists",
+    errno.ENAMETOOLONG: "the name is too long",
+}
+_PACKAGE = Path(__file__).resolve().parent
+
+
+def _user_path_problem(error: OSError) -> bool:
+    """An OSError about the user's files or disk (not one inside attend's own package)."""
+    if error.errno not in _USER_ERRNOS:
+        return False
+    if error.filename is None:
+        return error.errno in (errno.ENOSPC, errno.EDQUOT, errno.EROFS)
+    try:
+        return _PACKAGE not in Path(error.filename).resolve().parents
+    except (OSError, RuntimeError, TypeError, ValueError):
+        return True
+
+
+def _describe_os_error(error: OSError) -> str:
+    meaning = _ERRNO_MEANING.get(error.errno, error.strerror or str(error))
+    return f"{error.filename}: {meaning}" if error.filename is not None else meaning
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
 def main(argv=None) -> int:
+    """Run the command line; returns the exit status (0 done, 1 internal error, 2 bad input)."""
     parser = _build_parser()
     args = parser.parse_args(argv)
+    debug = getattr(args, "debug", False)
     if args.command is None:
         parser.print_help()
         return 0
     handlers = {"estimate": _command_estimate, "reproduce": _command_reproduce, "search": _command_search,
                 "identify": _command_identify}
     warnings.simplefilter("default")
-    warnings.formatwarning = lambda message, category, *rest: f"attend: warning: {message}\n"
+    warnings.formatwarning = lambda message, category, *rest: f"attend: warning: {_one_line(message)}\n"
+    args.debug = debug
     try:
         return handlers[args.command](args)
-    except (AttendInputError, ValueError, FileNotFoundError) as error:
-        if args.debug:
+    except AttendInputError as error:
+        if debug:
             raise
-        print(f"attend: error: {error}", file=sys.stderr)
+        print(f"attend: error: {_one_line(error)}", file=sys.stderr)
         return 2
+    except OSError as error:
+        if debug:
+            raise
+        if _user_path_problem(error):
+            print(f"attend: error: {_one_line(_describe_os_error(error))}", file=sys.stderr)
+            return 2
+        _report_internal(error)
+        return 1
     except KeyboardInterrupt:
         print("attend: interrupted", file=sys.stderr)
         return 130
+    except Exception as error:  # a bug in attend, not the user's input
+        if debug:
+            raise
+        _report_internal(error)
+        return 1
+
+
+def _report_internal(error: BaseException, context: str = "") -> None:
+    print(f"attend: internal error: {context}{type(error).__name__}: {_one_line(error)}; please report it "
+          "(run with --debug for the traceback)", file=sys.stderr)
 
 
 if __name__ == "__main__":

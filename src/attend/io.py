@@ -57,6 +57,7 @@ columns named in the model file (other columns are ignored).
 from __future__ import annotations
 
 import csv
+import io as _text_io
 import math
 try:
     import tomllib
@@ -67,7 +68,19 @@ from pathlib import Path
 
 import numpy as np
 
-from attend._validation import AttendInputError, require_finite
+from attend._validation import (
+    LARGEST_MAGNITUDE,
+    AttendInputError,
+    as_matrix,
+    number,
+    numeric_array,
+    order,
+    positive_scalar,
+    precision_matrix,
+    require_finite,
+    require_moderate,
+    unique_names,
+)
 from attend.perception.dem import DEMEstimate, DEMObserver
 from attend.systems import LinearSystem
 
@@ -191,13 +204,77 @@ def _check_keys(table: dict, allowed: set[str], where: str, path: str) -> None:
         )
 
 
+def _read_text(path: str | Path, what: str) -> str:
+    """The text of a user's file (UTF-8, an optional BOM dropped); a missing file, a directory,
+    a permission problem or binary content is an AttendInputError naming the file."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise AttendInputError(f"{what}: {path} does not exist") from None
+    except IsADirectoryError:
+        raise AttendInputError(f"{what}: {path} is a directory; expected a file") from None
+    except PermissionError:
+        raise AttendInputError(f"{what}: {path} cannot be read (permission denied)") from None
+    except OSError as error:
+        raise AttendInputError(f"{what}: {path} cannot be read ({error.strerror or error})") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as error:
+        raise AttendInputError(
+            f"{path}: expected a UTF-8 text {what}, found byte 0x{raw[error.start]:02x} at byte {error.start} "
+            "(a binary file, or text in another encoding: save it as UTF-8)"
+        ) from None
+    if "\x00" in text:
+        raise AttendInputError(f"{path}: expected a text {what}, found a NUL byte (a binary file?)")
+    return text
+
+
+def _matrix(value, field: str) -> np.ndarray:
+    """A model-file matrix: numbers (no text), finite and within +-1e150."""
+    array = numeric_array(value, field, "a matrix of numbers (a list of rows)")
+    require_finite(array, field)
+    require_moderate(array, field)
+    return array
+
+
+def _file_number(table: dict, key: str, field: str, default: float, *, minimum: float | None = None,
+                 positive: bool = False, allow_inf: bool = False) -> float:
+    """table[key] as a finite (or, with ``allow_inf``, infinite) number within +-1e150 and the bounds."""
+    if key not in table:
+        return default
+    value = number(table[key], field)
+    if math.isnan(value) or (math.isinf(value) and not (allow_inf and value > 0)):
+        raise AttendInputError(f"{field}: expected a finite number, got {value}")
+    if math.isfinite(value):
+        require_moderate(np.array([value]), field)
+    if positive and not value > 0:
+        raise AttendInputError(f"{field}: expected a number > 0, got {value}")
+    if minimum is not None and value < minimum:
+        raise AttendInputError(f"{field}: expected a number >= {minimum:g}, got {value}")
+    return value
+
+
+def _text(value, field: str) -> str:
+    if not isinstance(value, str) or not value.strip():
+        raise AttendInputError(f"{field}: expected a non-empty text (in quotes), got {value!r}")
+    return value
+
+
+def _text_list(value, field: str, size: int | None = None, what: str = "names") -> tuple[str, ...]:
+    if not isinstance(value, list):
+        raise AttendInputError(f"{field}: expected a list of {what} in quotes, got {value!r}")
+    names = unique_names(value, field)
+    if size is not None and len(names) != size:
+        raise AttendInputError(f"{field}: expected {size} {what}, got {len(names)}")
+    return names
+
+
 def read_model(path: str | Path) -> ModelFile:
     """Parse and validate a model TOML file (format in the module docstring)."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise AttendInputError(f"model file: {path} does not exist") from None
+        data = tomllib.loads(_read_text(path, "model file"))
     except tomllib.TOMLDecodeError as error:
         raise AttendInputError(f"{path}: not valid TOML ({error})") from None
     unknown = sorted(set(data) - set(_SECTIONS))
@@ -211,46 +288,64 @@ def read_model(path: str | Path) -> ModelFile:
             raise AttendInputError(f"{path}: [{section}] must be a table")
         if allowed is not None:
             _check_keys(data.get(section, {}), allowed, section, str(path))
+    if not data:
+        raise AttendInputError(f"{path}: the model file is empty; expected [model], [outputs] and [observer] sections")
     model = data.get("model", {})
     for key in ("A", "B", "C"):
         if key not in model:
             raise AttendInputError(f"{path}: [model] needs {key} (a matrix as a list of rows)")
-    try:
-        system = LinearSystem(
-            model["A"], model["B"], model["C"],
-            state_names=tuple(model.get("states", ())),
-            input_names=tuple(spec.get("name", f"u{i + 1}") for i, spec in enumerate(data.get("inputs", []))),
-        )
-    except AttendInputError as error:
-        raise AttendInputError(f"{path}: [model] {error}") from None
+    A = as_matrix(model["A"], f"{path}: [model] A")
+    require_moderate(A, f"{path}: [model] A")
+    if A.shape[0] != A.shape[1]:
+        raise AttendInputError(f"{path}: [model] A: expected a square matrix, got shape {A.shape}")
+    B = _matrix(model["B"], f"{path}: [model] B")
+    C = _matrix(model["C"], f"{path}: [model] C")
     raw_inputs = data.get("inputs", [])
-    if not isinstance(raw_inputs, list) or len(raw_inputs) != system.n_inputs:
+    if not isinstance(raw_inputs, list) or not all(isinstance(spec, dict) for spec in raw_inputs):
+        raise AttendInputError(f"{path}: expected [[inputs]] tables (one per column of B), got inputs = {raw_inputs!r}")
+    n_inputs = B.shape[1] if B.ndim == 2 else 1
+    if len(raw_inputs) != n_inputs:
         raise AttendInputError(
-            f"{path}: expected {system.n_inputs} [[inputs]] tables (one per column of B), "
-            f"got {len(raw_inputs) if isinstance(raw_inputs, list) else 'a non-list'}"
+            f"{path}: [model] B has {n_inputs} column{'s' if n_inputs != 1 else ''} but the file has "
+            f"{len(raw_inputs)} [[inputs]] table{'s' if len(raw_inputs) != 1 else ''}; expected one table per column of B"
         )
-    inputs = []
     for i, spec in enumerate(raw_inputs):
         _check_keys(spec, _INPUT_KEYS, f"inputs {i + 1}", str(path))
-        name = spec.get("name", f"u{i + 1}")
+    input_names = unique_names(
+        [_text(spec.get("name", f"u{i + 1}"), f"{path}: [[inputs]] table {i + 1} name") for i, spec in enumerate(raw_inputs)],
+        f"{path}: [[inputs]] name",
+    )
+    n_states = A.shape[0]
+    state_names = _text_list(model["states"], f"{path}: [model] states", n_states, "state names") if "states" in model else ()
+    unique_names(state_names + input_names + ("t",), f"{path}: [model] states and [[inputs]] names (and 't', the time column of the estimates)")
+    try:
+        system = LinearSystem(A, B, C, state_names=state_names, input_names=input_names)
+    except AttendInputError as error:
+        raise AttendInputError(f"{path}: [model] {error}") from None
+    inputs = []
+    for i, spec in enumerate(raw_inputs):
+        name = input_names[i]
+        where = f"{path}: [[inputs]] {name!r}"
         if "column" in spec and ("prior_mean" in spec or "prior_precision" in spec):
             raise AttendInputError(
                 f"{path}: input {name!r} has both a column (known input) and a prior (unknown input); give one"
             )
-        precision = float(spec.get("prior_precision", 1.0))
-        if not math.isfinite(precision) or precision < 0:
-            raise AttendInputError(f"{path}: input {name!r} prior_precision: expected a finite number >= 0")
         if "operating_point" in spec and "column" not in spec:
             raise AttendInputError(f"{path}: input {name!r} has an operating_point but no column (only measured inputs have one)")
+        column = _text(spec["column"], f"{where} column") if "column" in spec else None
+        precision = _file_number(spec, "prior_precision", f"{where} prior_precision", 1.0, minimum=0.0)
         inputs.append(InputSpec(
-            name, spec.get("column"), float(spec.get("prior_mean", 0.0)), precision,
-            float(spec.get("operating_point", 0.0)),
+            name, column, _file_number(spec, "prior_mean", f"{where} prior_mean", 0.0), precision,
+            _file_number(spec, "operating_point", f"{where} operating_point", 0.0),
         ))
     outputs = data.get("outputs", {}).get("columns")
-    if outputs is None or len(outputs) != system.n_outputs:
+    if outputs is None:
+        raise AttendInputError(f"{path}: [outputs] needs columns (the CSV columns of the {system.n_outputs} outputs, one per row of C)")
+    if not isinstance(outputs, list) or len(outputs) != system.n_outputs:
         raise AttendInputError(
             f"{path}: [outputs] columns: expected {system.n_outputs} column names (one per row of C), got {outputs!r}"
         )
+    outputs = _text_list(outputs, f"{path}: [outputs] columns", what="column names")
     observer = data.get("observer", {})
     for key in ("sensor_precision", "process_precision"):
         if key not in observer:
@@ -289,9 +384,13 @@ def read_model(path: str | Path) -> ModelFile:
             raise AttendInputError(f"{path}: [observer] initial_state_std: expected a number >= 0 or "
                                    f"{system.n_states} of them, got {initial_std!r}")
         initial_std = float(values[0]) if len(values) == 1 else tuple(float(v) for v in values)
+    _check_observer(observer, system, f"{path}: [observer]")
     dt = model.get("dt")
-    if dt is not None and (not isinstance(dt, (int, float)) or not dt > 0):
-        raise AttendInputError(f"{path}: [model] dt: expected a number > 0 (seconds), got {dt!r}")
+    if dt is not None:
+        dt = positive_scalar(dt, f"{path}: [model] dt", "seconds")
+    time_column = _text(data.get("log", {}).get("time_column", "t"), f"{path}: [log] time_column")
+    learning = dict(data.get("learning", {}))
+    _check_learning(learning, f"{path}: [learning]")
     return ModelFile(
         system=system,
         dt=dt,
@@ -303,9 +402,10 @@ def read_model(path: str | Path) -> ModelFile:
         sensor_precision=observer["sensor_precision"],
         process_precision=observer["process_precision"],
         precision_convention=observer.get("precision_convention", "size"),
-        known_input_precision=float(observer.get("known_input_precision", KNOWN_INPUT_PRECISION)),
-        time_column=data.get("log", {}).get("time_column", "t"),
-        learning=dict(data.get("learning", {})),
+        known_input_precision=_file_number(observer, "known_input_precision", f"{path}: [observer] known_input_precision",
+                                           KNOWN_INPUT_PRECISION, positive=True),
+        time_column=time_column,
+        learning=learning,
         path=str(path),
         method=method,
         process_kernel_width=widths["process_kernel_width"],
@@ -316,6 +416,48 @@ def read_model(path: str | Path) -> ModelFile:
     )
 
 
+def _check_observer(observer: dict, system: LinearSystem, where: str) -> None:
+    """The [observer] orders, precisions and convention, with the file's key names in errors."""
+    for key in ("embedding_order", "input_order"):
+        if key in observer and not (key == "embedding_order" and observer[key] == "auto"):
+            order(observer[key], f"{where} {key}")
+    for key, size in (("sensor_precision", system.n_outputs), ("process_precision", system.n_states)):
+        matrix = precision_matrix(observer[key], size, f"{where} {key}")
+        require_moderate(matrix, f"{where} {key}")
+    convention = observer.get("precision_convention", "size")
+    if convention not in ("size", "max"):
+        raise AttendInputError(f"{where} precision_convention: expected \"size\" or \"max\", got {convention!r}")
+
+
+def _check_learning(learning: dict, where: str) -> None:
+    """The [learning] keys: types, ranges and lengths (the lambda pair has 2 entries)."""
+    if "free" in learning:
+        _text_list(learning["free"], f"{where} free", what='entries like "A[2,1]"')
+    for key in ("free_prior_precision", "known_prior_precision"):
+        _file_number(learning, key, f"{where} {key}", 1.0, minimum=0.0, allow_inf=key == "known_prior_precision")
+    for key, positive in (("noise_prior_mean", False), ("noise_prior_precision", True)):
+        if key not in learning:
+            continue
+        value = learning[key]
+        values = numeric_array(value, f"{where} {key}")
+        if values.ndim > 1 or (values.ndim == 1 and len(values) != 2):
+            raise AttendInputError(
+                f"{where} {key}: expected a number or a pair [lambda_z, lambda_w] "
+                f"(sensor, process), got {value!r}"
+            )
+        finite_or_inf = np.isfinite(values) | (positive & np.isposinf(values))
+        if not finite_or_inf.all() or (positive and np.any(values <= 0)):
+            raise AttendInputError(f"{where} {key}: expected {'numbers > 0 (inf holds lambda fixed)' if positive else 'finite numbers'}, got {value!r}")
+        require_moderate(values[np.isfinite(values)], f"{where} {key}")
+    if "max_iterations" in learning:
+        iterations = learning["max_iterations"]
+        if isinstance(iterations, bool) or not isinstance(iterations, int) or not 1 <= iterations <= 100_000:
+            raise AttendInputError(f"{where} max_iterations: expected an integer in 1..100000, got {iterations!r}")
+    _file_number(learning, "tolerance", f"{where} tolerance", 1e-3, minimum=0.0)
+    if learning.get("states", "sample") not in ("sample", "path"):
+        raise AttendInputError(f'{where} states: expected "sample" or "path", got {learning["states"]!r}')
+
+
 @dataclass(frozen=True)
 class Log:
     """A CSV log: time [s] (N,), and named columns."""
@@ -323,6 +465,7 @@ class Log:
     time: np.ndarray
     columns: dict[str, np.ndarray]
     path: str = ""
+    line_numbers: np.ndarray | None = None  # line of each sample in the file (errors name it)
 
     @property
     def dt(self) -> float:
@@ -330,40 +473,47 @@ class Log:
         return float((self.time[-1] - self.time[0]) / (len(self.time) - 1))
 
     def matrix(self, names) -> np.ndarray:
-        """Columns ``names`` side by side as an (N, len(names)) array."""
+        """Columns ``names`` side by side as an (N, len(names)) array; NaN, inf and values beyond
+        +-1e150 in them are errors naming the file, line and column."""
         missing = [name for name in names if name not in self.columns]
         if missing:
             raise AttendInputError(
                 f"{self.path}: CSV is missing the declared column{'s' if len(missing) > 1 else ''} "
                 f"{', '.join(map(repr, missing))}; it has {', '.join(self.columns)}"
             )
+        lines = self.line_numbers if self.line_numbers is not None else np.arange(len(self.time)) + 2
+        for name in names:
+            _check_log_column(self.columns[name], self.path, name, lines)
         return np.column_stack([self.columns[name] for name in names]) if names else np.zeros((len(self.time), 0))
 
 
 def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: float = 1e-4) -> Log:
     """Read a CSV log with a header; check the time column is present, finite and uniform.
 
-    Time stamps count as uniform when every step is within ``relative_tolerance`` of the mean step.
+    UTF-8 with or without a BOM, LF or CRLF line ends. Every cell must be a number; values
+    beyond +-1e150 are errors. Time stamps count as uniform when every step is within
+    ``relative_tolerance`` of the mean step.
     """
     path = Path(path)
+    text = _read_text(path, "log")
     try:
-        with path.open(newline="") as handle:
-            reader = csv.reader(handle)
-            header = next(reader, None)
-            rows = [row for row in reader if row]
-    except FileNotFoundError:
-        raise AttendInputError(f"log: {path} does not exist") from None
-    if header is None:
+        lines = list(csv.reader(_text_io.StringIO(text, newline=None)))
+    except csv.Error as error:
+        raise AttendInputError(f"{path}: not a readable CSV ({error})") from None
+    numbered = [(number_, row) for number_, row in enumerate(lines, start=1) if any(cell.strip() for cell in row)]
+    if not numbered:
         raise AttendInputError(f"{path}: the CSV is empty (expected a header row and samples)")
-    header = [name.strip() for name in header]
+    header = [name.strip() for name in numbered[0][1]]
+    rows = numbered[1:]
+    unique_names([name for name in header if name], f"{path}: header")
     if not rows:
         raise AttendInputError(f"{path}: the CSV has a header but no samples")
     if time_column not in header:
         raise AttendInputError(f"{path}: CSV is missing the time column {time_column!r}; it has {', '.join(header)}")
     try:
-        values = np.array(rows, dtype=float)
+        values = np.array([row for _, row in rows], dtype=float)
     except ValueError:
-        for line, row in enumerate(rows, start=2):
+        for line, row in rows:
             if len(row) != len(header):
                 raise AttendInputError(f"{path}: line {line} has {len(row)} fields, the header has {len(header)}") from None
             for name, cell in zip(header, row):
@@ -372,9 +522,10 @@ def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: fl
                 except ValueError:
                     raise AttendInputError(f"{path}: line {line}, column {name!r}: expected a number, got {cell!r}") from None
         raise
+    line_numbers = np.array([line for line, _ in rows])
     columns = {name: values[:, j] for j, name in enumerate(header)}
     time = columns[time_column]
-    require_finite(time, f"{path}: column {time_column!r}")
+    _check_log_column(time, path, time_column, line_numbers)
     if len(time) >= 2:
         steps = np.diff(time)
         mean_step = (time[-1] - time[0]) / (len(time) - 1)
@@ -383,36 +534,78 @@ def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: fl
         worst = int(np.argmax(np.abs(steps - mean_step)))
         if abs(steps[worst] - mean_step) > relative_tolerance * mean_step:
             raise AttendInputError(
-                f"{path}: column {time_column!r}: non-uniform time stamps (step {steps[worst]:.6g} s at row "
-                f"{worst + 2}, mean step {mean_step:.6g} s); resample the log to a uniform rate first"
+                f"{path}: column {time_column!r}: non-uniform time stamps (step {steps[worst]:.6g} s at line "
+                f"{line_numbers[worst + 1]}, mean step {mean_step:.6g} s); resample the log to a uniform rate first"
             )
-    return Log(time, columns, str(path))
+    return Log(time, columns, str(path), line_numbers)
 
 
-def estimate_from_files(model: ModelFile, log: Log):
-    """Run the model file's estimator on the log (checks columns, finiteness and sample time).
+def _check_log_column(values: np.ndarray, path, name: str, line_numbers: np.ndarray) -> None:
+    """NaN, inf and values beyond +-1e150 are errors naming the file, line and column."""
+    bad = ~np.isfinite(values) | (np.abs(values) > LARGEST_MAGNITUDE)
+    if bad.any():
+        row = int(np.argmax(bad))
+        expected = "a finite number" if not np.isfinite(values[row]) else f"a value within +-{LARGEST_MAGNITUDE:.0e}"
+        raise AttendInputError(
+            f"{path}: line {line_numbers[row]} (sample {row + 1}), column {name!r}: expected {expected}, got {values[row]:.6g}"
+        )
 
-    Returns (estimator, estimate): a KalmanEstimator and its smoother estimate (method "kalman"),
-    or a DEMObserver and its DEMEstimate (method "dem")."""
-    if len(log.time) < 2:
-        raise AttendInputError(f"{log.path}: expected at least 2 samples, got {len(log.time)}")
+
+def _check_samples(model: ModelFile, log: Log, minimum: int, why: str) -> float:
+    """The log's sample time, after checking its length and the model's dt against it."""
+    if len(log.time) < minimum:
+        raise AttendInputError(f"{log.path}: expected at least {minimum} samples ({why}), got {len(log.time)}")
     dt = log.dt
     if model.dt is not None and abs(model.dt - dt) > 1e-4 * dt:
         raise AttendInputError(
             f"{model.path}: [model] dt = {model.dt} s but the log {log.path} is sampled every {dt:.6g} s"
         )
+    return dt
+
+
+def _observer_of(model: ModelFile, dt: float) -> DEMObserver:
+    try:
+        return model.observer(dt)
+    except AttendInputError as error:  # in the file's words: P_v is the [[inputs]] prior_precision
+        message = str(error).replace("input_prior_precision", "[[inputs]] prior_precision")
+        raise AttendInputError(f"{model.path}: [observer] {message}") from None
+
+
+def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEstimate]:
+    """Run the model file's observer on the log (checks columns, finiteness and sample time)."""
     outputs = log.matrix(model.output_columns)
-    require_finite(outputs, f"{log.path}: output columns {', '.join(model.output_columns)}")
     signals = np.zeros((len(log.time), model.system.n_inputs))
     for j, spec in enumerate(model.inputs):
         if spec.known:
-            column = log.matrix([spec.column])[:, 0]
-            require_finite(column, f"{log.path}: input column {spec.column!r}")
-            signals[:, j] = column - spec.operating_point
+            signals[:, j] = log.matrix([spec.column])[:, 0] - spec.operating_point
         else:
             signals[:, j] = spec.prior_mean
-    observer = model.observer(dt)
-    return observer, observer.estimate(outputs, signals)
+    if model.method == "dem":
+        order = 6 if model.embedding_order == "auto" else model.embedding_order  # "auto" picks p <= 6
+        window = max(order, model.input_order) + 1
+        dt = _check_samples(model, log, max(2, window), f"the embedding window of order {window - 1}")
+    else:
+        dt = _check_samples(model, log, 2, "the Kalman smoother")
+    observer = _observer_of(model, dt)
+    with np.errstate(over="ignore", invalid="ignore"):
+        estimate = observer.estimate(outputs, signals)
+    for name, values in (("states", estimate.states), ("inputs", estimate.inputs)):
+        if not np.all(np.isfinite(values)):
+            raise AttendInputError(
+                f"{model.path}: [observer] the estimated {name} are not finite on the log {log.path}: the "
+                "observer is numerically unstable for these settings; expected smaller precisions, "
+                "lower embedding orders or a kernel_width of a few sample times"
+            )
+    names = list(model.system.state_names) + list(model.system.input_names)
+    undefined = ~np.all(np.isfinite(np.hstack([estimate.state_std, estimate.input_std])), axis=0)
+    if undefined.any():
+        hidden = ", ".join(name for name, bad in zip(names, undefined) if bad)
+        raise AttendInputError(
+            f"{model.path}: [observer] {hidden}: not informed by the outputs under these settings (no finite "
+            "standard deviation); add outputs that see them, or give [observer] initial_state and "
+            "initial_state_std with method = \"kalman\" (their estimate is then the prior's)"
+        )
+    return observer, estimate
 
 
 def write_estimates(path: str | Path, log: Log, system: LinearSystem, estimate: DEMEstimate) -> Path:
@@ -439,24 +632,47 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
         raise AttendInputError(
             f"{model.path}: identify needs measured inputs; input(s) {', '.join(map(repr, unknown))} have no column"
         )
-    if len(log.time) < 2:
-        raise AttendInputError(f"{log.path}: expected at least 2 samples, got {len(log.time)}")
-    dt = log.dt
-    if model.dt is not None and abs(model.dt - dt) > 1e-4 * dt:
-        raise AttendInputError(f"{model.path}: [model] dt = {model.dt} s but the log {log.path} is sampled every {dt:.6g} s")
+    if model.system.n_inputs == 0:
+        raise AttendInputError(
+            f"{model.path}: identify needs at least one measured input (an [[inputs]] table with a column "
+            "and a column of B); models without inputs cannot be identified yet"
+        )
     outputs = log.matrix(model.output_columns)
-    require_finite(outputs, f"{log.path}: output columns {', '.join(model.output_columns)}")
-    inputs = np.column_stack([log.matrix([spec.column])[:, 0] - spec.operating_point for spec in model.inputs])
-    require_finite(inputs, f"{log.path}: input columns")
+    inputs = np.zeros((len(log.time), model.system.n_inputs))
+    for j, spec in enumerate(model.inputs):
+        inputs[:, j] = log.matrix([spec.column])[:, 0] - spec.operating_point
+    window = max(model.embedding_order, model.input_order) + 1
+    dt = _check_samples(model, log, 3 * window, f"3 embedding windows of order {window - 1}")
     settings = dict(model.learning or {})
     options = {key: settings[key] for key in (
         "free", "free_prior_precision", "known_prior_precision", "noise_prior_mean", "noise_prior_precision",
         "max_iterations", "tolerance", "states") if key in settings}
     if "noise_prior_mean" in options:
-        options["noise_prior_mean"] = tuple(options["noise_prior_mean"])
-    return identify(model.system, outputs, inputs, dt, kernel_width=model.kernel_width,
-                    embedding_order=model.embedding_order, input_order=model.input_order,
-                    precision_convention=model.precision_convention, progress=progress, **options)
+        options["noise_prior_mean"] = tuple(np.atleast_1d(options["noise_prior_mean"]))
+    try:
+        return identify(model.system, outputs, inputs, dt, kernel_width=model.kernel_width,
+                        embedding_order=model.embedding_order, input_order=model.input_order,
+                        precision_convention=model.precision_convention, progress=progress, **options)
+    except AttendInputError as error:
+        raise AttendInputError(_in_file_terms(str(error), model, log)) from None
+
+
+_LEARNING_FIELDS = ("free", "prior_precision", "initial", "noise_prior_mean", "noise_prior_precision",
+                    "max_iterations", "tolerance", "states")
+
+
+def _in_file_terms(message: str, model: ModelFile, log: Log) -> str:
+    """A learning error in the words of the files: which file, which section or key."""
+    field = message.split(":", 1)[0]
+    if field in ("outputs", "inputs"):
+        return f"{log.path}: {field} columns: {message.split(':', 1)[1].strip()}"
+    if field in ("embedding_order", "input_order", "kernel_width", "precision_convention"):
+        return f"{model.path}: [observer] {message}"
+    if field in ("system_prior", "A", "B", "C"):
+        return f"{model.path}: [model] {message}"
+    if field in _LEARNING_FIELDS:
+        return f"{model.path}: [learning] {message}"
+    return f"{model.path}: {message}"
 
 
 def write_learned_model(path: str | Path, model: ModelFile, result) -> Path:
@@ -465,7 +681,7 @@ def write_learned_model(path: str | Path, model: ModelFile, result) -> Path:
     import tomli_w
 
     system = result.system()
-    data = tomllib.loads(Path(model.path).read_text()) if model.path else {}
+    data = tomllib.loads(Path(model.path).read_text(encoding="utf-8-sig")) if model.path else {}
     data.setdefault("model", {})
     data["model"]["A"] = system.A.tolist()
     data["model"]["B"] = system.B.tolist()

@@ -48,9 +48,11 @@ def cached_result(out_dir: Path, name: str, key: str) -> ExperimentResult | None
         return None
     if data.get("cache_key") != key:
         return None
-    if not all((Path(out_dir) / figure).is_file() for figure in data.get("figures", [])):
+    result = ExperimentResult.from_json_dict(data)
+    result.figures = result.relative_figures(out_dir)
+    if not all((Path(out_dir) / figure).is_file() for figure in result.figures):
         return None
-    return ExperimentResult.from_json_dict(data)
+    return result
 
 
 def software_versions() -> dict[str, str]:
@@ -90,7 +92,7 @@ def write_report(out_dir, results: list[ExperimentResult], descriptions: dict[st
     sections = []
     for result in results:
         figures = []
-        for figure in result.figures:
+        for figure in result.relative_figures(out):
             path = out / figure
             if path.suffix.lower() in (".png", ".gif") and path.is_file():
                 encoded = base64.b64encode(path.read_bytes()).decode()

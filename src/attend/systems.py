@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg import expm
 
-from attend._validation import AttendInputError, as_matrix, positive_scalar
+from attend._validation import AttendInputError, as_matrix, positive_scalar, unique_names
 from attend.noise import coloured_noise
 
 
@@ -55,7 +55,7 @@ class LinearSystem:
             ("input_names", self.input_names, B.shape[1], "u"),
             ("output_names", self.output_names, C.shape[0], "y"),
         ):
-            names = tuple(names) or tuple(f"{letter}{i + 1}" for i in range(size))
+            names = unique_names(names, field) or tuple(f"{letter}{i + 1}" for i in range(size))
             if len(names) != size:
                 raise AttendInputError(f"{field}: expected {size} names, got {len(names)}")
             object.__setattr__(self, field, names)
@@ -111,6 +111,24 @@ class LinearSystem:
         for message in messages:
             warnings.warn(message, ModelWarning, stacklevel=2)
         return messages
+
+
+def as_linear_system(system, field: str = "system") -> LinearSystem:
+    """``system`` as a LinearSystem: a python-control ``StateSpace`` (continuous time, D = 0) is
+    converted with :func:`attend.interop.from_statespace`; anything else is an error naming it."""
+    if isinstance(system, LinearSystem):
+        return system
+    if type(system).__name__ == "StateSpace" and type(system).__module__.split(".")[0] == "control":
+        from attend.interop import from_statespace
+
+        try:
+            return from_statespace(system)
+        except AttendInputError as error:
+            raise AttendInputError(f"{field}: {error}") from None
+    raise AttendInputError(
+        f"{field}: expected an attend.LinearSystem (or a python-control StateSpace, converted with "
+        f"attend.interop.from_statespace), got {type(system).__name__}"
+    )
 
 
 def zero_order_hold(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -232,7 +250,10 @@ def simulate(
     ``kernel_width`` [s] (standard deviations ``process_std``, ``measurement_std`` per sample,
     scalars or per channel). ``process_kernel_width`` / ``sensor_kernel_width`` [s] set the widths
     of w and z separately (0: white noise); each defaults to ``kernel_width``.
+    ``system`` may also be a python-control StateSpace (converted with
+    :func:`attend.interop.from_statespace`).
     """
+    system = as_linear_system(system)
     dt = positive_scalar(dt, "dt", "s")
     widths = []
     for value, field in ((process_kernel_width, "process_kernel_width"), (sensor_kernel_width, "sensor_kernel_width")):

@@ -309,3 +309,14 @@ def test_exact_posterior_reduction_to_range_of_C_keeps_the_likelihood():
     np.testing.assert_allclose(exact.states, smooth.states, atol=1e-9)
     np.testing.assert_allclose(exact.state_std, smooth.state_std, atol=1e-9)
     assert exact.log_likelihood == pytest.approx(smooth.log_likelihood, rel=1e-9)
+
+
+def test_baselines_accept_a_python_control_statespace(problem):
+    control = pytest.importorskip("control")
+    system = problem["system"]
+    statespace = control.ss(system.A, system.B, system.C, 0)
+    ours = bl.kalman_filter(system, DT, problem["y"], problem["u"], **_kw(problem))
+    converted = bl.kalman_filter(statespace, DT, problem["y"], problem["u"], **_kw(problem))
+    np.testing.assert_allclose(converted.states, ours.states)
+    with pytest.raises(AttendInputError, match="attend.interop.from_statespace"):
+        bl.kalman_filter((system.A, system.B, system.C), DT, problem["y"], problem["u"], **_kw(problem))

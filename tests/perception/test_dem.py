@@ -357,3 +357,29 @@ def test_unobservable_state_gets_nan_std_and_a_warning():
     assert np.all(np.isnan(observer.analysis().state_std))
     with pytest.warns(ModelWarning, match="x1, x2, u1: not informed by the outputs"):
         observer.estimate(np.zeros((1000, 1)))
+
+
+def test_a_huge_kernel_width_is_named_in_the_overflow_error():
+    with pytest.raises(AttendInputError, match=r"^kernel_width: .*kernel_width = 1000 s"):
+        _observer(kernel_width=1000.0, embedding_order=6)
+
+
+def test_python_control_statespace_is_accepted_and_other_types_name_the_converter():
+    control = pytest.importorskip("control")
+    system = convolution_model()
+    converted = _observer(system=control.ss(system.A, system.B, system.C, 0))
+    reference = _observer()
+    y = np.sin(np.arange(40)[:, None] * 0.1 * np.arange(1, 5))
+    np.testing.assert_allclose(converted.estimate(y).states, reference.estimate(y).states)
+    with pytest.raises(AttendInputError, match="attend.interop.from_statespace"):
+        DEMObserver((system.A, system.B, system.C), 0.1, 0.5, 1.0, 1.0, 1.0)
+    with pytest.raises(AttendInputError, match="system: statespace: D must be zero"):
+        DEMObserver(control.ss(system.A, system.B, system.C, np.ones((4, 1))), 0.1, 0.5, 1.0, 1.0, 1.0)
+
+
+def test_online_step_rejects_text():
+    online = _observer().online()
+    with pytest.raises(AttendInputError, match="step: output: expected numbers, got 'abc'"):
+        online.step("abc")
+    with pytest.raises(AttendInputError, match="step: output: expected numbers, got '1.0'"):
+        online.step(["1.0", 0.0, 0.0, 0.0])

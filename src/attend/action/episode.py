@@ -123,29 +123,34 @@ def run_episode(
     charge_planning_time: bool = False,
     inject_false_detection_images: Sequence[int] = (),
     keep_maps: bool = True,
+    on_image=None,
 ) -> EpisodeLog:
     """Fly one mission of ``budget_s`` s with ``planner``; detector randomness from ``seed``.
 
     diagonal: per-cell (diagonal) Kalman filter instead of full covariance;
     charge_planning_time: the UAV hovers while planning and that time counts against the budget;
-    inject_false_detection_images: image numbers (0 = first) that get one false 2 x 3-cell blob.
+    inject_false_detection_images: image numbers (0 = first) that get one false 2 x 3-cell blob;
+    on_image: called with the mission time [s] of every image (e.g. to show progress).
     """
     if not (np.isfinite(budget_s) and budget_s > 0):
         raise ActionInputError(f"budget_s: expected a flight budget > 0 s, got {budget_s!r}")
     log = EpisodeLog(planner.name, seed, float(budget_s), len(field.people))
     return fly_mission(field, planner, camera, detector, flight, log, ReplanPolicy(), diagonal=diagonal,
                        charge_planning_time=charge_planning_time,
-                       inject_false_detection_images=inject_false_detection_images, keep_maps=keep_maps)
+                       inject_false_detection_images=inject_false_detection_images, keep_maps=keep_maps,
+                       on_image=on_image)
 
 
 def fly_mission(field, planner: Planner, camera, detector, flight, log: EpisodeLog, policy: ReplanPolicy,
                 diagonal: bool = False, charge_planning_time: bool = False,
-                inject_false_detection_images: Sequence[int] = (), keep_maps: bool = True) -> EpisodeLog:
+                inject_false_detection_images: Sequence[int] = (), keep_maps: bool = True,
+                on_image=None) -> EpisodeLog:
     """The flight loop behind every episode: plan, fly the plan taking and fusing images (every
     metric logged at each), replan when ``policy`` says so or the plan is flown, until
     ``log.budget_s`` is spent. Detector noise and planner seed from ``log.seed``; ``log`` (an
     empty :class:`EpisodeLog` or subclass) is filled and returned, including the mission time of
-    every replan (``replan_times_s``) and the wall time of the policy's decisions per plan."""
+    every replan (``replan_times_s``) and the wall time of the policy's decisions per plan.
+    ``on_image``, if given, is called with the mission time [s] of every image."""
     budget_s, seed = log.budget_s, log.seed
     pose = validate_pose(field.start_pose_m, field.grid, field.altitude_limits_m, "start_pose_m")
     rng = np.random.default_rng(seed)
@@ -204,6 +209,8 @@ def fly_mission(field, planner: Planner, camera, detector, flight, log: EpisodeL
                 belief.fuse(image.cells, image.measurements, image.noise_variance)
                 record(image)
                 n_images += 1
+                if on_image is not None:
+                    on_image(image.time_s)
                 if j == 0 and image_time <= 1e-9:
                     continue  # taken where the plan starts, before any flight: no decision yet
                 rest = plan[j + 1:] if image_time >= travel - 1e-9 else plan[j:]

@@ -38,6 +38,7 @@ def run_search(
     cma_evaluations: int = 24,
     snapshot_times_s: Sequence[float] | None = None,
     gif: bool = True,
+    progress: bool = False,
 ) -> dict[str, Path]:
     """Fly one mission and write its metrics, figures and animation to ``out_dir``.
 
@@ -56,7 +57,8 @@ def run_search(
     Kalman filter instead of the full covariance; charge_planning_time: planning wall time counts
     against the budget; lookahead_waypoints: planner look-ahead (3-5); cma_evaluations: CMA-ES
     evaluations per replan; snapshot_times_s: times (s) of the map figures (default 4 evenly
-    spaced over the budget); gif: write the animated GIF.
+    spaced over the budget); gif: write the animated GIF; progress: a tqdm bar on stderr over
+    the flight budget, then one over the figures.
 
     Returns the written paths: "metrics" (JSON), "maps", "path_3d", "metrics_plot" (PNG) and "gif".
     Raises ActionInputError (a ValueError) for bad input, naming the argument.
@@ -87,25 +89,36 @@ def run_search(
         cma_evaluations=cma_evaluations,
     )
     chosen = make_planner(planner, setup, seed)
-    log = run_episode(field, chosen, camera, detector, flight, budget_s, seed, diagonal=diagonal,
-                      charge_planning_time=charge_planning_time)
+    from tqdm import tqdm
+
+    with tqdm(total=round(float(budget_s), 1), desc=f"{planner} mission", unit="s flown", leave=False,
+              disable=not progress, bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} s flown [{elapsed}<{remaining}]") as bar:
+        def flown(time_s: float) -> None:
+            bar.update(round(min(time_s, budget_s) - bar.n, 1))
+
+        log = run_episode(field, chosen, camera, detector, flight, budget_s, seed, diagonal=diagonal,
+                          charge_planning_time=charge_planning_time, on_image=flown)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     from attend.action import plots
 
     times = snapshot_times_s if snapshot_times_s is not None else np.linspace(0, budget_s, 4)
-    paths = {
-        "metrics": write_metrics_json(log, field, out / "search_metrics.json", settings={
-            "planner": planner, "seed": seed, "obstacles": obstacles, "people_region": people_region,
-            "budget_s": budget_s, "diagonal": diagonal, "altitude_layers_m": list(altitude_layers_m),
-            "speed_m_s": speed_m_s, "image_rate_hz": image_rate_hz,
-        }),
-        "maps": plots.plot_maps(field, log, times, out / "search_maps.png"),
-        "path_3d": plots.plot_path_3d(field, log, out / "search_path_3d.png"),
-        "metrics_plot": plots.plot_metrics(log, out / "search_metrics.png"),
+    settings = {
+        "planner": planner, "seed": seed, "obstacles": obstacles, "people_region": people_region,
+        "budget_s": budget_s, "diagonal": diagonal, "altitude_layers_m": list(altitude_layers_m),
+        "speed_m_s": speed_m_s, "image_rate_hz": image_rate_hz,
+    }
+    writers = {
+        "metrics": lambda: write_metrics_json(log, field, out / "search_metrics.json", settings=settings),
+        "maps": lambda: plots.plot_maps(field, log, times, out / "search_maps.png"),
+        "path_3d": lambda: plots.plot_path_3d(field, log, out / "search_path_3d.png"),
+        "metrics_plot": lambda: plots.plot_metrics(log, out / "search_metrics.png"),
     }
     if gif:
-        paths["gif"] = plots.write_gif(field, log, out / "search_mission.gif")
+        writers["gif"] = lambda: plots.write_gif(field, log, out / "search_mission.gif")
+    paths = {}
+    for name in tqdm(writers, desc="figures", unit="file", leave=False, disable=not progress):
+        paths[name] = writers[name]()
     return paths
 
 

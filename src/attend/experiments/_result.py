@@ -6,7 +6,9 @@
      "metrics": [{"name": ..., "value": ..., "published": ... or null, "unit": ...}],
      "settings": {...}}
 
-so that reproduced and published values stand side by side, plus PNG figures in DIR.
+so that reproduced and published values stand side by side, plus PNG figures in DIR. The
+figure paths in the JSON are relative to DIR (so the folder can be moved, and a relative
+``--out`` does not count twice).
 """
 
 from __future__ import annotations
@@ -87,10 +89,15 @@ class ExperimentResult:
         return cls(data["experiment"], metrics, data.get("settings", {}), data.get("figures", []),
                    notes=data.get("notes", []), runtime_s=data.get("runtime_s"), cache_key=data.get("cache_key"))
 
+    def relative_figures(self, out_dir: str | Path) -> list[str]:
+        """The figure paths relative to ``out_dir`` (those outside it stay as they are)."""
+        return [figure_name(figure, out_dir) for figure in self.figures]
+
     def write(self, out_dir: str | Path) -> Path:
-        """Write ``out_dir/<experiment>.json`` and return its path."""
+        """Write ``out_dir/<experiment>.json`` (figure paths relative to ``out_dir``) and return its path."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
+        self.figures = self.relative_figures(out)
         path = out / f"{self.experiment}.json"
         path.write_text(json.dumps(self.to_json_dict(), indent=2) + "\n")
         return path
@@ -103,6 +110,18 @@ class ExperimentResult:
             rows.append((m.name, f"{m.value:.6g}", published, m.unit))
         widths = [max(len(r[i]) for r in rows) for i in range(4)]
         return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows)
+
+
+def figure_name(path: str | Path, out_dir: str | Path) -> str:
+    """``path`` relative to ``out_dir`` when it lies inside it ("results/fig3.png" -> "fig3.png"
+    for out_dir "results"), else unchanged; a bare name stays a name."""
+    path, out = Path(path), Path(out_dir)
+    if not path.is_absolute() and not path.parts[: len(out.parts)] == out.parts:
+        return path.as_posix()  # already relative to out_dir
+    try:
+        return path.resolve().relative_to(out.resolve()).as_posix()
+    except ValueError:
+        return str(path)
 
 
 def _finite_or_none(value: float) -> float | None:

@@ -39,7 +39,7 @@ from scipy.linalg import cho_factor, cho_solve, solve_discrete_are, solve_triang
 
 from attend._validation import AttendInputError, as_matrix, positive_scalar, require_finite, symmetric_matrix
 from attend.noise import autocorrelation, gaussian_kernel
-from attend.systems import LinearSystem
+from attend.systems import LinearSystem, as_linear_system
 
 __all__ = [
     "KalmanEstimate",
@@ -98,9 +98,7 @@ class ExactPosterior(NamedTuple):
 # --- validation helpers --------------------------------------------------------------------
 
 def _system(system) -> LinearSystem:
-    if not isinstance(system, LinearSystem):
-        raise AttendInputError("system: expected an attend.LinearSystem")
-    return system
+    return as_linear_system(system)
 
 
 def _covariance(value, size: int, field: str) -> np.ndarray:

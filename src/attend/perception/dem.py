@@ -37,6 +37,7 @@ from scipy.linalg import expm
 from attend._validation import (
     AttendInputError,
     as_matrix,
+    numeric_array,
     order,
     positive_scalar,
     precision_matrix,
@@ -51,7 +52,7 @@ from attend.perception.dem_analysis import (
     steady_state_error_variance,
 )
 from attend.perception.recurrence import linear_recurrence
-from attend.systems import LinearSystem, ModelWarning
+from attend.systems import LinearSystem, ModelWarning, as_linear_system
 
 
 #: Largest embedding order that embedding_order="auto" considers.
@@ -145,7 +146,8 @@ class DEMAnalysis(NamedTuple):
 class DEMObserver:
     """A DEM state (and unknown-input) observer for an LTI system.
 
-    system: the model (A, B, C); dt: sample time [s]; kernel_width: s of the Gaussian noise
+    system: the model (A, B, C; a python-control StateSpace is converted with
+    :func:`attend.interop.from_statespace`); dt: sample time [s]; kernel_width: s of the Gaussian noise
     kernel [s], used for both noises unless process_kernel_width / sensor_kernel_width are
     given (then it may be None); sensor_precision: Pi_z [1/output unit^2]; process_precision:
     Pi_w [s^2/state unit^2 as in dx/dt]; input_prior_precision: P_v [1/input unit^2] (unknown
@@ -193,10 +195,9 @@ class DEMObserver:
     _cache: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
-        system = self.system
-        if not isinstance(system, LinearSystem):
-            raise AttendInputError("system: expected an attend.LinearSystem")
+        system = as_linear_system(self.system)
         set_ = object.__setattr__
+        set_(self, "system", system)
         set_(self, "dt", positive_scalar(self.dt, "dt", "s"))
         if self.kernel_width is None:
             if self.process_kernel_width is None or self.sensor_kernel_width is None:
@@ -378,9 +379,13 @@ class DEMObserver:
             exponential = expm(block)
         transition, gain = exponential[:size, :size], exponential[:size, size:]
         if not np.all(np.isfinite(exponential)):
+            suspect = ("kernel_width" if self.kernel_width > 50 * self.dt
+                       else "sensor_precision, process_precision, input_prior_precision")
             raise AttendInputError(
-                "precisions: the observer's flow matrix could not be discretised (overflow); "
-                "check the scale of sensor_precision, process_precision and input_prior_precision"
+                f"{suspect}: the observer's flow matrix could not be discretised (overflow) with kernel_width = "
+                f"{self.kernel_width:g} s, dt = {self.dt:g} s, p = {self.embedding_order}, d = {self.input_order} "
+                "(derivative order i is weighted by about kernel_width^(2i)); expected a kernel_width of a few "
+                "sample times, smaller precisions or lower embedding orders"
             )
         radius = float(np.max(np.abs(np.linalg.eigvals(transition))))
         window_gain, offsets = self._fold_embedding(gain, p)
@@ -774,8 +779,9 @@ class OnlineDEM:
     def step(self, output, input_value=None):
         """Feed sample k (outputs (m,), input or input prior (r,)); return (states, inputs) of
         sample k - delay, or None while the first window fills."""
-        sample = np.concatenate([np.ravel(np.asarray(output, dtype=float)),
-                                 np.zeros(self._r) if input_value is None else np.ravel(np.asarray(input_value, dtype=float))])
+        output = np.ravel(numeric_array(output, "step: output"))
+        input_value = np.zeros(self._r) if input_value is None else np.ravel(numeric_array(input_value, "step: input_value"))
+        sample = np.concatenate([output, input_value])
         if sample.shape[0] != self._width:
             raise AttendInputError(f"step: expected {self._width - self._r} outputs and {self._r} inputs")
         require_finite(sample, "step sample")

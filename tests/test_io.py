@@ -150,7 +150,10 @@ def test_bad_logs_name_the_problem(tmp_path):
         (lambda m: m.replace('columns = ["y1", "y2"]', 'columns = ["y1", "y1"]'), r"\[outputs\] columns: the name 'y1' appears twice"),
         (lambda m: m.replace("B = [[1.0], [0.0]]", "B = [[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]"),
          r"\[model\] B has 3 columns but the file has 1 \[\[inputs\]\] table"),
-        (lambda m: m.replace("kernel_width = 0.5", "kernel_width = 1000"), r"\[observer\] kernel_width: the observer's flow matrix could not be discretised .* kernel_width = 1000 s"),
+        (lambda m: m.replace("kernel_width = 0.5", "kernel_width = 1000"),
+         r"\[observer\] kernel_width: 1000 s is 10000 sample times; expected at most 100"),
+        (lambda m: m.replace("kernel_width = 0.5", "kernel_width = 1000\nmethod = \"dem\""),
+         r"\[observer\] kernel_width: the observer's flow matrix could not be discretised .* kernel_width = 1000 s"),
         (lambda m: m.replace('precision_convention', 'x') + 'precision_convention = "spm"\n', r"precision_convention: expected"),
         (lambda m: m + "[learning]\nnoise_prior_mean = [0.0]\n", r"\[learning\] noise_prior_mean: expected a number or a pair"),
         (lambda m: m + '[learning]\nmax_iterations = "5"\n', r"\[learning\] max_iterations: expected an integer"),
@@ -193,7 +196,8 @@ def test_log_errors_name_the_file_line_and_column(tmp_path):
 
 
 def test_a_three_row_log_names_the_file(tmp_path):
-    model_path, log_path = _write(tmp_path, rows=np.column_stack([np.arange(3) * 0.1, np.ones(3), np.ones(3)]))
+    dem = MODEL.replace("kernel_width = 0.5", "kernel_width = 0.5\nmethod = \"dem\"")
+    model_path, log_path = _write(tmp_path, dem, rows=np.column_stack([np.arange(3) * 0.1, np.ones(3), np.ones(3)]))
     with pytest.raises(AttendInputError, match=rf"{log_path}: expected at least 5 samples"):
         io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
 

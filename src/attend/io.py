@@ -649,9 +649,13 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
         "max_iterations", "tolerance", "states") if key in settings}
     if "noise_prior_mean" in options:
         options["noise_prior_mean"] = tuple(np.atleast_1d(options["noise_prior_mean"]))
+    if model.kernel_width is None or model.kernel_width == 0:
+        raise AttendInputError(f"{model.path}: [observer] kernel_width: identify needs one kernel width > 0 [s] for "
+                               "both noises (separate or white widths are for attend estimate only)")
     try:
         return identify(model.system, outputs, inputs, dt, kernel_width=model.kernel_width,
-                        embedding_order=model.embedding_order, input_order=model.input_order,
+                        embedding_order=6 if model.embedding_order == "auto" else model.embedding_order,
+                        input_order=model.input_order,
                         precision_convention=model.precision_convention, progress=progress, **options)
     except AttendInputError as error:
         raise AttendInputError(_in_file_terms(str(error), model, log)) from None

@@ -689,7 +689,8 @@ class DEMObserver:
         radius = mats["radius"]
         slowest = -self.dt / np.log(radius) if 0 < radius < 1 else (0.0 if radius == 0 else np.inf)
         tau = self._start_constant()
-        scaled = mats["Pi_X"] / np.sqrt(np.outer(*(2 * [np.clip(np.diag(mats["Pi_X"]), 1e-300, None)])))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            scaled = mats["Pi_X"] / np.sqrt(np.outer(*(2 * [np.clip(np.diag(mats["Pi_X"]), 1e-300, None)])))
         singular = bool(np.any(np.diag(mats["Pi_X"]) <= 0) or np.linalg.eigvalsh(scaled).min() < 1e-13)
         names = tuple(system.state_names) + (() if self.known_inputs else tuple(system.input_names))
         if radius >= 1.0:

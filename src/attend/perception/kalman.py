@@ -81,9 +81,19 @@ def _factor(precision: np.ndarray, field: str) -> np.ndarray:
     return vectors / np.sqrt(eigenvalues)
 
 
-def _channel_model(dt: float, width: float, kind: str) -> NoiseStateSpace:
+MAX_WIDTH_SAMPLES = 100
+"""Largest kernel width in sample times: smoother noise is close to a constant offset over the
+correlation time and its autocorrelation needs more lags than the noise-model fit affords."""
+
+
+def _channel_model(dt: float, width: float, kind: str, field: str) -> NoiseStateSpace:
     if width == 0:
         return white_state_space()
+    if width > MAX_WIDTH_SAMPLES * dt:
+        raise AttendInputError(
+            f"{field}: {width:g} s is {width / dt:.0f} sample times; expected at most {MAX_WIDTH_SAMPLES} "
+            f"({MAX_WIDTH_SAMPLES * dt:g} s): noise that smooth is a slowly varying offset, better modelled as a state"
+        )
     sequence = kernel_autocorrelation(dt, width) if kind == "kernel" else sampled_autocorrelation(dt, width)
     return noise_state_space(sequence)
 
@@ -128,13 +138,15 @@ class KalmanEstimator:
         n, r, m = system.n_states, system.n_inputs, system.n_outputs
         set_(self, "dt", positive_scalar(self.dt, "dt", "s"))
         shared = None if self.kernel_width is None else _width(self.kernel_width, "kernel_width")
-        widths = {}
+        widths, sources = {}, {}
         for name in ("process_kernel_width", "sensor_kernel_width"):
             value = getattr(self, name)
             if value is None and shared is None:
                 raise AttendInputError(f"{name}: required (or kernel_width for both noises); 0 means white noise")
             widths[name] = shared if value is None else _width(value, name)
+            sources[name] = "kernel_width" if value is None else name
             set_(self, name, widths[name])
+        self._model["width_fields"] = sources
         set_(self, "sensor_precision", precision_matrix(self.sensor_precision, m, "sensor_precision"))
         set_(self, "process_precision", precision_matrix(self.process_precision, n, "process_precision"))
         known = np.broadcast_to(np.asarray(self.known_inputs, dtype=bool), (r,)) if np.ndim(self.known_inputs) == 0 \
@@ -183,11 +195,12 @@ class KalmanEstimator:
         system, dt = self.system, self.dt
         n, r, m = system.n_states, system.n_inputs, system.n_outputs
         Ad, Bd = system.discretize(dt)
-        process = _channel_model(dt, self.process_kernel_width, "kernel")
-        sensor = _channel_model(dt, self.sensor_kernel_width, "kernel")
+        fields = self._model["width_fields"]
+        process = _channel_model(dt, self.process_kernel_width, "kernel", fields["process_kernel_width"])
+        sensor = _channel_model(dt, self.sensor_kernel_width, "kernel", fields["sensor_kernel_width"])
         estimated = np.flatnonzero(~self._known_mask())
         unknown = len(estimated) > 0
-        inputs = _channel_model(dt, self.input_kernel_width, "sampled") if unknown else None
+        inputs = _channel_model(dt, self.input_kernel_width, "sampled", "input_kernel_width") if unknown else None
         blocks = [("x", n, None), ("w", n, process), ("z", m, sensor)]
         if unknown:
             blocks.append(("u", len(estimated), inputs))

@@ -150,6 +150,11 @@ class ModelFile:
     initial_state: tuple | None = None
     initial_state_std: object = None
 
+    @property
+    def learning_order(self) -> int:
+        """The file's embedding order, or 6 (the largest that "auto" picks) when it says "auto"."""
+        return 6 if self.embedding_order == "auto" else int(self.embedding_order)
+
     def observer(self, dt: float):
         """The estimator the file describes (``[observer] method``), for logs sampled every ``dt`` s."""
         if self.method == "kalman":
@@ -581,7 +586,7 @@ def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEst
         else:
             signals[:, j] = spec.prior_mean
     if model.method == "dem":
-        order = 6 if model.embedding_order == "auto" else model.embedding_order  # "auto" picks p <= 6
+        order = model.learning_order  # "auto" picks p <= 6
         window = max(order, model.input_order) + 1
         dt = _check_samples(model, log, max(2, window), f"the embedding window of order {window - 1}")
     else:
@@ -641,7 +646,7 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
     inputs = np.zeros((len(log.time), model.system.n_inputs))
     for j, spec in enumerate(model.inputs):
         inputs[:, j] = log.matrix([spec.column])[:, 0] - spec.operating_point
-    window = max(model.embedding_order, model.input_order) + 1
+    window = max(model.learning_order, model.input_order) + 1
     dt = _check_samples(model, log, 3 * window, f"3 embedding windows of order {window - 1}")
     settings = dict(model.learning or {})
     options = {key: settings[key] for key in (
@@ -654,7 +659,7 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
                                "both noises (separate or white widths are for attend estimate only)")
     try:
         return identify(model.system, outputs, inputs, dt, kernel_width=model.kernel_width,
-                        embedding_order=6 if model.embedding_order == "auto" else model.embedding_order,
+                        embedding_order=model.learning_order,
                         input_order=model.input_order,
                         precision_convention=model.precision_convention, progress=progress, **options)
     except AttendInputError as error:

@@ -6,7 +6,8 @@ Public API (everything else is private):
   :func:`convolution_model`, :func:`identification_system`, :func:`quadrotor_roll`
 - noise: :func:`coloured_noise`
 - generalised coordinates: :func:`smoothness_precision`, :func:`embed`, :func:`shift_operator`
-- perception: :class:`DEMObserver`, :class:`DEMEstimate`
+- perception: :class:`KalmanEstimator` (coloured-noise Kalman smoother/filter, the default of
+  ``attend estimate``), :class:`StateEstimate`, :class:`DEMObserver`, :class:`DEMEstimate`
 - learning: :func:`identify`, :class:`IdentificationResult`
 - errors: :class:`AttendInputError`, :class:`ModelWarning`
 """
@@ -15,6 +16,7 @@ from attend._validation import AttendInputError
 from attend.generalized import block_precisions, embed, embedding_weights, shift_operator, smoothness_precision
 from attend.noise import coloured_noise
 from attend.perception.dem import DEMEstimate, DEMObserver, OnlineDEM
+from attend.perception.kalman import KalmanEstimator, OnlineKalman, StateEstimate
 from attend.perception.learning import IdentificationResult, identify
 from attend.systems import (
     LinearSystem,
@@ -34,9 +36,12 @@ __all__ = [
     "DEMEstimate",
     "DEMObserver",
     "IdentificationResult",
+    "KalmanEstimator",
     "LinearSystem",
     "ModelWarning",
     "OnlineDEM",
+    "OnlineKalman",
+    "StateEstimate",
     "Trajectory",
     "block_precisions",
     "coloured_noise",

@@ -262,6 +262,12 @@ class NonlinearDEM:
     "max" (invert V at max(p, d), see :func:`attend.generalized.block_precisions`);
     edges: "order0" (rows whose embedding window reaches past the log use the sample with zero
     derivatives, attend's default) or "clamp" (end samples repeated, SPM);
+    flow_time: how long the gradient flow runs per sample. "samples" (default, SPM's D-step): one
+    unit of time per sample, i.e. the flow of the model written in sample units (order k scaled by
+    dt^k), so the estimates do not depend on the time unit and the precisions alone set how fast
+    the estimate follows the data. "seconds": dt seconds per sample, the flow of attend's linear
+    observer (DEMObserver), which it reproduces exactly for linear f, g; with precisions near 1
+    [1/unit^2] this flow is slow (rate ~ precision per second) and lags the data.
     divergence_limit: an estimate with |x| or |v| above this [state/input units] (or non-finite)
     stops the run with an :class:`AttendInputError` naming the settings to change.
     Precisions are scalars (times I), vectors (diagonal) or matrices.
@@ -286,6 +292,7 @@ class NonlinearDEM:
     precision_convention: str = "size"
     edges: str = "order0"
     divergence_limit: float = 1e6
+    flow_time: str = "samples"
     _matrices: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -310,6 +317,8 @@ class NonlinearDEM:
         set_(self, "input_prior_precision", prior)
         if self.edges not in ("order0", "clamp"):
             raise AttendInputError(f"edges: expected 'order0' or 'clamp', got {self.edges!r}")
+        if self.flow_time not in ("samples", "seconds"):
+            raise AttendInputError(f"flow_time: expected 'samples' or 'seconds', got {self.flow_time!r}")
         self._matrices.update(self._build())
 
     # construction ----------------------------------------------------------------------------
@@ -360,6 +369,8 @@ class NonlinearDEM:
             Vy=np.kron(S_p, self.sensor_precision), W=np.kron(S_p, self.process_precision),
             Vv=np.kron(S_d, self.input_prior_precision), D_X=D_X,
             Dx=shift_operator(p + 1, n), eye_pd=np.eye(p + 1, d + 1), eye_p=np.eye(p + 1),
+            order_scale=np.concatenate([np.repeat(self.dt ** np.arange(p + 1), n),
+                                        np.repeat(self.dt ** np.arange(d + 1), r) if n_v else []]),
         )
 
     # one sample ------------------------------------------------------------------------------
@@ -434,14 +445,21 @@ class NonlinearDEM:
         """One D-step over dt: X + (expm(J dt) - I) inv(J) (D X + dF/dX); returns (X, curvature)."""
         gradient, curvature, _ = self._gradient_curvature(X, y_tilde, u_tilde)
         D_X = self._matrices["D_X"]
-        J = D_X - curvature
-        flow = D_X @ X + gradient
         size = X.shape[0]
         block = np.zeros((size + 1, size + 1))
-        block[:size, :size] = J * self.dt
-        block[:size, size] = flow * self.dt
-        with np.errstate(over="ignore", invalid="ignore"):
-            increment = expm(block)[:size, size]
+        if self.flow_time == "samples":
+            # the flow in sample units: X_k -> X_k dt^k, gradient / dt^k, one unit of time per sample
+            scale = self._matrices["order_scale"]
+            J = D_X - curvature / np.outer(scale, scale)
+            block[:size, :size] = J
+            block[:size, size] = D_X @ (X * scale) + gradient / scale
+            with np.errstate(over="ignore", invalid="ignore"):
+                increment = expm(block)[:size, size] / scale
+        else:
+            block[:size, :size] = (D_X - curvature) * self.dt
+            block[:size, size] = (D_X @ X + gradient) * self.dt
+            with np.errstate(over="ignore", invalid="ignore"):
+                increment = expm(block)[:size, size]
         return X + increment, curvature
 
     def initial_state(self, y_tilde, u_tilde, guess=None, iterations: int = 20) -> np.ndarray:

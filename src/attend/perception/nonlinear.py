@@ -268,6 +268,8 @@ class NonlinearDEM:
     the estimate follows the data. "seconds": dt seconds per sample, the flow of attend's linear
     observer (DEMObserver), which it reproduces exactly for linear f, g; with precisions near 1
     [1/unit^2] this flow is slow (rate ~ precision per second) and lags the data.
+    substeps: D-steps per sample (SPM's E.nD), each over 1/substeps of the sample with the
+    Jacobians recomputed, the data held at the sample's values.
     divergence_limit: an estimate with |x| or |v| above this [state/input units] (or non-finite)
     stops the run with an :class:`AttendInputError` naming the settings to change.
     Precisions are scalars (times I), vectors (diagonal) or matrices.
@@ -293,6 +295,7 @@ class NonlinearDEM:
     edges: str = "order0"
     divergence_limit: float = 1e6
     flow_time: str = "samples"
+    substeps: int = 1
     _matrices: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -317,6 +320,9 @@ class NonlinearDEM:
         set_(self, "input_prior_precision", prior)
         if self.edges not in ("order0", "clamp"):
             raise AttendInputError(f"edges: expected 'order0' or 'clamp', got {self.edges!r}")
+        if isinstance(self.substeps, bool) or int(self.substeps) != self.substeps or not 1 <= int(self.substeps) <= 64:
+            raise AttendInputError(f"substeps: expected an integer in 1..64, got {self.substeps!r}")
+        set_(self, "substeps", int(self.substeps))
         if self.flow_time not in ("samples", "seconds"):
             raise AttendInputError(f"flow_time: expected 'samples' or 'seconds', got {self.flow_time!r}")
         self._matrices.update(self._build())
@@ -451,13 +457,13 @@ class NonlinearDEM:
             # the flow in sample units: X_k -> X_k dt^k, gradient / dt^k, one unit of time per sample
             scale = self._matrices["order_scale"]
             J = D_X - curvature / np.outer(scale, scale)
-            block[:size, :size] = J
-            block[:size, size] = D_X @ (X * scale) + gradient / scale
+            block[:size, :size] = J / self.substeps
+            block[:size, size] = (D_X @ (X * scale) + gradient / scale) / self.substeps
             with np.errstate(over="ignore", invalid="ignore"):
                 increment = expm(block)[:size, size] / scale
         else:
-            block[:size, :size] = (D_X - curvature) * self.dt
-            block[:size, size] = (D_X @ X + gradient) * self.dt
+            block[:size, :size] = (D_X - curvature) * (self.dt / self.substeps)
+            block[:size, size] = (D_X @ X + gradient) * (self.dt / self.substeps)
             with np.errstate(over="ignore", invalid="ignore"):
                 increment = expm(block)[:size, size]
         return X + increment, curvature
@@ -632,7 +638,9 @@ class OnlineNonlinearDEM:
         y_t, u_t = est._embed_row(self._buffer, edge, self._buffer[self._before])
         if self._state is None:
             self._state = est.initial_state(y_t, u_t, self._guess)
-        X, curvature = est._step(self._state, y_t, u_t)
+        X = self._state
+        for _ in range(est.substeps):
+            X, curvature = est._step(X, y_t, u_t)
         est._check(X, row)
         self._state = X
         self._row += 1

@@ -248,6 +248,27 @@ def simulate_nonlinear(system: NonlinearSystem, inputs, dt: float, *, kernel_wid
     return Trajectory(np.arange(n_samples) * dt, x, u, y, w, z)
 
 
+def _jacobi(matrix):
+    diagonal = np.sqrt(np.abs(np.diag(matrix)))
+    return np.where(diagonal > 0, 1.0 / np.where(diagonal > 0, diagonal, 1.0), 1.0)
+
+
+def _scaled_solve(matrix, vector):
+    """inv(matrix) vector with Jacobi scaling (units of the coordinates may differ by 1e12)."""
+    d = _jacobi(matrix)
+    return d * np.linalg.lstsq(matrix * np.outer(d, d), vector * d, rcond=None)[0]
+
+
+def _scaled_inverse(matrix):
+    d = _jacobi(matrix)
+    scaled = matrix * np.outer(d, d)
+    try:
+        inverse = np.linalg.inv(scaled)
+    except np.linalg.LinAlgError:
+        inverse = np.linalg.pinv(scaled)
+    return inverse * np.outer(d, d)
+
+
 # --- the D-step -----------------------------------------------------------------------------
 
 @dataclass(frozen=True, eq=False)
@@ -264,8 +285,9 @@ class NonlinearDEM:
     derivatives, attend's default) or "clamp" (end samples repeated, SPM);
     flow_time: how long the gradient flow runs per sample. "samples" (default, SPM's D-step): one
     unit of time per sample, i.e. the flow of the model written in sample units (order k scaled by
-    dt^k), so the estimates do not depend on the time unit and the precisions alone set how fast
-    the estimate follows the data. "seconds": dt seconds per sample, the flow of attend's linear
+    dt^k), so the estimates do not depend on the time unit of dt, s and f (the units of the states
+    themselves still set the metric of the gradient flow, as in SPM) and the precisions alone set
+    how fast the estimate follows the data. "seconds": dt seconds per sample, the flow of attend's linear
     observer (DEMObserver), which it reproduces exactly for linear f, g; with precisions near 1
     [1/unit^2] this flow is slow (rate ~ precision per second) and lags the data.
     substeps: D-steps per sample (SPM's E.nD), each over 1/substeps of the sample with the
@@ -487,7 +509,7 @@ class NonlinearDEM:
             require_finite(X, "initial_state")
         gradient, curvature, energy = self._gradient_curvature(X, y_tilde, u_tilde)
         for _ in range(iterations):
-            step = np.linalg.lstsq(curvature, gradient, rcond=None)[0]
+            step = _scaled_solve(curvature, gradient)
             accepted = False
             for _ in range(30):
                 candidate = X + step
@@ -563,11 +585,7 @@ class NonlinearDEM:
     def _outputs(self, X, curvature, u_tilde):
         n, r = self.system.n_states, self.system.n_inputs
         n_x = self.n_state_coordinates
-        try:
-            covariance = np.linalg.inv(curvature)
-        except np.linalg.LinAlgError:
-            covariance = np.linalg.pinv(curvature)
-        std = np.sqrt(np.clip(np.diag(covariance), 0, None))
+        std = np.sqrt(np.clip(np.diag(_scaled_inverse(curvature)), 0, None))
         if self._estimates_inputs:
             return X[:n], X[n_x: n_x + r], std[:n], std[n_x: n_x + r]
         return X[:n], u_tilde[:r], std[:n], np.zeros(r)

@@ -1,0 +1,141 @@
+"""Shared runner of the nonlinear reproductions (lorenz, pendulum): one simulated log per seed,
+DEM and the baselines on it, SSE per method, a figure of seed 0 and the SSE spread."""
+
+from __future__ import annotations
+
+import time as clock
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from attend.experiments._result import ExperimentResult
+from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem, simulate_nonlinear
+from attend.perception.nonlinear_baselines import (
+    extended_kalman,
+    particle_smoother,
+    unscented_kalman,
+    white_noise_covariances,
+)
+
+METHODS = ("DEM", "EKF", "UKF", "particle")
+
+
+def compare(name: str, system: NonlinearSystem, cfg: dict, inputs_of_time, progress: bool) -> ExperimentResult:
+    """Run DEM, EKF/UKF smoothers (input-augmented when the inputs are unknown) and the particle
+    smoother on ``cfg['seeds']`` simulated logs; SSE over samples p + 2 .. N - p - 2 (1-based)."""
+    dt, s = cfg["dt"], cfg["kernel_width"]
+    sw, sz = np.asarray(cfg["process_std"], float), np.asarray(cfg["measurement_std"], float)
+    n_samples = int(round(cfg["duration"] / dt))
+    time = np.arange(n_samples) * dt
+    u = inputs_of_time(time) if system.n_inputs else n_samples
+    unknown = system.n_inputs > 0
+    p = cfg["embedding_order"]
+    trim = slice(p + 1, n_samples - p - 1)
+    dem = NonlinearDEM(system, dt, s, 1.0 / sz**2, 1.0 / sw**2,
+                       np.exp(cfg["input_prior_log_precision"]) if unknown else None, p, cfg["input_order"])
+    Q, R = white_noise_covariances(system, dt, s, sw, sz)
+    kalman = dict(process_covariance=Q, measurement_covariance=R, initial_mean=cfg["initial_state"],
+                  initial_covariance=np.asarray(cfg["initial_std"], float) ** 2)
+    if unknown:
+        kalman["input_variance"] = cfg["input_random_walk_variance"]
+    state_sse = {m: np.zeros(cfg["seeds"]) for m in METHODS}
+    input_sse = {m: np.zeros(cfg["seeds"]) for m in METHODS}
+    runtime = {m: 0.0 for m in METHODS}
+    coverage = []
+    example = None
+    for seed in tqdm(range(cfg["seeds"]), desc=f"{name} seeds", disable=not progress):
+        log = simulate_nonlinear(system, u, dt, kernel_width=s, process_std=sw, measurement_std=sz,
+                                 initial_state=cfg["initial_state"], seed=seed)
+        estimates = {}
+        start = clock.perf_counter()
+        estimates["DEM"] = dem.estimate(log.outputs)
+        runtime["DEM"] += clock.perf_counter() - start
+        for method, function in (("EKF", extended_kalman), ("UKF", unscented_kalman)):
+            start = clock.perf_counter()
+            estimates[method] = function(system, dt, log.outputs, **kalman)
+            runtime[method] += clock.perf_counter() - start
+        start = clock.perf_counter()
+        estimates["particle"] = particle_smoother(
+            system, dt, log.outputs, kernel_width=s, process_std=sw, measurement_std=sz,
+            input_prior_std=np.exp(-cfg["input_prior_log_precision"] / 2) if unknown else None,
+            initial_mean=cfg["initial_state"], initial_std=cfg["initial_std"], n_particles=cfg["particles"],
+            ar_order=cfg["ar_order"], lag=cfg["particle_lag"], seed=seed)
+        runtime["particle"] += clock.perf_counter() - start
+        for method, estimate in estimates.items():
+            state_sse[method][seed] = np.sum((estimate.states - log.states)[trim] ** 2)
+            if unknown:
+                input_sse[method][seed] = np.sum((estimate.inputs - log.inputs)[trim] ** 2)
+        error = (estimates["DEM"].states - log.states)[trim]
+        coverage.append(np.mean(np.abs(error) < 2 * estimates["DEM"].state_std[trim]))
+        if seed == 0:
+            example = dict(time=time, states=log.states, outputs=log.outputs, inputs=log.inputs,
+                           **{f"{m}_states": e.states for m, e in estimates.items()},
+                           **({f"{m}_inputs": e.inputs for m, e in estimates.items()} if unknown else {}))
+    result = ExperimentResult(name, settings=cfg)
+    for method in METHODS:
+        result.add(f"{method} state SSE (median)", np.median(state_sse[method]), "state unit^2")
+    if unknown:
+        for method in METHODS:
+            label = method if method in ("DEM", "particle") else f"augmented {method}"
+            result.add(f"{label} input SSE (median)", np.median(input_sse[method]), "input unit^2")
+    result.add("DEM / particle state SSE (median ratio)", np.median(state_sse["DEM"] / state_sse["particle"]), "1")
+    result.add("DEM / UKF state SSE (median ratio)", np.median(state_sse["DEM"] / state_sse["UKF"]), "1")
+    if unknown:
+        result.add("DEM / augmented UKF input SSE (median ratio)",
+                   np.median(input_sse["DEM"] / input_sse["UKF"]), "1")
+    result.add("DEM |error| < 2 std (fraction of samples)", np.mean(coverage), "1")
+    total = cfg["seeds"] * n_samples
+    for method in METHODS:
+        result.add(f"{method} speed", total / max(runtime[method], 1e-9), "samples/s")
+    result.data = dict(state_sse=state_sse, input_sse=input_sse, example=example)
+    result.notes.append("Kalman baselines assume white noise with the per-sample variance of the coloured noise; "
+                        "the particle smoother models the coloured noise by AR(%d) processes." % cfg["ar_order"])
+    return result
+
+
+def plot(result: ExperimentResult, out_dir, state_labels, input_label=None) -> list[str]:
+    """NAME.png: seed-0 states (truth, DEM, UKF, particle), input if estimated, SSE per method."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    data = result.data
+    example = data["example"]
+    n = example["states"].shape[1]
+    unknown = input_label is not None
+    panels = n + (1 if unknown else 0) + 1
+    fig, axes = plt.subplots(1, panels, figsize=(4.2 * panels, 3.6))
+    time = example["time"]
+    for i in range(n):
+        ax = axes[i]
+        ax.plot(time, example["states"][:, i], "k", lw=2, label="true")
+        ax.plot(time, example["DEM_states"][:, i], "C0", label="DEM")
+        ax.plot(time, example["UKF_states"][:, i], "C1", lw=0.8, label="UKF smoother")
+        ax.plot(time, example["particle_states"][:, i], "C2--", lw=0.8, label="particle")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel(state_labels[i])
+    axes[0].legend(fontsize=7)
+    if unknown:
+        ax = axes[n]
+        ax.plot(time, example["inputs"][:, 0], "k", lw=2, label="true")
+        ax.plot(time, example["DEM_inputs"][:, 0], "C0", label="DEM")
+        ax.plot(time, example["UKF_inputs"][:, 0], "C1", lw=0.8, label="augmented UKF")
+        ax.plot(time, example["particle_inputs"][:, 0], "C2--", lw=0.8, label="particle")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel(input_label)
+        ax.legend(fontsize=7)
+    ax = axes[-1]
+    names = list(METHODS)
+    ax.boxplot([data["state_sse"][m] for m in names])
+    ax.set_xticks(range(1, len(names) + 1), names)
+    ax.set_yscale("log")
+    ax.set_ylabel("state SSE per seed")
+    ax.set_title(f"{result.settings['seeds']} seeds")
+    fig.tight_layout()
+    path = Path(out_dir) / f"{result.experiment}.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return [path.name]

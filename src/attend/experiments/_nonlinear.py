@@ -12,13 +12,14 @@ from tqdm import tqdm
 from attend.experiments._result import ExperimentResult
 from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem, simulate_nonlinear
 from attend.perception.nonlinear_baselines import (
+    coloured_unscented_smoother,
     extended_kalman,
     particle_smoother,
     unscented_kalman,
     white_noise_covariances,
 )
 
-METHODS = ("DEM", "EKF", "UKF", "particle")
+METHODS = ("DEM", "EKF", "UKF", "UKF filter", "coloured UKS", "particle")
 
 
 def compare(name: str, system: NonlinearSystem, cfg: dict, inputs_of_time, progress: bool) -> ExperimentResult:
@@ -51,16 +52,20 @@ def compare(name: str, system: NonlinearSystem, cfg: dict, inputs_of_time, progr
         start = clock.perf_counter()
         estimates["DEM"] = dem.estimate(log.outputs)
         runtime["DEM"] += clock.perf_counter() - start
-        for method, function in (("EKF", extended_kalman), ("UKF", unscented_kalman)):
+        for method, function, smooth in (("EKF", extended_kalman, True), ("UKF", unscented_kalman, True),
+                                         ("UKF filter", unscented_kalman, False)):
             start = clock.perf_counter()
-            estimates[method] = function(system, dt, log.outputs, **kalman)
+            estimates[method] = function(system, dt, log.outputs, smooth=smooth, **kalman)
             runtime[method] += clock.perf_counter() - start
+        coloured = dict(kernel_width=s, process_std=sw, measurement_std=sz,
+                        input_prior_std=np.exp(-cfg["input_prior_log_precision"] / 2) if unknown else None,
+                        initial_mean=cfg["initial_state"], initial_std=cfg["initial_std"], ar_order=cfg["ar_order"])
         start = clock.perf_counter()
-        estimates["particle"] = particle_smoother(
-            system, dt, log.outputs, kernel_width=s, process_std=sw, measurement_std=sz,
-            input_prior_std=np.exp(-cfg["input_prior_log_precision"] / 2) if unknown else None,
-            initial_mean=cfg["initial_state"], initial_std=cfg["initial_std"], n_particles=cfg["particles"],
-            ar_order=cfg["ar_order"], lag=cfg["particle_lag"], seed=seed)
+        estimates["coloured UKS"] = coloured_unscented_smoother(system, dt, log.outputs, **coloured)
+        runtime["coloured UKS"] += clock.perf_counter() - start
+        start = clock.perf_counter()
+        estimates["particle"] = particle_smoother(system, dt, log.outputs, n_particles=cfg["particles"],
+                                                  lag=cfg["particle_lag"], seed=seed, **coloured)
         runtime["particle"] += clock.perf_counter() - start
         for method, estimate in estimates.items():
             state_sse[method][seed] = np.sum((estimate.states - log.states)[trim] ** 2)
@@ -77,10 +82,11 @@ def compare(name: str, system: NonlinearSystem, cfg: dict, inputs_of_time, progr
         result.add(f"{method} state SSE (median)", np.median(state_sse[method]), "state unit^2")
     if unknown:
         for method in METHODS:
-            label = method if method in ("DEM", "particle") else f"augmented {method}"
+            label = method if method in ("DEM", "particle", "coloured UKS") else f"augmented {method}"
             result.add(f"{label} input SSE (median)", np.median(input_sse[method]), "input unit^2")
     result.add("DEM / particle state SSE (median ratio)", np.median(state_sse["DEM"] / state_sse["particle"]), "1")
-    result.add("DEM / UKF state SSE (median ratio)", np.median(state_sse["DEM"] / state_sse["UKF"]), "1")
+    for other in ("coloured UKS", "UKF", "UKF filter"):
+        result.add(f"DEM / {other} state SSE (median ratio)", np.median(state_sse["DEM"] / state_sse[other]), "1")
     if unknown:
         result.add("DEM / augmented UKF input SSE (median ratio)",
                    np.median(input_sse["DEM"] / input_sse["UKF"]), "1")
@@ -89,8 +95,9 @@ def compare(name: str, system: NonlinearSystem, cfg: dict, inputs_of_time, progr
     for method in METHODS:
         result.add(f"{method} speed", total / max(runtime[method], 1e-9), "samples/s")
     result.data = dict(state_sse=state_sse, input_sse=input_sse, example=example)
-    result.notes.append("Kalman baselines assume white noise with the per-sample variance of the coloured noise; "
-                        "the particle smoother models the coloured noise by AR(%d) processes." % cfg["ar_order"])
+    result.notes.append("EKF/UKF assume white noise with the per-sample variance of the coloured noise (smoothers "
+                        "unless 'filter'); the coloured UKS and the particle smoother model the coloured noise by "
+                        "AR(%d) processes." % cfg["ar_order"])
     return result
 
 
@@ -113,6 +120,7 @@ def plot(result: ExperimentResult, out_dir, state_labels, input_label=None) -> l
         ax.plot(time, example["states"][:, i], "k", lw=2, label="true")
         ax.plot(time, example["DEM_states"][:, i], "C0", label="DEM")
         ax.plot(time, example["UKF_states"][:, i], "C1", lw=0.8, label="UKF smoother")
+        ax.plot(time, example["coloured UKS_states"][:, i], "C3:", lw=0.8, label="coloured UKS")
         ax.plot(time, example["particle_states"][:, i], "C2--", lw=0.8, label="particle")
         ax.set_xlabel("time [s]")
         ax.set_ylabel(state_labels[i])
@@ -122,6 +130,7 @@ def plot(result: ExperimentResult, out_dir, state_labels, input_label=None) -> l
         ax.plot(time, example["inputs"][:, 0], "k", lw=2, label="true")
         ax.plot(time, example["DEM_inputs"][:, 0], "C0", label="DEM")
         ax.plot(time, example["UKF_inputs"][:, 0], "C1", lw=0.8, label="augmented UKF")
+        ax.plot(time, example["coloured UKS_inputs"][:, 0], "C3:", lw=0.8, label="coloured UKS")
         ax.plot(time, example["particle_inputs"][:, 0], "C2--", lw=0.8, label="particle")
         ax.set_xlabel("time [s]")
         ax.set_ylabel(input_label)
@@ -129,7 +138,7 @@ def plot(result: ExperimentResult, out_dir, state_labels, input_label=None) -> l
     ax = axes[-1]
     names = list(METHODS)
     ax.boxplot([data["state_sse"][m] for m in names])
-    ax.set_xticks(range(1, len(names) + 1), names)
+    ax.set_xticks(range(1, len(names) + 1), [name.replace(" ", "\n") for name in names], fontsize=7)
     ax.set_yscale("log")
     ax.set_ylabel("state SSE per seed")
     ax.set_title(f"{result.settings['seeds']} seeds")

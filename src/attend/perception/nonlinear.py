@@ -31,6 +31,7 @@ Units are attend's: seconds. f is a rate [state unit / s], kernel_width s is in 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from math import factorial
 from typing import Callable, NamedTuple
 
 import numpy as np
@@ -290,6 +291,11 @@ class NonlinearDEM:
     how fast the estimate follows the data. "seconds": dt seconds per sample, the flow of attend's linear
     observer (DEMObserver), which it reproduces exactly for linear f, g; with precisions near 1
     [1/unit^2] this flow is slow (rate ~ precision per second) and lags the data.
+    motion: how f~ and g~ are formed. "linearized" (SPM): Jacobians at order 0 held fixed,
+    f~ = [f; fx x' + fv v'; fx x'' + fv v''; ...]. "path": the derivatives of f(x(tau), v(tau))
+    along the Taylor path x(tau) = sum_i x^(i) tau^i / i! (central differences over p + 1 points
+    spaced dt), which keeps the curvature terms the linearisation drops (e.g. 2 f_xx x' x' at
+    order 2); p + 1 Jacobian evaluations per step. Both are exact for linear f, g.
     substeps: D-steps per sample (SPM's E.nD), each over 1/substeps of the sample with the
     Jacobians recomputed, the data held at the sample's values.
     divergence_limit: an estimate with |x| or |v| above this [state/input units] (or non-finite)
@@ -318,6 +324,7 @@ class NonlinearDEM:
     divergence_limit: float = 1e6
     flow_time: str = "samples"
     substeps: int = 1
+    motion: str = "linearized"
     _matrices: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -345,6 +352,8 @@ class NonlinearDEM:
         if isinstance(self.substeps, bool) or int(self.substeps) != self.substeps or not 1 <= int(self.substeps) <= 64:
             raise AttendInputError(f"substeps: expected an integer in 1..64, got {self.substeps!r}")
         set_(self, "substeps", int(self.substeps))
+        if self.motion not in ("linearized", "path"):
+            raise AttendInputError(f"motion: expected 'linearized' or 'path', got {self.motion!r}")
         if self.flow_time not in ("samples", "seconds"):
             raise AttendInputError(f"flow_time: expected 'samples' or 'seconds', got {self.flow_time!r}")
         self._matrices.update(self._build())
@@ -391,7 +400,10 @@ class NonlinearDEM:
         D_X = np.zeros((n_x + n_v, n_x + n_v))
         D_X[:n_x, :n_x] = shift_operator(p + 1, n)
         D_X[n_x:, n_x:] = shift_operator(d + 1, r) if n_v else np.zeros((0, 0))
+        grid = (np.arange(p + 1) - (p + 1) // 2) * self.dt
+        taylor = np.array([[t**i / factorial(i) for i in range(p + 1)] for t in grid])
         return dict(
+            path_taylor=taylor, path_weights=np.linalg.inv(taylor),
             S_p=S_p, S_d=S_d, offsets=offsets, y_positions=y_positions, u_positions=u_positions,
             Ey=embedding_weights(p + 1, self.dt), Eu=embedding_weights(d + 1, self.dt),
             Vy=np.kron(S_p, self.sensor_precision), W=np.kron(S_p, self.process_precision),
@@ -426,24 +438,27 @@ class NonlinearDEM:
         n, r, m = system.n_states, system.n_inputs, system.n_outputs
         p, d = self.embedding_order, self.input_order
         x, v = self._split(X, u_tilde)
-        fx, fv, gx, gv = system.jacobians(x[0], v[0])
-        f0 = system.flow(x[0], v[0])
-        g0 = system.observe(x[0], v[0])
         v_pad = np.zeros((p + 1, r))
         v_pad[: min(p, d) + 1] = v[: min(p, d) + 1]
-        g_t = x @ gx.T + v_pad @ gv.T
-        g_t[0] = g0
-        f_t = x @ fx.T + v_pad @ fv.T
-        f_t[0] = f0
+        if self.motion == "path":
+            f_t, g_t, Fx, Fv, Gx, Gv = self._path_predictions(x, v_pad)
+        else:
+            fx, fv, gx, gv = system.jacobians(x[0], v[0])
+            g_t = x @ gx.T + v_pad @ gv.T
+            g_t[0] = system.observe(x[0], v[0])
+            f_t = x @ fx.T + v_pad @ fv.T
+            f_t[0] = system.flow(x[0], v[0])
+            Fx, Gx = np.kron(mats["eye_p"], fx), np.kron(mats["eye_p"], gx)
+            Fv, Gv = np.kron(mats["eye_pd"], fv), np.kron(mats["eye_pd"], gv)
         x_next = np.vstack([x[1:], np.zeros((1, n))])
         e_y = y_tilde - g_t.ravel()
         e_x = (x_next - f_t).ravel()
-        Eyx = -np.kron(mats["eye_p"], gx)
-        Exx = mats["Dx"] - np.kron(mats["eye_p"], fx)
+        Eyx = -Gx
+        Exx = mats["Dx"] - Fx
         if self._estimates_inputs:
             e_v = (v.ravel() - u_tilde)
-            Eyv = -np.kron(mats["eye_pd"], gv)
-            Exv = -np.kron(mats["eye_pd"], fv)
+            Eyv = -Gv
+            Exv = -Fv
             n_v = r * (d + 1)
             E = np.block([[Eyx, Eyv], [Exx, Exv], [np.zeros((n_v, Exx.shape[1])), np.eye(n_v)]])
             e = np.concatenate([e_y, e_x, e_v])
@@ -453,6 +468,34 @@ class NonlinearDEM:
             e = np.concatenate([e_y, e_x])
             Pi = (mats["Vy"], mats["W"])
         return e, E, Pi
+
+    def _path_predictions(self, x, v_pad):
+        """f~, g~ as the derivatives of f and g along the path x(tau) = sum_i x^(i) tau^i / i!
+        (central differences over p + 1 points tau_j spaced dt), with their Jacobians."""
+        mats = self._matrices
+        system = self.system
+        n, r, m = system.n_states, system.n_inputs, system.n_outputs
+        p, d = self.embedding_order, self.input_order
+        T, E = mats["path_taylor"], mats["path_weights"]
+        xs, vs = T @ x, T @ v_pad
+        F = np.empty((p + 1, n))
+        G = np.empty((p + 1, m))
+        jac = [system.jacobians(xs[j], vs[j]) for j in range(p + 1)]
+        for j in range(p + 1):
+            F[j] = system.flow(xs[j], vs[j])
+            G[j] = system.observe(xs[j], vs[j])
+        fx, fv, gx, gv = (np.stack([jj[i] for jj in jac]) for i in range(4))
+        weights = E[:, :, None] * T[None, :, :]  # (k, j, i): E_kj T_ji
+        def blocks(J, columns):
+            full = np.einsum("kji,jab->kaib", weights[:, :, :columns], J)
+            return full.reshape((p + 1) * J.shape[1], columns * J.shape[2])
+        n_v = min(p, d) + 1
+        Fv = np.zeros(((p + 1) * n, (d + 1) * r))
+        Gv = np.zeros(((p + 1) * m, (d + 1) * r))
+        if r:
+            Fv[:, : n_v * r] = blocks(fv, n_v)
+            Gv[:, : n_v * r] = blocks(gv, n_v)
+        return E @ F, E @ G, blocks(fx, p + 1), Fv, blocks(gx, p + 1), Gv
 
     def _gradient_curvature(self, X, y_tilde, u_tilde):
         e, E, Pi = self.errors(X, y_tilde, u_tilde)

@@ -43,6 +43,7 @@ __all__ = [
     "extended_kalman",
     "unscented_kalman",
     "particle_smoother",
+    "coloured_unscented_smoother",
     "ParticleEstimate",
 ]
 
@@ -252,31 +253,112 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
     """
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
                    measurement_covariance, initial_mean, initial_covariance, substeps)
-    N, d = model.y.shape[0], model.size
+    means, covs, ll = _unscented(model.transition, model.observation, model.y, model.m0, model.P0, model.Qz,
+                                 model.R, smooth, (alpha, beta, kappa), "unscented_kalman")
+    return model.result(means, covs, ll)
+
+
+def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name):
+    """Unscented filter (+ RTS smoother) for z[k] = transition(z[k-1], k) + q, y[k] = observation(z[k], k) + r."""
+    N, d = y.shape[0], m0.shape[0]
     mf, Pf = np.empty((N, d)), np.empty((N, d, d))
     mp, Pp = np.empty((N, d)), np.empty((N, d, d))
     cross = np.empty((max(N - 1, 0), d, d))
-    mean, cov, ll = model.m0.copy(), model.P0.copy(), 0.0
+    mean, cov, ll = m0.copy(), P0.copy(), 0.0
     for k in range(N):
         if k > 0:
-            points, wm, wc = _sigma_points(mean, cov, alpha, beta, kappa)
-            moved = np.array([model.transition(point, k) for point in points])
+            points, wm, wc = _sigma_points(mean, cov, *spread)
+            moved = np.array([transition(point, k) for point in points])
             new_mean = wm @ moved
             cross[k - 1] = ((points - mean).T * wc) @ (moved - new_mean)
-            cov = ((moved - new_mean).T * wc) @ (moved - new_mean) + model.Qz
+            cov = ((moved - new_mean).T * wc) @ (moved - new_mean) + Qz
             mean = new_mean
         mp[k], Pp[k] = mean, 0.5 * (cov + cov.T)
-        points, wm, wc = _sigma_points(mean, cov, alpha, beta, kappa)
-        observed = np.array([model.observation(point, k) for point in points])
+        points, wm, wc = _sigma_points(mean, cov, *spread)
+        observed = np.array([observation(point, k) for point in points])
         predicted = wm @ observed
-        S = ((observed - predicted).T * wc) @ (observed - predicted) + model.R
+        S = ((observed - predicted).T * wc) @ (observed - predicted) + R
         C = ((points - mean).T * wc) @ (observed - predicted)
-        mean, cov, step_ll = _update(mean, cov, model.y[k], predicted, C, S)
+        mean, cov, step_ll = _update(mean, cov, y[k], predicted, C, S)
         ll += step_ll
         mf[k], Pf[k] = mean, cov
-    _check(mf, "unscented_kalman")
+    _check(mf, name)
     means, covs = _rts(mf, Pf, mp, Pp, cross) if smooth else (mf, Pf)
-    return model.result(means, covs, ll)
+    return means, covs, ll
+
+
+def coloured_unscented_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, *, kernel_width: float,
+                                process_std, measurement_std, input_prior_std=None, input_prior_mean=None,
+                                initial_mean=None, initial_std=None, ar_order: int = 3, substeps: int = 4,
+                                smooth: bool = True) -> KalmanEstimate:
+    """Unscented RTS smoother on the state augmented with AR(ar_order) models of the coloured
+    noises (the same finite noise model as :func:`particle_smoother`): a Gaussian approximation of
+    the posterior under the coloured-noise model, the strong reference beside the particle one.
+
+    State [x; w~ (q values per state, newest first); v~ (unknown inputs); z~]: x[k] integrates
+    f(x, v[k-1]) + sigma_w w~[k-1] over dt; each AR block advances by its Yule-Walker
+    coefficients plus an innovation; y[k] = g(x[k], v[k]) + sigma_z z~[k] (+ white noise of
+    variance 1e-6 sigma_z^2 for numerical stability). Arguments as :func:`particle_smoother`.
+    """
+    if not isinstance(system, NonlinearSystem):
+        raise AttendInputError("system: expected an attend NonlinearSystem")
+    dt = positive_scalar(dt, "dt", "s")
+    s = positive_scalar(kernel_width, "kernel_width", "s")
+    n, r, m = system.n_states, system.n_inputs, system.n_outputs
+    y = as_matrix(outputs, "outputs", cols=m if np.ndim(outputs) == 2 else 1)
+    N = y.shape[0]
+    unknown = inputs is None and r > 0 and input_prior_std is not None
+    u_known = np.zeros((N, r)) if inputs is None else np.asarray(inputs, dtype=float).reshape(N, r)
+    q = max(int(ar_order), 1)
+    rho = autocorrelation(np.arange(q + 1) * dt, s)
+    a, innovation = _yule_walker(rho, q)
+    sw = np.broadcast_to(np.asarray(process_std, dtype=float), (n,)).copy()
+    sz = np.broadcast_to(np.asarray(measurement_std, dtype=float), (m,)).copy()
+    rv = r if unknown else 0
+    sv = np.broadcast_to(np.asarray(input_prior_std if unknown else 0.0, dtype=float), (r,))[:rv].copy()
+    eta = np.zeros((N, r)) if input_prior_mean is None else np.broadcast_to(
+        np.asarray(input_prior_mean, dtype=float), (N, r)).copy()
+    channels = n + rv + m
+    size = n + q * channels
+    m0 = np.zeros(size)
+    P0 = np.zeros((size, size))
+    m0[:n] = 0.0 if initial_mean is None else np.asarray(initial_mean, dtype=float).reshape(n)
+    P0[:n, :n] = np.diag(np.broadcast_to(np.asarray(0.0 if initial_std is None else initial_std, dtype=float), (n,)) ** 2)
+    stationary = np.array([[rho[abs(i - j)] for j in range(q)] for i in range(q)])
+    # AR block layout: index n + lag * channels + channel (lag 0 = newest)
+    block = np.kron(stationary, np.eye(channels))
+    P0[n:, n:] = block
+    Qz = np.zeros((size, size))
+    Qz[n: n + channels, n: n + channels] = innovation * np.eye(channels)
+
+    def noise(z):
+        return z[n: n + channels]
+
+    def transition(z, k):
+        x = z[:n]
+        newest = noise(z)
+        w = sw * newest[:n]
+        v = eta[k - 1] + sv * newest[n: n + rv] if unknown else u_known[k - 1]
+        x_new = _rk4(system, x, v, dt, substeps, w=w)
+        history = z[n:].reshape(q, channels)
+        advanced = a @ history
+        return np.concatenate([x_new, advanced, history[:-1].ravel()])
+
+    def observation(z, k):
+        newest = noise(z)
+        v = eta[k] + sv * newest[n: n + rv] if unknown else u_known[k]
+        return system.observe(z[:n], v) + sz * newest[n + rv:]
+
+    R = np.diag(1e-6 * sz**2)
+    means, covs, ll = _unscented(transition, observation, y, m0, P0, Qz, R, smooth, (1.0, 2.0, 0.0),
+                                 "coloured_unscented_smoother")
+    std = np.sqrt(np.clip(np.diagonal(covs, axis1=1, axis2=2), 0, None))
+    if unknown:
+        inputs_out = eta + sv * means[:, n + n: n + n + rv]
+        input_std = sv * std[:, n + n: n + n + rv]
+    else:
+        inputs_out, input_std = u_known, np.zeros((N, r))
+    return KalmanEstimate(np.arange(N) * dt, means[:, :n], inputs_out, std[:, :n], input_std, covs[:, :n, :n], float(ll))
 
 
 def _check(means, name):

@@ -40,6 +40,7 @@ def compare(name: str, system: NonlinearSystem, cfg: dict, inputs_of_time, progr
                   initial_covariance=np.asarray(cfg["initial_std"], float) ** 2)
     if unknown:
         kalman["input_variance"] = cfg["input_random_walk_variance"]
+    methods = tuple(cfg.get("methods", METHODS))
     state_sse = {m: np.zeros(cfg["seeds"]) for m in METHODS}
     input_sse = {m: np.zeros(cfg["seeds"]) for m in METHODS}
     runtime = {m: 0.0 for m in METHODS}
@@ -54,19 +55,23 @@ def compare(name: str, system: NonlinearSystem, cfg: dict, inputs_of_time, progr
         runtime["DEM"] += clock.perf_counter() - start
         for method, function, smooth in (("EKF", extended_kalman, True), ("UKF", unscented_kalman, True),
                                          ("UKF filter", unscented_kalman, False)):
+            if method not in methods:
+                continue
             start = clock.perf_counter()
             estimates[method] = function(system, dt, log.outputs, smooth=smooth, **kalman)
             runtime[method] += clock.perf_counter() - start
         coloured = dict(kernel_width=s, process_std=sw, measurement_std=sz,
                         input_prior_std=np.exp(-cfg["input_prior_log_precision"] / 2) if unknown else None,
                         initial_mean=cfg["initial_state"], initial_std=cfg["initial_std"], ar_order=cfg["ar_order"])
-        start = clock.perf_counter()
-        estimates["coloured UKS"] = coloured_unscented_smoother(system, dt, log.outputs, **coloured)
-        runtime["coloured UKS"] += clock.perf_counter() - start
-        start = clock.perf_counter()
-        estimates["particle"] = particle_smoother(system, dt, log.outputs, n_particles=cfg["particles"],
-                                                  lag=cfg["particle_lag"], seed=seed, **coloured)
-        runtime["particle"] += clock.perf_counter() - start
+        if "coloured UKS" in methods:
+            start = clock.perf_counter()
+            estimates["coloured UKS"] = coloured_unscented_smoother(system, dt, log.outputs, **coloured)
+            runtime["coloured UKS"] += clock.perf_counter() - start
+        if "particle" in methods:
+            start = clock.perf_counter()
+            estimates["particle"] = particle_smoother(system, dt, log.outputs, n_particles=cfg["particles"],
+                                                      lag=cfg["particle_lag"], seed=seed, **coloured)
+            runtime["particle"] += clock.perf_counter() - start
         for method, estimate in estimates.items():
             state_sse[method][seed] = np.sum((estimate.states - log.states)[trim] ** 2)
             if unknown:
@@ -78,23 +83,24 @@ def compare(name: str, system: NonlinearSystem, cfg: dict, inputs_of_time, progr
                            **{f"{m}_states": e.states for m, e in estimates.items()},
                            **({f"{m}_inputs": e.inputs for m, e in estimates.items()} if unknown else {}))
     result = ExperimentResult(name, settings=cfg)
-    for method in METHODS:
+    for method in methods:
         result.add(f"{method} state SSE (median)", np.median(state_sse[method]), "state unit^2")
     if unknown:
-        for method in METHODS:
+        for method in methods:
             label = method if method in ("DEM", "particle", "coloured UKS") else f"augmented {method}"
             result.add(f"{label} input SSE (median)", np.median(input_sse[method]), "input unit^2")
-    result.add("DEM / particle state SSE (median ratio)", np.median(state_sse["DEM"] / state_sse["particle"]), "1")
-    for other in ("coloured UKS", "UKF", "UKF filter"):
-        result.add(f"DEM / {other} state SSE (median ratio)", np.median(state_sse["DEM"] / state_sse[other]), "1")
-    if unknown:
+    for other in ("particle", "coloured UKS", "UKF", "UKF filter"):
+        if other in methods:
+            result.add(f"DEM / {other} state SSE (median ratio)", np.median(state_sse["DEM"] / state_sse[other]), "1")
+    if unknown and "UKF" in methods:
         result.add("DEM / augmented UKF input SSE (median ratio)",
                    np.median(input_sse["DEM"] / input_sse["UKF"]), "1")
     result.add("DEM |error| < 2 std (fraction of samples)", np.mean(coverage), "1")
     total = cfg["seeds"] * n_samples
-    for method in METHODS:
+    for method in methods:
         result.add(f"{method} speed", total / max(runtime[method], 1e-9), "samples/s")
-    result.data = dict(state_sse=state_sse, input_sse=input_sse, example=example)
+    result.data = dict(state_sse={m: state_sse[m] for m in methods}, input_sse={m: input_sse[m] for m in methods},
+                       example=example)
     result.notes.append("EKF/UKF assume white noise with the per-sample variance of the coloured noise (smoothers "
                         "unless 'filter'); the coloured UKS and the particle smoother model the coloured noise by "
                         "AR(%d) processes." % cfg["ar_order"])
@@ -119,9 +125,12 @@ def plot(result: ExperimentResult, out_dir, state_labels, input_label=None) -> l
         ax = axes[i]
         ax.plot(time, example["states"][:, i], "k", lw=2, label="true")
         ax.plot(time, example["DEM_states"][:, i], "C0", label="DEM")
-        ax.plot(time, example["UKF_states"][:, i], "C1", lw=0.8, label="UKF smoother")
-        ax.plot(time, example["coloured UKS_states"][:, i], "C3:", lw=0.8, label="coloured UKS")
-        ax.plot(time, example["particle_states"][:, i], "C2--", lw=0.8, label="particle")
+        if "UKF_states" in example:
+            ax.plot(time, example["UKF_states"][:, i], "C1", lw=0.8, label="UKF smoother")
+        if "coloured UKS_states" in example:
+            ax.plot(time, example["coloured UKS_states"][:, i], "C3:", lw=0.8, label="coloured UKS")
+        if "particle_states" in example:
+            ax.plot(time, example["particle_states"][:, i], "C2--", lw=0.8, label="particle")
         ax.set_xlabel("time [s]")
         ax.set_ylabel(state_labels[i])
     axes[0].legend(fontsize=7)
@@ -129,14 +138,17 @@ def plot(result: ExperimentResult, out_dir, state_labels, input_label=None) -> l
         ax = axes[n]
         ax.plot(time, example["inputs"][:, 0], "k", lw=2, label="true")
         ax.plot(time, example["DEM_inputs"][:, 0], "C0", label="DEM")
-        ax.plot(time, example["UKF_inputs"][:, 0], "C1", lw=0.8, label="augmented UKF")
-        ax.plot(time, example["coloured UKS_inputs"][:, 0], "C3:", lw=0.8, label="coloured UKS")
-        ax.plot(time, example["particle_inputs"][:, 0], "C2--", lw=0.8, label="particle")
+        if "UKF_inputs" in example:
+            ax.plot(time, example["UKF_inputs"][:, 0], "C1", lw=0.8, label="augmented UKF")
+        if "coloured UKS_inputs" in example:
+            ax.plot(time, example["coloured UKS_inputs"][:, 0], "C3:", lw=0.8, label="coloured UKS")
+        if "particle_inputs" in example:
+            ax.plot(time, example["particle_inputs"][:, 0], "C2--", lw=0.8, label="particle")
         ax.set_xlabel("time [s]")
         ax.set_ylabel(input_label)
         ax.legend(fontsize=7)
     ax = axes[-1]
-    names = list(METHODS)
+    names = list(data["state_sse"])
     ax.boxplot([data["state_sse"][m] for m in names])
     ax.set_xticks(range(1, len(names) + 1), [name.replace(" ", "\n") for name in names], fontsize=7)
     ax.set_yscale("log")

@@ -174,11 +174,15 @@ def test_pendulum_input_is_estimated_and_calibrated():
     system = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2)
     time = np.arange(400) * 0.05
     u = (4 * np.exp(-0.5 * ((time - 5) / 0.7) ** 2) - 3 * np.exp(-0.5 * ((time - 12) / 1.0) ** 2))[:, None]
-    log = simulate_nonlinear(system, u, 0.05, kernel_width=0.1, process_std=0.5, measurement_std=0.05,
+    log = simulate_nonlinear(system, u, 0.05, kernel_width=0.1, process_std=[0.05, 0.5], measurement_std=0.05,
                              initial_state=[0.5, 0.0], seed=0)
-    estimate = NonlinearDEM(system, 0.05, 0.1, 400.0, 4.0, np.exp(-2), 6, 2).estimate(log.outputs)
+    estimate = NonlinearDEM(system, 0.05, 0.1, 400.0, [400.0, 4.0], np.exp(-2), 6, 2).estimate(log.outputs)
     trim = slice(7, -7)
-    assert np.sum((estimate.inputs - u)[trim] ** 2) < 0.6 * np.sum(u[trim] ** 2)
+    # the input prior (smoothness of the 0.1 s noise kernel) leaves a rough input estimate: a
+    # weak bound; the bumps themselves are found
+    assert np.sum((estimate.inputs - u)[trim] ** 2) < 0.7 * np.sum(u[trim] ** 2)
+    peak = slice(90, 111)
+    assert np.mean(estimate.inputs[peak]) > 2.0
     inside = np.abs(estimate.states - log.states)[trim] < 2 * estimate.state_std[trim]
     assert 0.9 <= inside.mean() <= 0.99
 
@@ -300,3 +304,14 @@ def test_divergence_stops_with_a_message_naming_the_settings():
                                 1, 0, 1)
     with pytest.raises(AttendInputError, match="diverged"):
         NonlinearDEM(undefined, 0.1, 0.2, 100.0, 1.0, embedding_order=2).estimate(-np.arange(60.0)[:, None] / 5)
+
+
+def test_path_motion_equals_linearized_on_a_linear_model():
+    linear = convolution_model()
+    log = simulate(linear, np.zeros((60, 1)), 0.1, kernel_width=0.5, process_std=0.1, measurement_std=0.1, seed=1)
+    settings = dict(dt=0.1, kernel_width=0.5, sensor_precision=100.0, process_precision=100.0,
+                    input_prior_precision=1.0, embedding_order=4, input_order=2)
+    model = linear_as_nonlinear(linear)
+    a = NonlinearDEM(model, **settings).estimate(log.outputs)
+    b = NonlinearDEM(model, motion="path", **settings).estimate(log.outputs)
+    np.testing.assert_allclose(b.states, a.states, atol=1e-7)

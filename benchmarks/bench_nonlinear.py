@@ -66,9 +66,7 @@ def part2(seeds: int) -> None:
         for ratio_s in (1, 2, 4, 8):
             cfg = dict(module.SETTINGS)
             cfg.update(kernel_width=ratio_s * cfg["dt"], seeds=seeds, methods=("DEM", "UKF", "UKF filter"))
-            system = lorenz.lorenz_system() if module is lorenz else pendulum.pendulum_system()
-            inputs = None if module is lorenz else pendulum.true_input
-            result = _nonlinear.compare(module.__name__.rsplit(".", 1)[-1], system, cfg, inputs, False)
+            result = _nonlinear.compare(module.__name__.rsplit(".", 1)[-1], cfg, False)
             smoother = result.metric("DEM / UKF state SSE (median ratio)").value
             dem, ukf = result.metric("DEM state SSE (median)").value, result.metric("UKF state SSE (median)").value
             filt = result.metric("DEM / UKF filter state SSE (median ratio)").value

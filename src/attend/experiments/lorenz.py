@@ -43,13 +43,22 @@ def lorenz_system(sigma: float = 10.0, rho: float = 28.0, beta: float = 8.0 / 3.
                            jacobian_g=lambda x, v: (np.eye(3), np.zeros((3, 0))))
 
 
+def build_system(cfg: dict) -> NonlinearSystem:
+    """The Lorenz system of a settings dict (sigma, rho, beta)."""
+    return lorenz_system(cfg["sigma"], cfg["rho"], cfg["beta"])
+
+
+def true_input(time: np.ndarray) -> np.ndarray:
+    """No inputs: an autonomous system ((N, 0) array)."""
+    return np.zeros((len(time), 0))
+
+
 def run(quick: bool = True, out_dir=None, progress: bool = True, seeds: int | None = None) -> ExperimentResult:
     """State SSE of DEM, EKF, UKF and the particle smoother over seeds (quick: 3 seeds, 2 s)."""
     cfg = dict(SETTINGS, seeds=seeds or (3 if quick else 20))
     if quick:
         cfg.update(duration=2.0, particles=1000)
-    system = lorenz_system(cfg["sigma"], cfg["rho"], cfg["beta"])
-    result = _nonlinear.compare("lorenz", system, cfg, None, progress)
+    result = _nonlinear.compare("lorenz", cfg, progress)
     if out_dir is not None:
         result.figures.extend(plot(result, out_dir))
     return result

@@ -51,13 +51,17 @@ def true_input(time: np.ndarray) -> np.ndarray:
     return (4.0 * np.exp(-0.5 * ((time - 5.0) / 0.7) ** 2) - 3.0 * np.exp(-0.5 * ((time - 12.0) / 1.0) ** 2))[:, None]
 
 
+def build_system(cfg: dict) -> NonlinearSystem:
+    """The pendulum of a settings dict (gravity_over_length, damping)."""
+    return pendulum_system(cfg["gravity_over_length"], cfg["damping"])
+
+
 def run(quick: bool = True, out_dir=None, progress: bool = True, seeds: int | None = None) -> ExperimentResult:
     """State and input SSE of DEM, augmented EKF/UKF and the particle smoother (quick: 3 seeds, 15 s)."""
     cfg = dict(SETTINGS, seeds=seeds or (3 if quick else 20))
     if quick:
         cfg.update(duration=15.0, particles=1000)
-    system = pendulum_system(cfg["gravity_over_length"], cfg["damping"])
-    result = _nonlinear.compare("pendulum", system, cfg, true_input, progress)
+    result = _nonlinear.compare("pendulum", cfg, progress)
     if out_dir is not None:
         result.figures.extend(plot(result, out_dir))
     return result

@@ -4,9 +4,10 @@
 
 Part 1 (the reproductions' settings, s/dt = 2, ``--seeds`` seeds each): state SSE of DEM over the
 particle smoother (target: median ratio <= 1.2), over the UKF smoother (target: DEM <= UKF median
-where s/dt >= 2), beside the coloured-noise UKS and the UKF filter; input SSE beside the
+where s/dt >= 2), beside the coloured-noise UKS, the UKF filter and the fixed-lag UKF with DEM's
+delay (the same data window as DEM); input SSE beside the
 augmented UKF (pendulum); samples/s of each method.
-Part 2 (``--sweep-seeds`` seeds): DEM / UKF smoother and DEM / UKF filter state SSE as s/dt
+Part 2 (``--sweep-seeds`` seeds): DEM / UKF smoother, filter and fixed-lag state SSE as s/dt
 varies (1, 2, 4, 8), the noise levels fixed.
 Not part of the test run. One BLAS thread (set before numpy is imported).
 """
@@ -48,11 +49,12 @@ def part1(seeds: int) -> None:
         dem, ukf = value("DEM state SSE (median)"), value("UKF state SSE (median)")
         print(f"  DEM / UKF smoother state SSE median ratio {ratio:6.3f}   target DEM median <= UKF median "
               f"({dem:.3f} vs {ukf:.3f})  {_verdict(dem <= ukf)}")
-        for other in ("coloured UKS", "UKF filter"):
+        for other in ("coloured UKS", "UKF filter", "UKF lag"):
             print(f"  DEM / {other:12s} state SSE median ratio {value(f'DEM / {other} state SSE (median ratio)'):6.3f}"
                   "   (no target)")
         if module is pendulum:
-            for method in ("DEM", "augmented UKF", "augmented UKF filter", "coloured UKS", "particle"):
+            for method in ("DEM", "augmented UKF", "augmented UKF filter", "augmented UKF lag", "coloured UKS",
+                           "particle"):
                 print(f"  input SSE median {method:22s} {value(f'{method} input SSE (median)'):10.3f}")
             print(f"  DEM / augmented UKF input SSE median ratio "
                   f"{value('DEM / augmented UKF input SSE (median ratio)'):6.3f}   (no target)")
@@ -61,18 +63,19 @@ def part1(seeds: int) -> None:
 
 
 def part2(seeds: int) -> None:
-    print(f"\n== s/dt sweep ({seeds} seeds; DEM, UKF smoother, UKF filter)")
+    print(f"\n== s/dt sweep ({seeds} seeds; DEM, UKF smoother, UKF filter, UKF fixed-lag with DEM's delay)")
     for module in (lorenz, pendulum):
         for ratio_s in (1, 2, 4, 8):
             cfg = dict(module.SETTINGS)
-            cfg.update(kernel_width=ratio_s * cfg["dt"], seeds=seeds, methods=("DEM", "UKF", "UKF filter"))
+            cfg.update(kernel_width=ratio_s * cfg["dt"], seeds=seeds, methods=("DEM", "UKF", "UKF filter", "UKF lag"))
             result = _nonlinear.compare(module.__name__.rsplit(".", 1)[-1], cfg, False)
             smoother = result.metric("DEM / UKF state SSE (median ratio)").value
             dem, ukf = result.metric("DEM state SSE (median)").value, result.metric("UKF state SSE (median)").value
             filt = result.metric("DEM / UKF filter state SSE (median ratio)").value
+            lag = result.metric("DEM / UKF lag state SSE (median ratio)").value
             target = "" if ratio_s < 2 else f"  target DEM <= UKF: {_verdict(dem <= ukf)}"
             print(f"  {result.experiment:8s} s/dt = {ratio_s}: DEM/UKF smoother {smoother:6.3f}  "
-                  f"DEM/UKF filter {filt:6.3f}{target}")
+                  f"DEM/UKF filter {filt:6.3f}  DEM/UKF lag {lag:6.3f}{target}")
 
 
 def main() -> None:

@@ -315,3 +315,12 @@ def test_path_motion_equals_linearized_on_a_linear_model():
     a = NonlinearDEM(model, **settings).estimate(log.outputs)
     b = NonlinearDEM(model, motion="path", **settings).estimate(log.outputs)
     np.testing.assert_allclose(b.states, a.states, atol=1e-7)
+
+
+def test_fixed_lag_ukf_equals_kalman_fixed_lag_on_a_linear_model():
+    linear, dt, u, log, Q, R = _linear_log()
+    kf = kalman_filter(linear, dt, log.outputs, u, process_covariance=Q, measurement_covariance=R,
+                       initial_covariance=1e-2, lag=3)
+    ours = unscented_kalman(linear_as_nonlinear(linear), dt, log.outputs, u, process_covariance=Q,
+                            measurement_covariance=R, initial_covariance=1e-2, smooth=3)
+    np.testing.assert_allclose(ours.states, kf.states, atol=1e-8)

@@ -21,7 +21,7 @@ from attend.perception.nonlinear_baselines import (
     white_noise_covariances,
 )
 
-METHODS = ("DEM", "EKF", "UKF", "UKF filter", "coloured UKS", "particle")
+METHODS = ("DEM", "EKF", "UKF", "UKF filter", "UKF lag", "coloured UKS", "particle")
 
 
 def _setup(name: str, cfg: dict):
@@ -59,7 +59,7 @@ def _one_seed(name: str, cfg: dict, seed: int) -> dict:
     estimates["DEM"] = dem.estimate(log.outputs)
     runtime["DEM"] = clock.perf_counter() - start
     for method, function, smooth in (("EKF", extended_kalman, True), ("UKF", unscented_kalman, True),
-                                     ("UKF filter", unscented_kalman, False)):
+                                     ("UKF filter", unscented_kalman, False), ("UKF lag", unscented_kalman, dem.delay)):
         if method in methods:
             start = clock.perf_counter()
             estimates[method] = function(system, dt, log.outputs, smooth=smooth, **kalman)
@@ -133,7 +133,7 @@ def compare(name: str, cfg: dict, progress: bool) -> ExperimentResult:
         for method in methods:
             label = method if method in ("DEM", "particle", "coloured UKS") else f"augmented {method}"
             result.add(f"{label} input SSE (median)", np.median(input_sse[method]), "input unit^2")
-    for other in ("particle", "coloured UKS", "UKF", "UKF filter"):
+    for other in ("particle", "coloured UKS", "UKF", "UKF filter", "UKF lag"):
         if other in methods:
             result.add(f"DEM / {other} state SSE (median ratio)", np.median(state_sse["DEM"] / state_sse[other]), "1")
     if unknown and "UKF" in methods:
@@ -146,7 +146,7 @@ def compare(name: str, cfg: dict, progress: bool) -> ExperimentResult:
     result.data = dict(state_sse={m: state_sse[m] for m in methods}, input_sse={m: input_sse[m] for m in methods},
                        example=example)
     result.notes.append("EKF/UKF assume white noise with the per-sample variance of the coloured noise (smoothers "
-                        "unless 'filter'); the coloured UKS and the particle smoother model the coloured noise by "
+                        "unless 'filter'; 'lag': fixed-lag smoother with DEM's delay); the coloured UKS and the particle smoother model the coloured noise by "
                         "AR(%d) processes." % cfg["ar_order"])
     return result
 

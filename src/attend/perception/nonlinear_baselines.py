@@ -179,6 +179,28 @@ def _update(mean, cov, y, predicted, H_cov_cross, S):
     return mean, 0.5 * (cov + cov.T), ll
 
 
+def _smooth(mf, Pf, mp, Pp, cross, smooth):
+    """smooth True: RTS over the whole log; False: the filter; an integer L >= 0: fixed-lag,
+    row k = x[k] | y[0..min(k + L, N - 1)] (an RTS pass of L steps from every sample)."""
+    if smooth is True:
+        return _rts(mf, Pf, mp, Pp, cross)
+    if smooth is False or smooth == 0:
+        return mf, Pf
+    lag = int(smooth)
+    N = mf.shape[0]
+    gains = [np.linalg.lstsq(Pp[k + 1], cross[k].T, rcond=None)[0].T for k in range(N - 1)]
+    ms, Ps = mf.copy(), Pf.copy()
+    for k in range(N):
+        end = min(k + lag, N - 1)
+        mean, cov = mf[end], Pf[end]
+        for j in range(end - 1, k - 1, -1):
+            G = gains[j]
+            mean = mf[j] + G @ (mean - mp[j + 1])
+            cov = Pf[j] + G @ (cov - Pp[j + 1]) @ G.T
+        ms[k], Ps[k] = mean, 0.5 * (cov + cov.T)
+    return ms, Ps
+
+
 def _rts(mf, Pf, mp, Pp, cross):
     """Backward pass with G_k = C_k inv(Pp[k+1]), C_k = Cov(z[k], z[k+1] | y[0..k])."""
     ms, Ps = mf.copy(), Pf.copy()
@@ -192,8 +214,9 @@ def _rts(mf, Pf, mp, Pp, cross):
 
 def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance,
                     measurement_covariance, input_variance=None, input_mean=None, initial_mean=None,
-                    initial_covariance=None, smooth: bool = True, substeps: int = 10) -> KalmanEstimate:
-    """Extended Kalman filter (``smooth=False``) or filter + RTS smoother (module docstring).
+                    initial_covariance=None, smooth: bool | int = True, substeps: int = 10) -> KalmanEstimate:
+    """Extended Kalman filter (``smooth=False``), filter + RTS smoother (``True``) or fixed-lag
+    smoother (``smooth=L`` samples: row k uses y[0..k+L], e.g. the DEM estimator's delay).
 
     system: NonlinearSystem; dt [s]; outputs (N, m); inputs (N, r) measured inputs (None: zero,
     or unknown with ``input_variance``); Q, R: white-noise covariances (scalar, diagonal or
@@ -221,7 +244,7 @@ def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
         ll += step_ll
         mf[k], Pf[k] = mean, cov
     _check(mf, "extended_kalman")
-    means, covs = _rts(mf, Pf, mp, Pp, cross) if smooth else (mf, Pf)
+    means, covs = _smooth(mf, Pf, mp, Pp, cross, smooth)
     return model.result(means, covs, ll)
 
 
@@ -243,9 +266,10 @@ def _sigma_points(mean, cov, alpha, beta, kappa):
 
 def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance,
                      measurement_covariance, input_variance=None, input_mean=None, initial_mean=None,
-                     initial_covariance=None, smooth: bool = True, substeps: int = 10, alpha: float = 1.0,
+                     initial_covariance=None, smooth: bool | int = True, substeps: int = 10, alpha: float = 1.0,
                      beta: float = 2.0, kappa: float = 0.0) -> KalmanEstimate:
-    """Unscented Kalman filter (``smooth=False``) or filter + unscented RTS smoother (Sarkka 2008).
+    """Unscented Kalman filter (``smooth=False``), filter + unscented RTS smoother (``True``,
+    Sarkka 2008) or fixed-lag smoother (``smooth=L`` samples).
 
     Arguments as :func:`extended_kalman`; alpha, beta, kappa: the sigma-point spread
     (lambda = alpha^2 (d + kappa) - d; the defaults put the 2d points at +-sqrt(d) std with equal
@@ -283,7 +307,7 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name):
         ll += step_ll
         mf[k], Pf[k] = mean, cov
     _check(mf, name)
-    means, covs = _rts(mf, Pf, mp, Pp, cross) if smooth else (mf, Pf)
+    means, covs = _smooth(mf, Pf, mp, Pp, cross, smooth)
     return means, covs, ll
 
 

@@ -324,3 +324,14 @@ def test_fixed_lag_ukf_equals_kalman_fixed_lag_on_a_linear_model():
     ours = unscented_kalman(linear_as_nonlinear(linear), dt, log.outputs, u, process_covariance=Q,
                             measurement_covariance=R, initial_covariance=1e-2, smooth=3)
     np.testing.assert_allclose(ours.states, kf.states, atol=1e-8)
+
+
+def test_input_kernel_width_sets_the_input_smoothness():
+    system = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2)
+    same = NonlinearDEM(system, 0.05, 0.1, 400.0, 4.0, 0.1, 6, 2, input_kernel_width=0.1)
+    default = NonlinearDEM(system, 0.05, 0.1, 400.0, 4.0, 0.1, 6, 2)
+    slow = NonlinearDEM(system, 0.05, 0.1, 400.0, 4.0, 0.1, 6, 2, input_kernel_width=0.7)
+    np.testing.assert_allclose(same._matrices["Vv"], default._matrices["Vv"])
+    assert slow._matrices["S_d"][2, 2] > 10 * default._matrices["S_d"][2, 2]
+    with pytest.raises(AttendInputError, match="input_kernel_width"):
+        NonlinearDEM(system, 0.05, 0.1, 400.0, 4.0, 0.1, input_kernel_width=0.0)

@@ -38,7 +38,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from attend._validation import AttendInputError, as_matrix, order, positive_scalar, precision_matrix, require_finite
-from attend.generalized import block_precisions, embedding_weights, shift_operator
+from attend.generalized import block_precisions, embedding_weights, shift_operator, smoothness_precision
 from attend.noise import coloured_noise
 from attend.perception.dem import DEMEstimate
 from attend.systems import Trajectory
@@ -296,6 +296,8 @@ class NonlinearDEM:
     along the Taylor path x(tau) = sum_i x^(i) tau^i / i! (central differences over p + 1 points
     spaced dt), which keeps the curvature terms the linearisation drops (e.g. 2 f_xx x' x' at
     order 2); p + 1 Jacobian evaluations per step. Both are exact for linear f, g.
+    input_kernel_width: the smoothness s_v [s] of the input prior, S_d = S(s_v) (default: kernel_width,
+    one s for all fluctuations as in SPM); a slower s_v suits inputs smoother than the noise.
     substeps: D-steps per sample (SPM's E.nD), each over 1/substeps of the sample with the
     Jacobians recomputed, the data held at the sample's values.
     divergence_limit: an estimate with |x| or |v| above this [state/input units] (or non-finite)
@@ -325,6 +327,7 @@ class NonlinearDEM:
     flow_time: str = "samples"
     substeps: int = 1
     motion: str = "linearized"
+    input_kernel_width: float | None = None
     _matrices: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -352,6 +355,8 @@ class NonlinearDEM:
         if isinstance(self.substeps, bool) or int(self.substeps) != self.substeps or not 1 <= int(self.substeps) <= 64:
             raise AttendInputError(f"substeps: expected an integer in 1..64, got {self.substeps!r}")
         set_(self, "substeps", int(self.substeps))
+        if self.input_kernel_width is not None:
+            set_(self, "input_kernel_width", positive_scalar(self.input_kernel_width, "input_kernel_width", "s"))
         if self.motion not in ("linearized", "path"):
             raise AttendInputError(f"motion: expected 'linearized' or 'path', got {self.motion!r}")
         if self.flow_time not in ("samples", "seconds"):
@@ -387,6 +392,8 @@ class NonlinearDEM:
         n, r = self.system.n_states, self.system.n_inputs
         p, d = self.embedding_order, self.input_order
         S_p, S_d = block_precisions(p, d, self.kernel_width, self.precision_convention)
+        if self.input_kernel_width is not None:
+            S_d = smoothness_precision(d + 1, self.input_kernel_width)
         if r > 0:
             first = -max((p + 1) // 2, (d + 1) // 2)
             last = max(self._after(p + 1), self._after(d + 1))

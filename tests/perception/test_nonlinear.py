@@ -272,6 +272,9 @@ def test_bad_models_and_settings_raise():
     broken = NonlinearSystem(lambda x, v: x[5], pendulum_sensor, 2, 1, 2)
     with pytest.raises(AttendInputError, match="f: raised IndexError"):
         broken.flow([0.0, 0.0], [0.0])
+    bad_jacobian = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2, jacobian_f=lambda x, v: np.eye(2))
+    with pytest.raises(AttendInputError, match="jacobian_f: expected the pair"):
+        bad_jacobian.jacobians([0.0, 0.0], [0.0])
     system = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2)
     with pytest.raises(AttendInputError, match="input_prior_precision"):
         NonlinearDEM(system, 0.05, 0.1, 1.0, 1.0)

@@ -183,9 +183,13 @@ class NonlinearSystem:
         out = []
         for which, analytic, size in (("f", self.jacobian_f, n), ("g", self.jacobian_g, m)):
             if analytic is not None:
-                dx, dv = self._call(analytic, x, v)
-                dx = np.asarray(dx, dtype=float).reshape(size, n)
-                dv = np.asarray(dv, dtype=float).reshape(size, r)
+                try:
+                    dx, dv = self._call(analytic, x, v)
+                    dx = np.asarray(dx, dtype=float).reshape(size, n)
+                    dv = np.asarray(dv, dtype=float).reshape(size, r)
+                except (TypeError, ValueError) as error:
+                    raise AttendInputError(f"jacobian_{which}: expected the pair (d{which}/dx ({size}, {n}), "
+                                           f"d{which}/dv ({size}, {r})) ({error})") from None
             else:
                 function = self.f if which == "f" else self.g
                 if self.vectorized or self.jacobian_method == "complex":

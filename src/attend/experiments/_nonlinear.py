@@ -1,0 +1,206 @@
+"""Shared runner of the nonlinear reproductions (lorenz, pendulum): one simulated log per seed,
+DEM and the baselines on it, SSE per method, a figure of seed 0 and the SSE spread."""
+
+from __future__ import annotations
+
+import importlib
+import os
+import time as clock
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from attend.experiments._result import ExperimentResult
+from attend.perception.nonlinear import NonlinearDEM, simulate_nonlinear
+from attend.perception.nonlinear_baselines import (
+    coloured_unscented_smoother,
+    extended_kalman,
+    particle_smoother,
+    unscented_kalman,
+    white_noise_covariances,
+)
+
+METHODS = ("DEM", "EKF", "UKF", "UKF filter", "UKF lag", "coloured UKS", "particle")
+
+
+def _setup(name: str, cfg: dict):
+    """The system, the input series (or sample count) and the estimators' settings of ``name``."""
+    module = importlib.import_module(f"attend.experiments.{name}")
+    system = module.build_system(cfg)
+    dt = cfg["dt"]
+    n_samples = int(round(cfg["duration"] / dt))
+    time = np.arange(n_samples) * dt
+    u = module.true_input(time) if system.n_inputs else n_samples
+    return system, u, time, n_samples
+
+
+def _one_seed(name: str, cfg: dict, seed: int) -> dict:
+    """Simulate seed ``seed`` and run every method: SSEs, runtimes, DEM coverage (and the log of
+    seed 0 with all estimates, for the figure)."""
+    system, u, time, n_samples = _setup(name, cfg)
+    dt, s = cfg["dt"], cfg["kernel_width"]
+    sw, sz = np.asarray(cfg["process_std"], float), np.asarray(cfg["measurement_std"], float)
+    unknown = system.n_inputs > 0
+    p = cfg["embedding_order"]
+    trim = slice(p + 1, n_samples - p - 1)
+    methods = tuple(cfg.get("methods", METHODS))
+    dem = NonlinearDEM(system, dt, s, 1.0 / sz**2, 1.0 / sw**2,
+                       np.exp(cfg["input_prior_log_precision"]) if unknown else None, p, cfg["input_order"])
+    Q, R = white_noise_covariances(system, dt, s, sw, sz)
+    kalman = dict(process_covariance=Q, measurement_covariance=R, initial_mean=cfg["initial_state"],
+                  initial_covariance=np.asarray(cfg["initial_std"], float) ** 2)
+    if unknown:
+        kalman["input_variance"] = cfg["input_random_walk_variance"]
+    log = simulate_nonlinear(system, u, dt, kernel_width=s, process_std=sw, measurement_std=sz,
+                             initial_state=cfg["initial_state"], seed=seed)
+    estimates, runtime = {}, {}
+    start = clock.perf_counter()
+    estimates["DEM"] = dem.estimate(log.outputs)
+    runtime["DEM"] = clock.perf_counter() - start
+    for method, function, smooth in (("EKF", extended_kalman, True), ("UKF", unscented_kalman, True),
+                                     ("UKF filter", unscented_kalman, False), ("UKF lag", unscented_kalman, dem.delay)):
+        if method in methods:
+            start = clock.perf_counter()
+            estimates[method] = function(system, dt, log.outputs, smooth=smooth, **kalman)
+            runtime[method] = clock.perf_counter() - start
+    coloured = dict(kernel_width=s, process_std=sw, measurement_std=sz,
+                    input_prior_std=np.exp(-cfg["input_prior_log_precision"] / 2) if unknown else None,
+                    initial_mean=cfg["initial_state"], initial_std=cfg["initial_std"], ar_order=cfg["ar_order"])
+    if "coloured UKS" in methods:
+        start = clock.perf_counter()
+        estimates["coloured UKS"] = coloured_unscented_smoother(system, dt, log.outputs, **coloured)
+        runtime["coloured UKS"] = clock.perf_counter() - start
+    if "particle" in methods:
+        start = clock.perf_counter()
+        estimates["particle"] = particle_smoother(system, dt, log.outputs, n_particles=cfg["particles"],
+                                                  lag=cfg["particle_lag"], seed=seed, **coloured)
+        runtime["particle"] = clock.perf_counter() - start
+    out = dict(runtime=runtime, state_sse={}, input_sse={})
+    for method, estimate in estimates.items():
+        out["state_sse"][method] = np.sum((estimate.states - log.states)[trim] ** 2)
+        out["input_sse"][method] = np.sum((estimate.inputs - log.inputs)[trim] ** 2) if unknown else 0.0
+    error = (estimates["DEM"].states - log.states)[trim]
+    out["coverage"] = np.mean(np.abs(error) < 2 * estimates["DEM"].state_std[trim])
+    if seed == 0:
+        out["example"] = dict(time=time, states=log.states, outputs=log.outputs, inputs=log.inputs,
+                              **{f"{m}_states": e.states for m, e in estimates.items()},
+                              **({f"{m}_inputs": e.inputs for m, e in estimates.items()} if unknown else {}))
+    return out
+
+
+def compare(name: str, cfg: dict, progress: bool) -> ExperimentResult:
+    """Run DEM, EKF/UKF (input-augmented when the inputs are unknown), the coloured UKS and the
+    particle smoother on ``cfg['seeds']`` simulated logs of experiment ``name`` (a module with
+    build_system(cfg) and true_input(time)); SSE over samples p + 2 .. N - p - 2 (1-based).
+
+    The small matrices of these estimators run many times slower with a multi-threaded BLAS: unless
+    OPENBLAS_NUM_THREADS=1 is already set, the seeds run in one spawned worker process with one
+    BLAS thread (the variable must be set before numpy is imported).
+    """
+    seeds = range(cfg["seeds"])
+    if os.environ.get("OPENBLAS_NUM_THREADS") == "1":
+        outs = [_one_seed(name, cfg, seed) for seed in tqdm(seeds, desc=f"{name} seeds", disable=not progress)]
+    else:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        keys = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+        saved = {key: os.environ.get(key) for key in keys}
+        os.environ.update({key: "1" for key in keys})
+        try:
+            with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as pool:
+                jobs = pool.map(_one_seed, [name] * len(seeds), [cfg] * len(seeds), seeds)
+                outs = list(tqdm(jobs, total=len(seeds), desc=f"{name} seeds", disable=not progress))
+        finally:
+            for key, value in saved.items():
+                if value is None:
+                    os.environ.pop(key, None)
+                else:
+                    os.environ[key] = value
+    methods = tuple(cfg.get("methods", METHODS))
+    state_sse = {m: np.array([o["state_sse"][m] for o in outs]) for m in methods}
+    input_sse = {m: np.array([o["input_sse"][m] for o in outs]) for m in methods}
+    runtime = {m: sum(o["runtime"][m] for o in outs) for m in methods}
+    coverage = [o["coverage"] for o in outs]
+    example = outs[0].get("example")
+    system, _, _, n_samples = _setup(name, cfg)
+    unknown = system.n_inputs > 0
+    result = ExperimentResult(name, settings=cfg)
+    for method in methods:
+        result.add(f"{method} state SSE (median)", np.median(state_sse[method]), "state unit^2")
+    if unknown:
+        for method in methods:
+            label = method if method in ("DEM", "particle", "coloured UKS") else f"augmented {method}"
+            result.add(f"{label} input SSE (median)", np.median(input_sse[method]), "input unit^2")
+    for other in ("particle", "coloured UKS", "UKF", "UKF filter", "UKF lag"):
+        if other in methods:
+            result.add(f"DEM / {other} state SSE (median ratio)", np.median(state_sse["DEM"] / state_sse[other]), "1")
+    if unknown and "UKF" in methods:
+        result.add("DEM / augmented UKF input SSE (median ratio)",
+                   np.median(input_sse["DEM"] / input_sse["UKF"]), "1")
+    result.add("DEM |error| < 2 std (fraction of samples)", np.mean(coverage), "1")
+    total = cfg["seeds"] * n_samples
+    for method in methods:
+        result.add(f"{method} speed", total / max(runtime[method], 1e-9), "samples/s")
+    result.data = dict(state_sse={m: state_sse[m] for m in methods}, input_sse={m: input_sse[m] for m in methods},
+                       example=example)
+    result.notes.append("EKF/UKF assume white noise with the per-sample variance of the coloured noise (smoothers "
+                        "unless 'filter'; 'lag': fixed-lag smoother with DEM's delay); the coloured UKS and the particle smoother model the coloured noise by "
+                        "AR(%d) processes." % cfg["ar_order"])
+    return result
+
+
+def plot(result: ExperimentResult, out_dir, state_labels, input_label=None) -> list[str]:
+    """NAME.png: seed-0 states (truth, DEM, UKF, particle), input if estimated, SSE per method."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    data = result.data
+    example = data["example"]
+    n = example["states"].shape[1]
+    unknown = input_label is not None
+    panels = n + (1 if unknown else 0) + 1
+    fig, axes = plt.subplots(1, panels, figsize=(4.2 * panels, 3.6))
+    time = example["time"]
+    for i in range(n):
+        ax = axes[i]
+        ax.plot(time, example["states"][:, i], "k", lw=2, label="true")
+        ax.plot(time, example["DEM_states"][:, i], "C0", label="DEM")
+        if "UKF_states" in example:
+            ax.plot(time, example["UKF_states"][:, i], "C1", lw=0.8, label="UKF smoother")
+        if "coloured UKS_states" in example:
+            ax.plot(time, example["coloured UKS_states"][:, i], "C3:", lw=0.8, label="coloured UKS")
+        if "particle_states" in example:
+            ax.plot(time, example["particle_states"][:, i], "C2--", lw=0.8, label="particle")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel(state_labels[i])
+    axes[0].legend(fontsize=7)
+    if unknown:
+        ax = axes[n]
+        ax.plot(time, example["inputs"][:, 0], "k", lw=2, label="true")
+        ax.plot(time, example["DEM_inputs"][:, 0], "C0", label="DEM")
+        if "UKF_inputs" in example:
+            ax.plot(time, example["UKF_inputs"][:, 0], "C1", lw=0.8, label="augmented UKF")
+        if "coloured UKS_inputs" in example:
+            ax.plot(time, example["coloured UKS_inputs"][:, 0], "C3:", lw=0.8, label="coloured UKS")
+        if "particle_inputs" in example:
+            ax.plot(time, example["particle_inputs"][:, 0], "C2--", lw=0.8, label="particle")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel(input_label)
+        ax.legend(fontsize=7)
+    ax = axes[-1]
+    names = list(data["state_sse"])
+    ax.boxplot([data["state_sse"][m] for m in names])
+    ax.set_xticks(range(1, len(names) + 1), [name.replace(" ", "\n") for name in names], fontsize=7)
+    ax.set_yscale("log")
+    ax.set_ylabel("state SSE per seed")
+    ax.set_title(f"{result.settings['seeds']} seeds")
+    fig.tight_layout()
+    path = Path(out_dir) / f"{result.experiment}.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return [path.name]

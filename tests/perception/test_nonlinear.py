@@ -1,0 +1,340 @@
+"""Nonlinear DEM and its baselines: Jacobians against analytic ones, the linear observer as an
+oracle, EKF/UKF against attend's Kalman filter, batch = online, calibration, bad input."""
+
+import numpy as np
+import pytest
+
+from attend._validation import AttendInputError
+from attend.perception.baselines import exact_posterior, kalman_filter, rts_smoother, simulation_covariances
+from attend.perception.dem import DEMObserver
+from attend.perception.nonlinear import (
+    NonlinearDEM,
+    NonlinearSystem,
+    finite_difference_jacobian,
+    simulate_nonlinear,
+)
+from attend.perception.nonlinear_baselines import (
+    extended_kalman,
+    particle_smoother,
+    unscented_kalman,
+    white_noise_covariances,
+)
+from attend.systems import convolution_model, mass_spring_damper, simulate
+
+
+def lorenz(x, v):
+    return np.array([10.0 * (x[1] - x[0]), x[0] * (28.0 - x[2]) - x[1], x[0] * x[1] - 8.0 / 3.0 * x[2]])
+
+
+def lorenz_jacobian(x, v):
+    fx = np.array([[-10.0, 10.0, 0.0], [28.0 - x[2], -1.0, -x[0]], [x[1], x[0], -8.0 / 3.0]])
+    return fx, np.zeros((3, 0))
+
+
+def pendulum(x, v, theta=(9.81, 0.3)):
+    return np.array([x[1], -theta[0] * np.sin(x[0]) - theta[1] * x[1] + v[0]])
+
+
+def pendulum_sensor(x, v):
+    return np.array([np.sin(x[0]), np.cos(x[0])])
+
+
+def linear_as_nonlinear(system):
+    A, B, C = system.A, system.B, system.C
+    return NonlinearSystem(lambda x, v: A @ x + B @ v, lambda x, v: C @ x, A.shape[0], B.shape[1], C.shape[0])
+
+
+# --- Jacobians ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("method", ["central", "complex"])
+def test_jacobians_match_analytic(method):
+    rng = np.random.default_rng(0)
+    system = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2, jacobian_method=method)
+    for _ in range(5):
+        x, v = rng.normal(size=2), rng.normal(size=1)
+        fx, fv, gx, gv = system.jacobians(x, v)
+        np.testing.assert_allclose(fx, [[0, 1], [-9.81 * np.cos(x[0]), -0.3]], rtol=1e-8, atol=1e-8)
+        np.testing.assert_allclose(fv, [[0], [1]], atol=1e-8)
+        np.testing.assert_allclose(gx, [[np.cos(x[0]), 0], [-np.sin(x[0]), 0]], rtol=1e-8, atol=1e-8)
+        np.testing.assert_allclose(gv, np.zeros((2, 1)), atol=1e-8)
+    lorenz_system = NonlinearSystem(lorenz, lambda x, v: x, 3, 0, 3, jacobian_method=method)
+    x = rng.normal(size=3) * 10
+    fx, fv, gx, gv = lorenz_system.jacobians(x)
+    np.testing.assert_allclose(fx, lorenz_jacobian(x, None)[0], rtol=1e-8, atol=1e-7)
+    assert fv.shape == (3, 0) and gv.shape == (3, 0)
+    np.testing.assert_allclose(gx, np.eye(3), atol=1e-9)
+
+
+def test_vectorized_and_user_jacobians_agree():
+    x = np.array([1.0, -2.0, 20.0])
+    plain = NonlinearSystem(lorenz, lambda x, v: x, 3, 0, 3).jacobians(x)
+    vectorized = NonlinearSystem(lorenz, lambda x, v: x, 3, 0, 3, vectorized=True).jacobians(x)
+    analytic = NonlinearSystem(lorenz, lambda x, v: x, 3, 0, 3, jacobian_f=lorenz_jacobian,
+                               jacobian_g=lambda x, v: (np.eye(3), np.zeros((3, 0)))).jacobians(x)
+    for a, b, c in zip(plain, vectorized, analytic):
+        np.testing.assert_allclose(a, c, atol=1e-7)
+        np.testing.assert_allclose(b, c, atol=1e-7)
+
+
+def test_parameters_are_passed():
+    system = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2, parameters=(4.0, 0.0))
+    np.testing.assert_allclose(system.flow([np.pi / 2, 1.0], [0.5]), [1.0, -4.0 + 0.5])
+
+
+def test_finite_difference_jacobian_of_a_quadratic():
+    J = finite_difference_jacobian(lambda z: np.array([z[0] * z[1], z[1] ** 2]), np.array([3.0, 4.0]))
+    np.testing.assert_allclose(J, [[4.0, 3.0], [0.0, 8.0]], rtol=1e-9)
+
+
+# --- the linear observer as an oracle -------------------------------------------------------
+
+@pytest.mark.parametrize("make", [mass_spring_damper, convolution_model])
+@pytest.mark.parametrize("known", [False, True])
+def test_linear_model_written_as_f_g_equals_linear_observer(make, known):
+    linear = make()
+    dt, n_samples = 0.1, 200
+    time = np.arange(n_samples) * dt
+    u = np.exp(-0.25 * (time - 8.0) ** 2)[:, None]
+    log = simulate(linear, u, dt, kernel_width=0.5, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=3)
+    settings = dict(dt=dt, kernel_width=0.5, sensor_precision=np.exp(8), process_precision=np.exp(8),
+                    input_prior_precision=np.exp(-8), embedding_order=6, input_order=2, known_inputs=known)
+    reference = DEMObserver(linear, **settings).estimate(log.outputs, u if known else None)
+    estimate = NonlinearDEM(linear_as_nonlinear(linear), flow_time="seconds", **settings).estimate(
+        log.outputs, u if known else None)
+    scale = np.abs(reference.states).max()
+    np.testing.assert_allclose(estimate.states, reference.states, atol=1e-8 * scale)
+    np.testing.assert_allclose(estimate.inputs, reference.inputs, atol=1e-8 * max(1.0, np.abs(reference.inputs).max()))
+    np.testing.assert_allclose(estimate.state_std, reference.state_std, rtol=1e-6)
+    if not known:
+        np.testing.assert_allclose(estimate.input_std, reference.input_std, rtol=1e-6)
+
+
+def test_flow_in_samples_does_not_depend_on_the_time_unit():
+    """Lorenz in seconds and in milliseconds (dt, s, f and Pi_w converted together; the states
+    keep their units): the same estimates."""
+    seconds = NonlinearSystem(lorenz, lambda x, v: 1.0 * x, 3, 0, 3)
+    millis = NonlinearSystem(lambda x, v: lorenz(x, v) / 1000.0, lambda x, v: 1.0 * x, 3, 0, 3)
+    log = simulate_nonlinear(seconds, 120, 0.01, kernel_width=0.02, process_std=20.0, measurement_std=1.0,
+                             initial_state=[1.0, 1.0, 24.0], seed=0)
+    in_s = NonlinearDEM(seconds, 0.01, 0.02, 1.0, 1 / 400, embedding_order=4).estimate(log.outputs)
+    in_ms = NonlinearDEM(millis, 10.0, 20.0, 1.0, 1e6 / 400, embedding_order=4).estimate(log.outputs)
+    np.testing.assert_allclose(in_ms.states, in_s.states, atol=1e-6)
+    np.testing.assert_allclose(in_ms.state_std, in_s.state_std, rtol=1e-6)
+
+
+# --- estimation -----------------------------------------------------------------------------
+
+def _lorenz_log(seed, n_samples=300):
+    system = NonlinearSystem(lorenz, lambda x, v: 1.0 * x, 3, 0, 3, state_names=("x", "y", "z"))
+    log = simulate_nonlinear(system, n_samples, 0.01, kernel_width=0.02, process_std=20.0, measurement_std=1.0,
+                             initial_state=[1.0, 1.0, 24.0], seed=seed)
+    return system, log
+
+
+def test_batch_equals_online_autonomous():
+    system, log = _lorenz_log(0, 80)
+    dem = NonlinearDEM(system, 0.01, 0.02, 1.0, 1 / 400, embedding_order=4)
+    batch = dem.estimate(log.outputs)
+    online = dem.online()
+    rows = [row for row in (online.step(y) for y in log.outputs) if row is not None] + online.finish()
+    assert len(rows) == len(log.outputs)
+    np.testing.assert_allclose(np.array([r[0] for r in rows]), batch.states, atol=1e-12)
+    assert batch.inputs.shape == (80, 0)
+
+
+def test_batch_equals_online_with_unknown_input():
+    system = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2)
+    u = np.sin(np.arange(60) * 0.05)[:, None]
+    log = simulate_nonlinear(system, u, 0.05, kernel_width=0.1, process_std=0.3, measurement_std=0.05,
+                             initial_state=[0.3, 0.0], seed=1)
+    dem = NonlinearDEM(system, 0.05, 0.1, 400.0, 10.0, 0.1, 6, 2)
+    batch = dem.estimate(log.outputs)
+    online = dem.online()
+    rows = [row for row in (online.step(y, 0.0) for y in log.outputs) if row is not None] + online.finish()
+    np.testing.assert_allclose(np.array([r[1] for r in rows]), batch.inputs, atol=1e-12)
+    assert dem.delay == 3
+
+
+def test_lorenz_estimates_beat_the_raw_data_and_std_is_calibrated():
+    inside, errors, raw = [], [], []
+    for seed in range(3):
+        system, log = _lorenz_log(seed, 400)
+        estimate = NonlinearDEM(system, 0.01, 0.02, 1.0, 1 / 400, embedding_order=6).estimate(log.outputs)
+        trim = slice(7, -7)
+        error = (estimate.states - log.states)[trim]
+        inside.append(np.abs(error) < 2 * estimate.state_std[trim])
+        errors.append(np.sum(error**2))
+        raw.append(np.sum((log.outputs - log.states)[trim] ** 2))
+    assert np.sum(errors) < 0.7 * np.sum(raw)
+    coverage = np.mean(np.concatenate(inside))
+    assert 0.93 <= coverage <= 0.97, coverage
+
+
+def test_pendulum_input_is_estimated_and_calibrated():
+    system = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2)
+    time = np.arange(400) * 0.05
+    u = (4 * np.exp(-0.5 * ((time - 5) / 0.7) ** 2) - 3 * np.exp(-0.5 * ((time - 12) / 1.0) ** 2))[:, None]
+    log = simulate_nonlinear(system, u, 0.05, kernel_width=0.1, process_std=[0.05, 0.5], measurement_std=0.05,
+                             initial_state=[0.5, 0.0], seed=0)
+    estimate = NonlinearDEM(system, 0.05, 0.1, 400.0, [400.0, 4.0], np.exp(-2), 6, 2).estimate(log.outputs)
+    trim = slice(7, -7)
+    # the input prior (smoothness of the 0.1 s noise kernel) leaves a rough input estimate: a
+    # weak bound; the bumps themselves are found
+    assert np.sum((estimate.inputs - u)[trim] ** 2) < 0.7 * np.sum(u[trim] ** 2)
+    peak = slice(90, 111)
+    assert np.mean(estimate.inputs[peak]) > 2.0
+    inside = np.abs(estimate.states - log.states)[trim] < 2 * estimate.state_std[trim]
+    assert 0.9 <= inside.mean() <= 0.99
+
+
+# --- baselines ------------------------------------------------------------------------------
+
+def _linear_log():
+    linear = mass_spring_damper()
+    dt = 0.1
+    time = np.arange(150) * dt
+    u = np.exp(-0.25 * (time - 6.0) ** 2)[:, None]
+    log = simulate(linear, u, dt, kernel_width=0.05, process_std=0.05, measurement_std=0.05, seed=2)
+    Q, R = simulation_covariances(linear, dt, 0.05, 0.05)
+    return linear, dt, u, log, Q, R
+
+
+@pytest.mark.parametrize("estimator", [extended_kalman, unscented_kalman])
+def test_ekf_ukf_equal_kalman_on_a_linear_model(estimator):
+    linear, dt, u, log, Q, R = _linear_log()
+    model = linear_as_nonlinear(linear)
+    for smooth, reference in ((False, kalman_filter), (True, rts_smoother)):
+        kf = reference(linear, dt, log.outputs, u, process_covariance=Q, measurement_covariance=R,
+                       initial_covariance=1e-2)
+        ours = estimator(model, dt, log.outputs, u, process_covariance=Q, measurement_covariance=R,
+                         initial_covariance=1e-2, smooth=smooth)
+        np.testing.assert_allclose(ours.states, kf.states, atol=1e-8)
+        np.testing.assert_allclose(ours.state_std, kf.state_std, rtol=1e-6, atol=1e-10)
+
+
+def test_ekf_and_ukf_agree_on_a_mildly_nonlinear_pendulum():
+    system = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2)
+    u = 0.2 * np.sin(np.arange(200) * 0.05)[:, None]
+    log = simulate_nonlinear(system, u, 0.05, kernel_width=0.05, process_std=0.05, measurement_std=0.05,
+                             initial_state=[0.2, 0.0], seed=4)
+    Q, R = white_noise_covariances(system, 0.05, 0.05, 0.05, 0.05)
+    ekf = extended_kalman(system, 0.05, log.outputs, u, process_covariance=Q, measurement_covariance=R,
+                          initial_mean=[0.2, 0.0], initial_covariance=1e-2)
+    ukf = unscented_kalman(system, 0.05, log.outputs, u, process_covariance=Q, measurement_covariance=R,
+                           initial_mean=[0.2, 0.0], initial_covariance=1e-2)
+    assert np.max(np.abs(ekf.states - ukf.states)) < 0.02
+    assert np.sqrt(np.mean((ukf.states - log.states) ** 2)) < 0.1
+
+
+def test_augmented_ukf_estimates_an_unknown_input():
+    system = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2)
+    time = np.arange(200) * 0.05
+    u = (3 * np.exp(-0.5 * ((time - 5) / 0.7) ** 2))[:, None]
+    log = simulate_nonlinear(system, u, 0.05, kernel_width=0.05, process_std=0.1, measurement_std=0.05,
+                             initial_state=[0.2, 0.0], seed=5)
+    Q, R = white_noise_covariances(system, 0.05, 0.05, 0.1, 0.05)
+    ukf = unscented_kalman(system, 0.05, log.outputs, process_covariance=Q, measurement_covariance=R,
+                           input_variance=0.5, initial_mean=[0.2, 0.0], initial_covariance=1e-2)
+    assert np.sum((ukf.inputs - u) ** 2) < 0.3 * np.sum(u**2)
+
+
+def test_particle_smoother_near_exact_posterior_on_a_linear_model():
+    linear = mass_spring_damper()
+    dt, s = 0.1, 0.2
+    u = np.zeros((120, 1))
+    log = simulate(linear, u, dt, kernel_width=s, process_std=0.3, measurement_std=0.05, seed=6,
+                   initial_state=[0.5, 0.0])
+    # simulate() adds dt w per sample: as simulate_nonlinear's ZOH only for the linear drift
+    exact = exact_posterior(linear, dt, log.outputs, u, kernel_width=s, process_std=0.3, measurement_std=0.05,
+                            initial_mean=[0.5, 0.0], initial_std=1e-2)
+    particles = particle_smoother(linear_as_nonlinear(linear), dt, log.outputs, u, kernel_width=s,
+                                  process_std=0.3, measurement_std=0.05, initial_mean=[0.5, 0.0],
+                                  initial_std=1e-2, n_particles=1500, ar_order=3, lag=15, seed=0)
+    sse_exact = np.sum((exact.states - log.states) ** 2)
+    sse_particles = np.sum((particles.states - log.states) ** 2)
+    assert sse_particles < 1.5 * sse_exact
+
+
+# --- bad input ------------------------------------------------------------------------------
+
+def test_bad_models_and_settings_raise():
+    with pytest.raises(AttendInputError, match="f:"):
+        NonlinearSystem(3, pendulum_sensor, 2, 1, 2)
+    with pytest.raises(AttendInputError, match="n_states"):
+        NonlinearSystem(pendulum, pendulum_sensor, 0, 1, 2)
+    with pytest.raises(AttendInputError, match="jacobian_method"):
+        NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2, jacobian_method="forward")
+    with pytest.raises(AttendInputError, match="state_names"):
+        NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2, state_names=("a",))
+    wrong = NonlinearSystem(lambda x, v: np.zeros(3), pendulum_sensor, 2, 1, 2)
+    with pytest.raises(AttendInputError, match="f: expected 2 values"):
+        wrong.flow([0.0, 0.0], [0.0])
+    broken = NonlinearSystem(lambda x, v: x[5], pendulum_sensor, 2, 1, 2)
+    with pytest.raises(AttendInputError, match="f: raised IndexError"):
+        broken.flow([0.0, 0.0], [0.0])
+    bad_jacobian = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2, jacobian_f=lambda x, v: np.eye(2))
+    with pytest.raises(AttendInputError, match="jacobian_f: expected the pair"):
+        bad_jacobian.jacobians([0.0, 0.0], [0.0])
+    system = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2)
+    with pytest.raises(AttendInputError, match="input_prior_precision"):
+        NonlinearDEM(system, 0.05, 0.1, 1.0, 1.0)
+    with pytest.raises(AttendInputError, match="kernel_width"):
+        NonlinearDEM(system, 0.05, -0.1, 1.0, 1.0, 1.0)
+    with pytest.raises(AttendInputError, match="flow_time"):
+        NonlinearDEM(system, 0.05, 0.1, 1.0, 1.0, 1.0, flow_time="hours")
+    with pytest.raises(AttendInputError, match="system"):
+        NonlinearDEM(mass_spring_damper(), 0.05, 0.1, 1.0, 1.0, 1.0)
+    dem = NonlinearDEM(system, 0.05, 0.1, 1.0, 1.0, 1.0)
+    with pytest.raises(AttendInputError, match="outputs: expected 2 columns"):
+        dem.estimate(np.zeros((50, 3)))
+    with pytest.raises(AttendInputError, match="outputs: expected finite"):
+        dem.estimate(np.full((50, 2), np.nan))
+    with pytest.raises(AttendInputError, match="at least 7 samples"):
+        dem.estimate(np.zeros((3, 2)))
+    with pytest.raises(AttendInputError, match="input_prior"):
+        dem.estimate(np.zeros((50, 2)), np.zeros((49, 1)))
+    known = NonlinearDEM(system, 0.05, 0.1, 1.0, 1.0, known_inputs=True)
+    with pytest.raises(AttendInputError, match="inputs"):
+        known.estimate(np.zeros((50, 2)))
+
+
+def test_divergence_stops_with_a_message_naming_the_settings():
+    drift = NonlinearSystem(lambda x, v: 0.0 * x, lambda x, v: x, 1, 0, 1)
+    dem = NonlinearDEM(drift, 0.1, 0.2, 100.0, 1.0, embedding_order=2, divergence_limit=20.0)
+    with pytest.raises(AttendInputError, match="diverged at sample .*process_precision"):
+        dem.estimate(np.arange(60.0)[:, None])
+    undefined = NonlinearSystem(lambda x, v: 0.0 * x, lambda x, v: np.sqrt(3.0 - x) if x[0] < 3 else np.array([np.nan]),
+                                1, 0, 1)
+    with pytest.raises(AttendInputError, match="diverged"):
+        NonlinearDEM(undefined, 0.1, 0.2, 100.0, 1.0, embedding_order=2).estimate(-np.arange(60.0)[:, None] / 5)
+
+
+def test_path_motion_equals_linearized_on_a_linear_model():
+    linear = convolution_model()
+    log = simulate(linear, np.zeros((60, 1)), 0.1, kernel_width=0.5, process_std=0.1, measurement_std=0.1, seed=1)
+    settings = dict(dt=0.1, kernel_width=0.5, sensor_precision=100.0, process_precision=100.0,
+                    input_prior_precision=1.0, embedding_order=4, input_order=2)
+    model = linear_as_nonlinear(linear)
+    a = NonlinearDEM(model, **settings).estimate(log.outputs)
+    b = NonlinearDEM(model, motion="path", **settings).estimate(log.outputs)
+    np.testing.assert_allclose(b.states, a.states, atol=1e-7)
+
+
+def test_fixed_lag_ukf_equals_kalman_fixed_lag_on_a_linear_model():
+    linear, dt, u, log, Q, R = _linear_log()
+    kf = kalman_filter(linear, dt, log.outputs, u, process_covariance=Q, measurement_covariance=R,
+                       initial_covariance=1e-2, lag=3)
+    ours = unscented_kalman(linear_as_nonlinear(linear), dt, log.outputs, u, process_covariance=Q,
+                            measurement_covariance=R, initial_covariance=1e-2, smooth=3)
+    np.testing.assert_allclose(ours.states, kf.states, atol=1e-8)
+
+
+def test_input_kernel_width_sets_the_input_smoothness():
+    system = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2)
+    same = NonlinearDEM(system, 0.05, 0.1, 400.0, 4.0, 0.1, 6, 2, input_kernel_width=0.1)
+    default = NonlinearDEM(system, 0.05, 0.1, 400.0, 4.0, 0.1, 6, 2)
+    slow = NonlinearDEM(system, 0.05, 0.1, 400.0, 4.0, 0.1, 6, 2, input_kernel_width=0.7)
+    np.testing.assert_allclose(same._matrices["Vv"], default._matrices["Vv"])
+    assert slow._matrices["S_d"][2, 2] > 10 * default._matrices["S_d"][2, 2]
+    with pytest.raises(AttendInputError, match="input_kernel_width"):
+        NonlinearDEM(system, 0.05, 0.1, 400.0, 4.0, 0.1, input_kernel_width=0.0)

@@ -345,12 +345,11 @@ class KalmanEstimator:
         drive[:, model["slices"]["x"]] = u @ model["Bd"].T  # b[k] = Bd u[k] enters x[k+1]
         predicted, innovations = _predicted_means(schedule, T, H, y, drive, mean0)
         if smooth:
-            means = _smoothed_means(schedule, T, H, predicted, innovations)
+            readout = _smoothed_means(schedule, T, H, predicted, innovations, model["output_map"])
             covariance_diag = _smoother_variances(schedule, T, H, model["output_map"], N)
         else:
-            means = _filtered_means(schedule, predicted, innovations)
+            readout = _filtered_means(schedule, predicted, innovations, model["output_map"])
             covariance_diag = _filter_variances(schedule, H, model["output_map"], N)
-        readout = means @ model["output_map"].T
         n = self.system.n_states
         states = readout[:, :n]
         std = np.sqrt(np.clip(covariance_diag, 0, None))
@@ -555,17 +554,19 @@ def _predicted_means(schedule: _GainSchedule, T, H, y, drive, mean0) -> tuple[np
     return predicted, y - predicted @ H.T
 
 
-def _filtered_means(schedule: _GainSchedule, predicted, innovations) -> np.ndarray:
+def _filtered_means(schedule: _GainSchedule, predicted, innovations, output_map) -> np.ndarray:
+    """output_map @ a_f[k] for every sample."""
     N = predicted.shape[0]
     head = min(schedule.steady, N)
-    out = predicted.copy()
+    out = predicted @ output_map.T
     for k in range(head):
-        out[k] += schedule.gains[k] @ innovations[k]
-    out[head:] += innovations[head:] @ schedule.gains[-1].T
+        out[k] += output_map @ (schedule.gains[k] @ innovations[k])
+    out[head:] += innovations[head:] @ (output_map @ schedule.gains[-1]).T
     return out
 
 
-def _smoothed_means(schedule: _GainSchedule, T, H, predicted, innovations) -> np.ndarray:
+def _smoothed_means(schedule: _GainSchedule, T, H, predicted, innovations, output_map) -> np.ndarray:
+    """output_map @ a_s[k] for every sample (the smoothed augmented state is never formed)."""
     N, dim = predicted.shape
     s = min(schedule.steady, N - 1)
     lam = np.empty((N, dim))
@@ -579,10 +580,10 @@ def _smoothed_means(schedule: _GainSchedule, T, H, predicted, innovations) -> np
     lam[s:] = linear_recurrence(M, scaled[s:][::-1], np.zeros(dim))[::-1]
     for k in range(s - 1, -1, -1):
         lam[k] = scaled[k] + (np.eye(dim) - schedule.gains[k] @ H).T @ (T.T @ lam[k + 1])
-    out = np.empty_like(predicted)
-    out[s:] = predicted[s:] + lam[s:] @ schedule.predicted[-1].T
+    out = np.empty((N, output_map.shape[0]))
+    out[s:] = predicted[s:] @ output_map.T + lam[s:] @ (output_map @ schedule.predicted[-1]).T
     for k in range(s):
-        out[k] = predicted[k] + schedule.predicted[k] @ lam[k]
+        out[k] = output_map @ (predicted[k] + schedule.predicted[k] @ lam[k])
     return out
 
 

@@ -254,6 +254,8 @@ def _command_estimate(args) -> int:
 
 def _describe_estimator(estimator) -> str:
     """One line: which estimator ran, with its settings."""
+    import numpy as np
+
     from attend.perception.dem import DEMObserver
 
     if isinstance(estimator, DEMObserver):
@@ -266,9 +268,16 @@ def _describe_estimator(estimator) -> str:
     orders = estimator.noise_orders
     noise = ", ".join(f"{name} {'white' if order == 0 else f'order {order}'}"
                       for name, order in orders.items() if order is not None)
+    if estimator.initial_state is None and estimator.initial_state_std is None:
+        start = ("initial state unknown (a broad prior; if the log starts from a known state, e.g. at rest, "
+                 "set [observer] initial_state: it can matter a lot when the process noise is small)")
+    elif estimator.initial_state_std is None or not np.any(estimator.initial_state_std):
+        start = "initial state known ([observer] initial_state)"
+    else:
+        start = "initial state from [observer] initial_state and initial_state_std"
     return (f"method kalman (Kalman smoother under the coloured-noise model): process width "
             f"{estimator.process_kernel_width:g} s, sensor width {estimator.sensor_kernel_width:g} s; "
-            f"noise models: {noise}; [observer] method = \"dem\" selects the paper's DEM observer")
+            f"noise models: {noise}; {start}; [observer] method = \"dem\" selects the paper's DEM observer")
 
 
 def _command_reproduce(args) -> int:

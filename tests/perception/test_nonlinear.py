@@ -98,15 +98,27 @@ def test_linear_model_written_as_f_g_equals_linear_observer(make, known):
     log = simulate(linear, u, dt, kernel_width=0.5, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=3)
     settings = dict(dt=dt, kernel_width=0.5, sensor_precision=np.exp(8), process_precision=np.exp(8),
                     input_prior_precision=np.exp(-8), embedding_order=6, input_order=2, known_inputs=known)
-    reference = DEMObserver(linear, **settings).estimate(log.outputs, u if known else None)
+    observer = DEMObserver(linear, **settings)
+    reference = observer.estimate(log.outputs, u if known else None)
     estimate = NonlinearDEM(linear_as_nonlinear(linear), flow_time="seconds", **settings).estimate(
         log.outputs, u if known else None)
+    # the two start differently (linear: order-0 MAP of the first sample, higher orders 0; nonlinear:
+    # Gauss-Newton fit of the first window); the flows are the same, so the difference decays
+    # (slowly: spectral radius 0.99; ~2e-6 of the scale by sample 100)
     scale = np.abs(reference.states).max()
-    np.testing.assert_allclose(estimate.states, reference.states, atol=1e-8 * scale)
-    np.testing.assert_allclose(estimate.inputs, reference.inputs, atol=1e-8 * max(1.0, np.abs(reference.inputs).max()))
-    np.testing.assert_allclose(estimate.state_std, reference.state_std, rtol=1e-6)
+    late = slice(100, None)
+    np.testing.assert_allclose(estimate.states[late], reference.states[late], atol=1e-5 * scale)
+    np.testing.assert_allclose(estimate.inputs[late], reference.inputs[late],
+                               atol=1e-5 * max(1.0, np.abs(reference.inputs).max()))
+    # the nonlinear std is the Laplace conditional covariance inv(Pi_X), which the linear observer
+    # also computes (its reported std is the DEM filter's steady-state error instead)
+    n, r = linear.n_states, linear.n_inputs
+    laplace = np.sqrt(np.diag(observer.generalized_matrices()["Sigma_X"]))
+    np.testing.assert_allclose(estimate.state_std, np.broadcast_to(laplace[:n], estimate.state_std.shape), rtol=1e-6)
     if not known:
-        np.testing.assert_allclose(estimate.input_std, reference.input_std, rtol=1e-6)
+        n_x = n * (settings["embedding_order"] + 1)
+        np.testing.assert_allclose(estimate.input_std,
+                                   np.broadcast_to(laplace[n_x: n_x + r], estimate.input_std.shape), rtol=1e-6)
 
 
 def test_flow_in_samples_does_not_depend_on_the_time_unit():

@@ -82,7 +82,7 @@ def test_expected_energy_matches_dense_generalised_errors():
     ev = L._evaluate(L._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X)
     A, B, C = theta[:4].reshape(2, 2), theta[4:6].reshape(2, 1), theta[6:].reshape(1, 2)
     Ct, At, Bt = np.kron(np.eye(P), C), np.kron(np.eye(P), A), np.kron(np.eye(P), B)
-    Dx = np.kron(np.eye(P, k=1), np.eye(n))
+    Dx = np.kron(np.eye(P, k=1), np.eye(n)) / st.time_scale  # order k held as sigma^k d^k/dt^k
     Vy, W = np.kron(st.S, np.exp(lam[0, 0]) * np.eye(m)), np.kron(st.S, np.exp(lam[0, 1]) * np.eye(n))
     total = 0.0
     for t in np.flatnonzero(st.used):
@@ -108,7 +108,7 @@ def test_e_step_with_known_states_and_flat_prior_is_least_squares():
     for t in np.flatnonzero(st.used):
         x = mu[0, t]  # (P, n)
         u = U[0, t]  # (P, 1)
-        tau = np.vstack([x[1:], np.zeros((1, n))])
+        tau = np.vstack([x[1:], np.zeros((1, n))]) / st.time_scale  # scaled coordinates
         # e_x = tau - A x - B u per order; e_y = y - C x per order (theta public order)
         Nx = np.zeros((P * n, 8))
         Ny = np.zeros((P * m, 8))
@@ -252,7 +252,7 @@ def test_path_posterior_matches_dense_gaussian(p):
     post = L._path_posterior(theta, lam, Y, U, st)
     Pi_X, _, CtVy, MtWB = L._observer(theta, lam, st, want_inverse=False)
     P, n, T = p + 1, 2, Y.shape[1]
-    G = np.kron(L.embedding_weights(P, DT), np.eye(n))
+    G = np.kron(st.E, np.eye(n))  # embedding weights in the scaled coordinates
     used = np.flatnonzero(st.used)
     starts = used - P // 2
     for r in range(2):

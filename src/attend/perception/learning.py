@@ -191,6 +191,8 @@ class _Structure:
     path: bool = False  # states: one path (True) or free per sample (False)
     E: np.ndarray | None = None  # (P, P) embedding weights (orders x window samples), path mode
     count: float = 1.0  # weight of each window's energy: 1 per sample, 1 / P for a path (data counted once)
+    time_scale: float = 1.0  # sigma [s]: order k is held as sigma^k d^k/dt^k (see _prepare)
+    log_jacobian: float = 0.0  # sum_k k ln(sigma): ln|Sigma_X| (true units) = ln|Sigma_X (scaled)| - 2 n this
 
     @property
     def n_theta(self) -> int:
@@ -287,7 +289,7 @@ def _mean_moments(mu, Ytil, Util, st: _Structure) -> np.ndarray:
     P = st.orders
     used = st.used
     x = mu[:, used]
-    tau = np.concatenate([x[:, :, 1:], np.zeros_like(x[:, :, :1])], axis=2)
+    tau = np.concatenate([x[:, :, 1:], np.zeros_like(x[:, :, :1])], axis=2) / st.time_scale
     Z = np.concatenate([x, Util[:, used], Ytil[:, used], tau], axis=3)  # (R, T', P, dz)
     dz = Z.shape[-1]
     Zf = np.ascontiguousarray(Z.reshape(R, -1, P * dz))
@@ -306,10 +308,11 @@ def _covariance_moments(Sigma_X, st: _Structure) -> np.ndarray:
     Sp[:, :P, :, :P] = Sigma_X.reshape(R, P, n, P, n)
     cov = np.zeros((R, P, dz, P, dz))
     ix, it = slice(0, n), slice(n + r + m, dz)
+    c = 1.0 / st.time_scale  # tau = x^(i+1) in scaled coordinates is x'_(i+1) / sigma
     cov[:, :, ix, :, ix] = Sp[:, :P, :, :P]
-    cov[:, :, ix, :, it] = Sp[:, :P, :, 1:]
-    cov[:, :, it, :, ix] = Sp[:, 1:, :, :P]
-    cov[:, :, it, :, it] = Sp[:, 1:, :, 1:]
+    cov[:, :, ix, :, it] = Sp[:, :P, :, 1:] * c
+    cov[:, :, it, :, ix] = Sp[:, 1:, :, :P] * c
+    cov[:, :, it, :, it] = Sp[:, 1:, :, 1:] * (c * c)
     K = st.n_used * np.einsum("ij,riajb->rab", st.S, cov)
     return 0.5 * (K + np.swapaxes(K, 1, 2))
 
@@ -589,7 +592,7 @@ def _evaluate(state: _State, K_mean: np.ndarray, priors: _Priors, st: _Structure
         Sigma_theta = np.linalg.inv(Pi_theta) if Pi_theta.shape[1] else Pi_theta.copy()
         dim_X = n * P
         sign, logdet_sigma = np.linalg.slogdet(Sigma_X)
-        logdet_sigma = np.where(sign > 0, logdet_sigma, np.nan)
+        logdet_sigma = np.where(sign > 0, logdet_sigma - 2 * n * st.log_jacobian, np.nan)
         energy = -0.5 * st.count * (np.exp(lam[:, 0]) * Ez + np.exp(lam[:, 1]) * Ew)
         entropy_x = 0.5 * st.n_used * (logdet_sigma + dim_X) if path_entropy is None else path_entropy
         noise = 0.5 * st.count * st.n_used * ((m + n) * st.log_det_S + P * m * lam[:, 0] + P * n * lam[:, 1])
@@ -680,14 +683,26 @@ class BatchLearningResult(NamedTuple):
 
 def _prepare(outputs, inputs, dt, kernel_width, embedding_order, input_order, active, n, trim_edges,
              precision_convention, states="sample"):
-    """Embed the logs and build the shared structure."""
+    """Embed the logs and build the shared structure.
+
+    Scaled generalised coordinates: order k of every variable is held as sigma^k d^k/dt^k with
+    sigma = sqrt(2) s (the kernel's time scale). S = diag(sigma^k) S0 diag(sigma^k) with S0 the
+    O(1) integer-derived core (:mod:`attend.generalized`), so in these coordinates the temporal
+    precision is S0 (cond ~7e4 at p = 6) instead of S (cond ~1.6e29 at s = 0.006 s, p = 6), the
+    shift operator is D / sigma, and every quantity the learner forms (Pi_X, the moments K, the
+    energies) is a sum of terms of comparable size. F, theta and lambda are unchanged (exact
+    reparameterisation; ln|Sigma_X| is reported in true units via ``log_jacobian``).
+    """
     R, T, m = outputs.shape
     r = inputs.shape[2]
     P = embedding_order + 1
     Q = input_order + 1
     S, _ = block_precisions(embedding_order, embedding_order, kernel_width, precision_convention)
-    Ytil = _embed_batch(outputs, P, dt)
-    Uq = _embed_batch(inputs, Q, dt)
+    sigma = float(np.sqrt(2.0) * kernel_width)
+    scale = sigma ** np.arange(max(P, Q))
+    S_scaled = S / scale[:P, None] / scale[None, :P]
+    Ytil = _embed_batch(outputs, P, dt) * scale[None, None, :P, None]
+    Uq = _embed_batch(inputs, Q, dt) * scale[None, None, :Q, None]
     Util = np.zeros((R, T, P, r))
     k = min(P, Q)
     Util[:, :, :k] = Uq[:, :, :k]
@@ -703,10 +718,13 @@ def _prepare(outputs, inputs, dt, kernel_width, embedding_order, input_order, ac
         used[:reach] = False
         used[T - reach:] = False
     st = _Structure(
-        n=n, r=r, m=m, orders=P, S=S, log_det_S=float(np.linalg.slogdet(S)[1]),
-        Dx=shift_operator(P, n), n_used=int(used.sum()), used=used, active=active,
-        perm=_internal_order(n, r, m), path=path, E=embedding_weights(P, dt) if path else None,
-        count=1.0 / P if path else 1.0,
+        n=n, r=r, m=m, orders=P, S=S_scaled,
+        log_det_S=float(np.linalg.slogdet(S_scaled)[1] + 2 * np.sum(np.arange(P) * np.log(sigma))),
+        Dx=shift_operator(P, n) / sigma, n_used=int(used.sum()), used=used, active=active,
+        perm=_internal_order(n, r, m), path=path,
+        E=embedding_weights(P, dt) * scale[:P, None] if path else None,
+        count=1.0 / P if path else 1.0, time_scale=sigma,
+        log_jacobian=float(np.sum(np.arange(P) * np.log(sigma))),
     )
     return st, Ytil, Util
 

@@ -40,6 +40,12 @@ def _problem(seed=0, p=4, lam=(6.0, 5.0), states="sample"):
     return st, Y, U, priors, mu, K_mean, Sigma_X, theta, lam
 
 
+def _sqrt_psd(M):
+    """R with R'R = M for a positive semi-definite M (the motion precision gives the top order none)."""
+    w, V = np.linalg.eigh(0.5 * (M + M.T))
+    return (V * np.sqrt(np.clip(w, 0, None))).T
+
+
 def _F_fixed_q(st, priors, mu, K_mean, Sigma_X, theta, lam):
     """Free energy with q(X) = (mu, Sigma_X) held fixed."""
     return L._evaluate(L._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X).F[0]
@@ -83,7 +89,7 @@ def test_expected_energy_matches_dense_generalised_errors():
     A, B, C = theta[:4].reshape(2, 2), theta[4:6].reshape(2, 1), theta[6:].reshape(1, 2)
     Ct, At, Bt = np.kron(np.eye(P), C), np.kron(np.eye(P), A), np.kron(np.eye(P), B)
     Dx = np.kron(np.eye(P, k=1), np.eye(n)) / st.time_scale  # order k held as sigma^k d^k/dt^k
-    Vy, W = np.kron(st.S, np.exp(lam[0, 0]) * np.eye(m)), np.kron(st.S, np.exp(lam[0, 1]) * np.eye(n))
+    Vy, W = np.kron(st.S, np.exp(lam[0, 0]) * np.eye(m)), np.kron(st.S_motion, np.exp(lam[0, 1]) * np.eye(n))
     total = 0.0
     for t in np.flatnonzero(st.used):
         x, y, u = mu[0, t].ravel(), Y[0, t].ravel(), U[0, t].ravel()
@@ -104,7 +110,7 @@ def test_e_step_with_known_states_and_flat_prior_is_least_squares():
     P, n, m = st.orders, st.n, st.m
     rows, rhs = [], []
     wy = np.linalg.cholesky(np.kron(st.S, np.exp(lam[0, 0]) * np.eye(m))).T
-    ww = np.linalg.cholesky(np.kron(st.S, np.exp(lam[0, 1]) * np.eye(n))).T
+    ww = _sqrt_psd(np.kron(st.S_motion, np.exp(lam[0, 1]) * np.eye(n)))
     for t in np.flatnonzero(st.used):
         x = mu[0, t]  # (P, n)
         u = U[0, t]  # (P, 1)
@@ -155,7 +161,7 @@ def test_batch_equals_single_runs():
                           prior_mean=eta, **kw)
     for k, log in enumerate((log0, log1)):
         single = L.learn_batch(log.outputs[None], log.inputs[None], DT, prior_mean=eta[k:k + 1], **kw)
-        np.testing.assert_allclose(batch.parameters[k], single.parameters[0], rtol=1e-10)
+        np.testing.assert_allclose(batch.parameters[k], single.parameters[0], rtol=1e-10, atol=1e-12)
         np.testing.assert_allclose(batch.free_energy[k], single.free_energy[0][: batch.free_energy.shape[1]], rtol=1e-10)
 
 
@@ -296,7 +302,9 @@ def test_path_mode_free_energy_rises_and_recovers_the_damping():
         assert np.all(steps[np.isfinite(steps)] >= 0)
         errors[states] = np.median(np.abs(res.parameters[:, FREE_MSD] - theta[FREE_MSD]) / np.abs(theta[FREE_MSD]), axis=0)
     assert np.all(errors["path"] <= 0.06), errors
-    assert errors["path"][1] <= 0.5 * errors["sample"][1], errors
+    # with the top-order motion error marginalised, sample mode no longer drives lambda_w up and its
+    # damping error falls too (measured: path 5.2 %, sample 4.6 %; 12.5 % before): both are small
+    assert np.all(errors["sample"] <= 0.06), errors
     assert np.all(np.abs(res.log_precision[:, 0] - 8.0) < 0.5)
 
 

@@ -91,13 +91,21 @@ def _build_parser() -> argparse.ArgumentParser:
         "file's A, B, C are the prior means, its [learning] section says which entries are free and how "
         "precise the priors are. Writes a learned model file (posterior means and precisions of the "
         "parameters, learned noise precisions) and prints the convergence report.",
-        epilog="See README.md ('Identify your model') for the [learning] section.",
+        epilog="See README.md ('Identify your model') for the [learning] section.\n\n"
+        "exit status: 0 converged and the learned model written; 2 bad input (e.g. no [learning] section);\n"
+        "3 the learning did not converge (max_iterations reached or a step diverged) or the learned model\n"
+        "would give non-finite estimates: nothing is written unless --allow-unconverged (a model that\n"
+        "gives non-finite estimates is never written).",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     identify.add_argument("model", help="model file (TOML) with a [learning] section; all inputs measured")
     identify.add_argument("log", help="log file (CSV, uniform time column in seconds)")
     identify.add_argument("--out", default="learned_model.toml",
                           help="learned model file, usable by 'attend estimate' (default: %(default)s)")
     identify.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    identify.add_argument("--allow-unconverged", action="store_true",
+                          help="write the last accepted estimate even when the learning did not converge "
+                          "(the exit status is still 3)")
 
     search = commands.add_parser(
         "search",
@@ -149,9 +157,39 @@ def _command_identify(args) -> int:
     print(f"free energy: {result.free_energy[0]:.6g} -> {result.free_energy[-1]:.6g} over {result.iterations} "
           f"iterations ({result.message}); "
           f"steps accepted {accepted}; {result.settings['state_model']} state model; {elapsed:.2f} s")
-    path = io.write_learned_model(args.out, model, result)
-    print(f"learned model -> {path}")
-    return 0
+    problems = io.check_learned_model(model, log, result)
+    if result.converged and not problems:
+        path = io.write_learned_model(args.out, model, result)
+        print(f"learned model -> {path}")
+        return 0
+    if problems:
+        print(f"attend: error: identify: the learned model is unusable: {'; '.join(problems)}; not written. "
+              f"{_advice(result, model)}", file=sys.stderr)
+        return 3
+    print(f"attend: error: identify did not converge: {result.message}. {_advice(result, model)}", file=sys.stderr)
+    if args.allow_unconverged:
+        path = io.write_learned_model(args.out, model, result)
+        print(f"learned model (NOT converged, --allow-unconverged) -> {path}")
+    else:
+        print("  no learned model written (--allow-unconverged writes the last accepted estimate)", file=sys.stderr)
+    return 3
+
+
+def _advice(result, model) -> str:
+    """What to change in the [learning] section after a failed identification (one sentence)."""
+    learning = model.learning or {}
+    if "diverged" in result.message:
+        step = result.message.split("the ", 1)[1].split("-step", 1)[0] if "-step" in result.message else "a"
+        if step == "M":
+            return ("Change: raise noise_prior_precision (now "
+                    f"{learning.get('noise_prior_precision', 1.0)}) to keep the noise log-precisions near noise_prior_mean.")
+        return ("Change: learn fewer entries (free) or raise free_prior_precision (now "
+                f"{learning.get('free_prior_precision', 1.0)}) so the prior holds them.")
+    if "max_iterations" in result.message:
+        other = "path" if result.settings.get("state_model") == "sample" else "sample"
+        return (f"Change: raise max_iterations (now {learning.get('max_iterations', 50)}) or tolerance "
+                f"(now {learning.get('tolerance', 1e-3)}) in [learning], or try states = \"{other}\".")
+    return "Change: check the log (excitation, units) and the prior means in [model]."
 
 
 def _command_search(args) -> int:

@@ -367,6 +367,11 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
     require_finite(outputs, f"{log.path}: output columns {', '.join(model.output_columns)}")
     inputs = np.column_stack([log.matrix([spec.column])[:, 0] - spec.operating_point for spec in model.inputs])
     require_finite(inputs, f"{log.path}: input columns")
+    if not model.learning:
+        raise AttendInputError(
+            f"{model.path}: identify needs a [learning] section saying which entries to learn, e.g.\n"
+            + LEARNING_EXAMPLE + "(see README.md, 'Identify your model')"
+        )
     settings = dict(model.learning or {})
     options = {key: settings[key] for key in (
         "free", "free_prior_precision", "known_prior_precision", "noise_prior_mean", "noise_prior_precision",
@@ -376,6 +381,49 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
     return identify(model.system, outputs, inputs, dt, kernel_width=model.kernel_width,
                     embedding_order=model.embedding_order, input_order=model.input_order,
                     precision_convention=model.precision_convention, progress=progress, **options)
+
+
+LEARNING_EXAMPLE = """\
+    [learning]
+    free = ["A[2,1]", "A[2,2]", "B[2,1]"]   # entries to learn (1-based row, column)
+    free_prior_precision = 1.0
+    known_prior_precision = 3.3e6
+    noise_prior_mean = [0.0, 0.0]
+    noise_prior_precision = 1.0
+    max_iterations = 50
+    tolerance = 1e-3
+"""
+
+
+def check_learned_model(model: ModelFile, log: Log, result) -> list[str]:
+    """Problems that make a learned model unusable by `attend estimate` (empty list: usable).
+
+    Checks finite matrices, finite positive noise precisions, and runs the model file's observer with
+    the learned A, B, C and precisions on the log: every estimate must be finite.
+    """
+    from dataclasses import replace
+
+    problems = []
+    system = result.system()
+    if not all(np.all(np.isfinite(M)) for M in (system.A, system.B, system.C)):
+        problems.append("the learned A, B or C has non-finite entries")
+    precisions = np.array([result.sensor_precision, result.process_precision])
+    if not np.all(np.isfinite(precisions)) or np.any(precisions <= 0):
+        problems.append(f"the learned noise precisions exp(lambda) = {precisions.tolist()} are not finite and positive")
+    if problems:
+        return problems
+    learned = replace(model, system=system, sensor_precision=float(result.sensor_precision),
+                      process_precision=float(result.process_precision))
+    try:
+        with np.errstate(all="ignore"):
+            _, estimate = estimate_from_files(learned, log)
+    except (np.linalg.LinAlgError, AttendInputError, ValueError) as error:
+        return [f"the observer of the learned model fails on this log ({error})"]
+    bad = ~np.all(np.isfinite(estimate.states), axis=1) | ~np.all(np.isfinite(estimate.state_std), axis=1)
+    if bad.any():
+        problems.append(f"the learned model gives non-finite state estimates on {int(bad.sum())} of {len(bad)} "
+                        "samples of this log")
+    return problems
 
 
 def write_learned_model(path: str | Path, model: ModelFile, result) -> Path:

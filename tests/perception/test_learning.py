@@ -357,3 +357,34 @@ def test_path_mode_warns_above_order_six():
         L.learn_batch(log.outputs[None], log.inputs[None], DT, n_states=2, kernel_width=0.5,
                       prior_mean=L.parameter_vector(system)[None], prior_precision=np.where(FREE_MSD, 1.0, np.exp(15))[None],
                       embedding_order=8, max_iterations=1, states="path")
+
+
+QUADROTOR = __import__("pathlib").Path("/work/shared/data/quadrotor-wind")
+
+
+@pytest.mark.skipif(not QUADROTOR.exists(), reason="quadrotor flight data not available")
+@pytest.mark.parametrize("flight", ["exp_21_WW_WM_1", "exp_24_WW_WM_0"])
+def test_readme_learning_section_converges_on_real_flights(flight):
+    """The README's [learning] example on 2 s ... 10 s slices of real 120 Hz flights (s = 0.006 s, p = 6):
+    converges, F never decreases over accepted steps, lambda stays finite and moderate, and the
+    learned model's estimates are finite (it used to diverge with lambda_w ~ 44)."""
+    import sys
+
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parents[2] / "benchmarks"))
+    from bench_identify_flights import DT, LEARNING, PRIOR, load
+
+    y, u, _ = load(QUADROTOR / f"{flight}.csv", 399, 1200)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", L.IdentifiabilityWarning)
+        result = L.identify(PRIOR, y, u, DT, kernel_width=0.006, embedding_order=6, input_order=2,
+                            precision_convention="max", states="sample", **LEARNING)
+    assert result.converged, result.message
+    trace = result.settings["free_energy_trace"]
+    assert np.all(np.diff(trace) >= 0)
+    assert np.all(np.isfinite(result.log_precision)) and np.all(np.abs(result.log_precision) < 25)
+    assert np.all(np.isfinite(result.parameter_std[result.free]))
+    from attend.perception.dem import DEMObserver
+
+    observer = DEMObserver(result.system(), DT, 0.006, result.sensor_precision, result.process_precision, None, 6, 2,
+                           known_inputs=True, precision_convention="max")
+    assert np.all(np.isfinite(observer.estimate(y, u).states))

@@ -76,7 +76,13 @@ def test_demo_matches_shared_flight(quadrotor_data):
     [
         (lambda m: m + "\n[extra]\nkey = 1\n", "unknown section or key 'extra'"),
         (lambda m: m.replace("kernel_width = 0.5", "kernel_width = 0.5\nkernel = 3"), "unknown key 'kernel'"),
-        (lambda m: m.replace("kernel_width = 0.5", "kernel_width = 0.0"), "kernel_width: expected a number > 0"),
+        (lambda m: m.replace("kernel_width = 0.5", "kernel_width = -0.5"), "kernel_width: expected a number >= 0"),
+        (lambda m: m.replace("kernel_width = 0.5", "kernel_width = 0.0"), "input_kernel_width: expected a width > 0"),
+        (lambda m: m.replace("kernel_width = 0.5", "kernel_width = 0.0\nmethod = \"dem\""),
+         "kernel_width: expected a number > 0"),
+        (lambda m: m.replace("kernel_width = 0.5", "kernel_width = 0.5\nmethod = \"ekf\""), "method: expected"),
+        (lambda m: m.replace("kernel_width = 0.5", "kernel_width = 0.5\ninitial_state = [1]"),
+         "initial_state: expected 2 finite numbers"),
         (lambda m: m.replace("A = [[-0.25, 1.0], [-0.5, -0.25]]", "A = [[-0.25, 1.0, 0.0], [-0.5, -0.25, 0.0]]"), "A: expected a square"),
         (lambda m: m.replace("B = [[1.0], [0.0]]", "B = [[1.0], [0.0], [2.0]]"), "B: expected 2 rows"),
         (lambda m: m.replace('columns = ["y1", "y2"]', 'columns = ["y1"]'), "columns: expected 2 column names"),
@@ -107,7 +113,11 @@ def test_bad_logs_name_the_problem(tmp_path):
     model_path, log_path = _write(tmp_path, rows=rows)
     with pytest.raises(AttendInputError, match="expected finite numbers"):
         io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
-    model_path, log_path = _write(tmp_path, rows=np.column_stack([np.arange(3) * 0.1, np.ones(3), np.ones(3)]))
+    model_path, log_path = _write(tmp_path, rows=np.column_stack([np.arange(1) * 0.1, np.ones(1), np.ones(1)]))
+    with pytest.raises(AttendInputError, match="at least 2 samples"):
+        io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
+    dem = MODEL.replace("kernel_width = 0.5", "kernel_width = 0.5\nmethod = \"dem\"")
+    model_path, log_path = _write(tmp_path, dem, rows=np.column_stack([np.arange(3) * 0.1, np.ones(3), np.ones(3)]))
     with pytest.raises(AttendInputError, match="at least 5 samples"):
         io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
     model_path, log_path = _write(tmp_path, rows=np.column_stack([np.arange(50) * 0.2, np.ones(50), np.ones(50)]))

@@ -169,3 +169,14 @@ def embed(series, n_orders: int, dt: float, *, edges: str = "clamp", shift: int 
     elif edges != "clamp":
         raise AttendInputError(f"edges: expected 'clamp' or 'order0', got {edges!r}")
     return derivatives.reshape(n_samples, n_orders * width)
+
+
+def smoothness_condition(n_orders: int, kernel_width: float, dt: float) -> float:
+    """cond(S) of the temporal precision in sample units (kernel width s / dt samples).
+
+    Unit-free: how unequally S weights the orders once derivatives are measured per sample, i.e.
+    how precisely finite differences of the data would have to resolve the highest order. It
+    grows like (2 (s/dt)^2)^p for smooth noise and like (dt/s)^(2p) for nearly white noise.
+    """
+    dt = positive_scalar(dt, "dt", "s")
+    return float(np.linalg.cond(smoothness_precision(n_orders, positive_scalar(kernel_width, "kernel_width") / dt)))

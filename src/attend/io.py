@@ -22,13 +22,19 @@ Model file (all times in seconds)::
     prior_precision = 1.0           # ... and prior precision P_v [1/unit^2]
 
     [observer]
-    kernel_width = 0.006            # s, Gaussian noise kernel width
-    embedding_order = 6             # p
-    input_order = 2                 # d
+    method = "kalman"               # "kalman" (default: coloured-noise Kalman smoother) or "dem"
+    kernel_width = 0.006            # s, Gaussian noise kernel width of both noises (0: white)
+    # process_kernel_width = 0.01   # s, or separately for w and z (each overrides kernel_width)
+    # sensor_kernel_width = 0.0
+    # input_kernel_width = 0.05     # s, smoothness of the unknown inputs' prior (default: process width)
     sensor_precision = 1.2e8        # Pi_z: scalar, per-output list, or matrix
     process_precision = [1e3, 1e2]  # Pi_w: scalar, per-state list, or matrix
-    precision_convention = "size"   # "size" (SPM) or "max" (Meera)
-    known_input_precision = 7.9e13  # prior precision given to measured inputs when some
+    # initial_state = [0.0, 0.0]    # prior mean of x[0] (default: unknown, a broad prior) ...
+    # initial_state_std = 0.1       # ... and its std (default 0 when initial_state is given)
+    embedding_order = "auto"        # DEM only: p (default "auto": the largest stable, well-conditioned p <= 6)
+    input_order = 2                 # DEM only: d
+    precision_convention = "size"   # DEM only: "size" (SPM) or "max" (Meera)
+    known_input_precision = 7.9e13  # DEM only: prior precision given to measured inputs when some
                                     # inputs are unknown (default exp(32))
 
     [log]
@@ -72,8 +78,9 @@ _SECTIONS = {
     "outputs": {"columns"},
     "inputs": None,  # array of tables, checked separately
     "observer": {
-        "kernel_width", "embedding_order", "input_order", "sensor_precision",
-        "process_precision", "precision_convention", "known_input_precision",
+        "method", "kernel_width", "process_kernel_width", "sensor_kernel_width", "input_kernel_width",
+        "embedding_order", "input_order", "sensor_precision", "process_precision", "precision_convention",
+        "known_input_precision", "initial_state", "initial_state_std",
     },
     "log": {"time_column"},
     "learning": {
@@ -113,8 +120,8 @@ class ModelFile:
     dt: float | None
     output_columns: tuple[str, ...]
     inputs: tuple[InputSpec, ...]
-    kernel_width: float
-    embedding_order: int
+    kernel_width: float | None
+    embedding_order: int | str
     input_order: int
     sensor_precision: object
     process_precision: object
@@ -123,8 +130,37 @@ class ModelFile:
     time_column: str
     learning: dict = None
     path: str = ""
+    method: str = "kalman"
+    process_kernel_width: float | None = None
+    sensor_kernel_width: float | None = None
+    input_kernel_width: float | None = None
+    initial_state: tuple | None = None
+    initial_state_std: object = None
 
-    def observer(self, dt: float) -> DEMObserver:
+    def observer(self, dt: float):
+        """The estimator the file describes (``[observer] method``), for logs sampled every ``dt`` s."""
+        if self.method == "kalman":
+            return self.kalman(dt)
+        return self.dem(dt)
+
+    def kalman(self, dt: float):
+        """The coloured-noise Kalman smoother: measured inputs drive the model, the others are estimated."""
+        from attend.perception.kalman import KalmanEstimator
+
+        known = [spec.known for spec in self.inputs]
+        prior = None if all(known) else np.array([1.0 if s.known else s.prior_precision for s in self.inputs])
+        try:
+            return KalmanEstimator(
+                self.system, dt, self.sensor_precision, self.process_precision, kernel_width=self.kernel_width,
+                process_kernel_width=self.process_kernel_width, sensor_kernel_width=self.sensor_kernel_width,
+                input_prior_precision=prior, input_kernel_width=self.input_kernel_width,
+                known_inputs=known if self.inputs else True,
+                initial_state=self.initial_state, initial_state_std=self.initial_state_std,
+            )
+        except AttendInputError as error:
+            raise AttendInputError(f"{self.path}: [observer] {error}") from None
+
+    def dem(self, dt: float) -> DEMObserver:
         """The DEM observer the file describes, for logs sampled every ``dt`` seconds.
 
         All inputs measured: the known-input observer. Otherwise inputs are unknowns; measured
@@ -134,11 +170,16 @@ class ModelFile:
         prior = None if all_known else np.array(
             [self.known_input_precision if s.known else s.prior_precision for s in self.inputs]
         )
-        return DEMObserver(
-            self.system, dt, self.kernel_width, self.sensor_precision, self.process_precision,
-            prior, self.embedding_order, self.input_order, known_inputs=all_known,
-            precision_convention=self.precision_convention,
-        )
+        try:
+            return DEMObserver(
+                self.system, dt, self.kernel_width, self.sensor_precision, self.process_precision,
+                prior, self.embedding_order, self.input_order, known_inputs=all_known,
+                precision_convention=self.precision_convention,
+                process_kernel_width=self.process_kernel_width, sensor_kernel_width=self.sensor_kernel_width,
+                initial_state=None if self.initial_state is None else np.array(self.initial_state),
+            )
+        except AttendInputError as error:
+            raise AttendInputError(f"{self.path}: [observer] {error}") from None
 
 
 def _check_keys(table: dict, allowed: set[str], where: str, path: str) -> None:
@@ -211,12 +252,43 @@ def read_model(path: str | Path) -> ModelFile:
             f"{path}: [outputs] columns: expected {system.n_outputs} column names (one per row of C), got {outputs!r}"
         )
     observer = data.get("observer", {})
-    for key in ("kernel_width", "sensor_precision", "process_precision"):
+    for key in ("sensor_precision", "process_precision"):
         if key not in observer:
             raise AttendInputError(f"{path}: [observer] needs {key}")
-    kernel_width = observer["kernel_width"]
-    if not isinstance(kernel_width, (int, float)) or not kernel_width > 0 or not math.isfinite(kernel_width):
-        raise AttendInputError(f"{path}: [observer] kernel_width: expected a number > 0 (seconds), got {kernel_width!r}")
+    method = observer.get("method", "kalman")
+    if method not in ("kalman", "dem"):
+        raise AttendInputError(f"{path}: [observer] method: expected \"kalman\" or \"dem\", got {method!r}")
+    widths = {}
+    for key in ("kernel_width", "process_kernel_width", "sensor_kernel_width", "input_kernel_width"):
+        value = observer.get(key)
+        if value is None:
+            widths[key] = None
+            continue
+        positive_only = method == "dem" and key == "kernel_width"
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                or value < 0 or (positive_only and value == 0):
+            expected = "a number > 0" if positive_only else "a number >= 0 (0: white noise)"
+            raise AttendInputError(f"{path}: [observer] {key}: expected {expected} (seconds), got {value!r}")
+        widths[key] = float(value)
+    kernel_width = widths["kernel_width"]
+    if kernel_width is None and (widths["process_kernel_width"] is None or widths["sensor_kernel_width"] is None):
+        raise AttendInputError(f"{path}: [observer] needs kernel_width (seconds), or both process_kernel_width "
+                               "and sensor_kernel_width")
+    initial_state = observer.get("initial_state")
+    if initial_state is not None:
+        if not isinstance(initial_state, list) or len(initial_state) != system.n_states or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in initial_state):
+            raise AttendInputError(f"{path}: [observer] initial_state: expected {system.n_states} finite numbers "
+                                   f"(one per state), got {initial_state!r}")
+        initial_state = tuple(float(v) for v in initial_state)
+    initial_std = observer.get("initial_state_std")
+    if initial_std is not None:
+        values = initial_std if isinstance(initial_std, list) else [initial_std]
+        if len(values) not in (1, system.n_states) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0 for v in values):
+            raise AttendInputError(f"{path}: [observer] initial_state_std: expected a number >= 0 or "
+                                   f"{system.n_states} of them, got {initial_std!r}")
+        initial_std = float(values[0]) if len(values) == 1 else tuple(float(v) for v in values)
     dt = model.get("dt")
     if dt is not None and (not isinstance(dt, (int, float)) or not dt > 0):
         raise AttendInputError(f"{path}: [model] dt: expected a number > 0 (seconds), got {dt!r}")
@@ -225,8 +297,8 @@ def read_model(path: str | Path) -> ModelFile:
         dt=dt,
         output_columns=tuple(outputs),
         inputs=tuple(inputs),
-        kernel_width=float(kernel_width),
-        embedding_order=observer.get("embedding_order", 6),
+        kernel_width=kernel_width,
+        embedding_order=observer.get("embedding_order", "auto"),
         input_order=observer.get("input_order", 2),
         sensor_precision=observer["sensor_precision"],
         process_precision=observer["process_precision"],
@@ -235,6 +307,12 @@ def read_model(path: str | Path) -> ModelFile:
         time_column=data.get("log", {}).get("time_column", "t"),
         learning=dict(data.get("learning", {})),
         path=str(path),
+        method=method,
+        process_kernel_width=widths["process_kernel_width"],
+        sensor_kernel_width=widths["sensor_kernel_width"],
+        input_kernel_width=widths["input_kernel_width"],
+        initial_state=initial_state,
+        initial_state_std=initial_std,
     )
 
 
@@ -311,8 +389,11 @@ def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: fl
     return Log(time, columns, str(path))
 
 
-def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEstimate]:
-    """Run the model file's observer on the log (checks columns, finiteness and sample time)."""
+def estimate_from_files(model: ModelFile, log: Log):
+    """Run the model file's estimator on the log (checks columns, finiteness and sample time).
+
+    Returns (estimator, estimate): a KalmanEstimator and its smoother estimate (method "kalman"),
+    or a DEMObserver and its DEMEstimate (method "dem")."""
     if len(log.time) < 2:
         raise AttendInputError(f"{log.path}: expected at least 2 samples, got {len(log.time)}")
     dt = log.dt

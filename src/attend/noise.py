@@ -10,6 +10,8 @@ the one assumed by the smoothness precision S (see :mod:`attend.generalized`).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from scipy.signal import fftconvolve
 
@@ -40,7 +42,7 @@ def coloured_noise(
     std=1.0,
     seed: int | np.random.Generator | None = 0,
 ) -> np.ndarray:
-    """(n_samples, n_channels) of white noise convolved with the Gaussian kernel.
+    """(n_samples, n_channels) of white noise convolved with the Gaussian kernel (kernel_width 0: white).
 
     ``std`` is the standard deviation per sample: a scalar or one value per channel.
     The white noise is drawn with margins of the kernel's half-length on both sides, so every
@@ -52,6 +54,8 @@ def coloured_noise(
     if not np.all(np.isfinite(std)) or np.any(std < 0):
         raise AttendInputError(f"std: expected finite standard deviations >= 0, got {std}")
     rng = np.random.default_rng(seed)
+    if kernel_width == 0:
+        return rng.standard_normal((n_samples, n_channels)) * std
     kernel = gaussian_kernel(dt, kernel_width)
     margin = len(kernel) - 1
     white = rng.standard_normal((n_samples + margin, n_channels))
@@ -59,3 +63,135 @@ def coloured_noise(
         return np.zeros((n_samples, 0))
     smooth = fftconvolve(white, kernel[:, None], mode="valid", axes=0)
     return smooth * std
+
+
+# --- finite state-space models of Gaussian-correlated sequences -----------------------------
+
+class NoiseStateSpace(NamedTuple):
+    """A finite linear model of a unit-variance stationary sequence e[k] with a given autocorrelation.
+
+        psi[k] = transition @ psi[k-1] + noise_input * eps[k],   eps[k] ~ N(0, 1) white
+        e[k]   = output @ psi[k]
+
+    psi has ``order + 1`` entries: the innovations predictor state xi (``order`` entries) and the
+    innovation nu[k] itself, so e[k] = H xi[k] + nu[k] with xi[k+1] = F xi[k] + K nu[k]. The model is
+    a minimum-phase spectral factor of the target autocorrelation, found by a covariance
+    realisation (Hankel SVD) and the Riccati equation of its Kalman predictor.
+    stationary_covariance: Cov(psi[k]) in steady state; autocorrelation_error: the largest
+    |r_model[l] - r_target[l]| over the target's lags (r[0] = 1). White noise is order 0.
+    """
+
+    transition: np.ndarray
+    noise_input: np.ndarray
+    output: np.ndarray
+    stationary_covariance: np.ndarray
+    autocorrelation_error: float
+
+    @property
+    def order(self) -> int:
+        """Dimension of the predictor state xi (0 for white noise)."""
+        return self.transition.shape[0] - 1
+
+
+def kernel_autocorrelation(dt: float, kernel_width: float) -> np.ndarray:
+    """r[l], l = 0, 1, ...: autocorrelation of :func:`coloured_noise` samples (the kernel's self-correlation).
+
+    r[l] = sum_i h[i] h[i + l] with h = gaussian_kernel(dt, s); r[l] ~ rho(l dt) for s >= dt, and
+    exactly zero beyond the kernel's length.
+    """
+    h = gaussian_kernel(dt, kernel_width)
+    return np.correlate(h, h, mode="full")[len(h) - 1:]
+
+
+def sampled_autocorrelation(dt: float, kernel_width: float) -> np.ndarray:
+    """r[l] = rho(l dt) = exp(-(l dt)^2 / (4 s^2)) for the lags where it exceeds 1e-17."""
+    s = positive_scalar(kernel_width, "kernel_width", "s")
+    lags = int(np.ceil(2 * s * np.sqrt(17 * np.log(10)) / dt)) + 1
+    return autocorrelation(np.arange(lags) * dt, s)
+
+
+def white_state_space() -> NoiseStateSpace:
+    """The order-0 model: e[k] = eps[k]."""
+    one = np.ones((1, 1))
+    return NoiseStateSpace(np.zeros((1, 1)), np.ones(1), np.ones(1), one, 0.0)
+
+
+def noise_state_space(autocorrelation_sequence, *, white_floor: float = 1e-8, accuracy: float = 1e-5) -> NoiseStateSpace:
+    """Fit a :class:`NoiseStateSpace` to the autocorrelation r[0], r[1], ... (r[0] = 1).
+
+    Steps: (1) Hankel matrix of r[1..] and its SVD give (F, H, G_bar) with r[l] = H F^(l-1) G_bar
+    for l >= 1 (Ho-Kalman on covariances), truncated where the singular values fall below a
+    tolerance; (2) the stabilising solution P of
+        P = F P F' + (G_bar - F P H')(r0 - H P H')^-1 (G_bar - F P H')'
+    gives the innovation variance d = r0 - H P H' and the gain K = (G_bar - F P H') / d, with
+    r0 = r[0] (1 + white_floor): a white part of relative variance ``white_floor`` keeps the
+    spectrum away from zero, as every real sensor does (the Gaussian spectrum falls below 1e-100
+    within a few bandwidths, which would make the filter's covariance recursion ill-conditioned).
+    Singular values below a tolerance tied to the floor are dropped. The first tolerance whose
+    model reproduces r to ``accuracy`` is returned; the error is recorded in the result.
+    """
+    from scipy.linalg import solve_discrete_are, solve_discrete_lyapunov
+
+    r = np.asarray(autocorrelation_sequence, dtype=float)
+    if r.ndim != 1 or r.size < 1 or not np.all(np.isfinite(r)) or r[0] <= 0:
+        raise AttendInputError("autocorrelation_sequence: expected finite r[0] > 0, r[1], ...")
+    r = r / r[0]
+    if r.size == 1 or np.max(np.abs(r[1:])) < 1e-15:
+        return white_state_space()
+    size = r.size + 1
+    padded = np.zeros(2 * size + 1)
+    padded[: r.size] = r
+    hankel = padded[1 + np.arange(size)[:, None] + np.arange(size)[None, :]]
+    U, singular, Vt = np.linalg.svd(hankel)
+    best = None
+    if not 0 < white_floor < 1:
+        raise AttendInputError(f"white_floor: expected a relative variance in (0, 1), got {white_floor!r}")
+    for tolerance in (1e-2 * white_floor, 1e-3 * white_floor, 1e-1 * white_floor, white_floor):
+        jitter = white_floor
+        order = int(np.sum(singular > tolerance * singular[0]))
+        if order == 0:
+            continue
+        observability = U[:, :order] * np.sqrt(singular[:order])
+        F = np.linalg.lstsq(observability[:-1], observability[1:], rcond=None)[0]
+        H = observability[0]
+        G_bar = np.sqrt(singular[:order]) * Vt[:order, 0]
+        r0 = 1.0 + jitter
+        try:
+            with np.errstate(all="ignore"):
+                X = solve_discrete_are(F.T, H[:, None], np.zeros((order, order)), np.array([[r0]]), s=G_bar[:, None])
+        except (np.linalg.LinAlgError, ValueError):
+            continue
+        P = -0.5 * (X + X.T)
+        innovation = r0 - H @ P @ H
+        if not (np.all(np.isfinite(P)) and innovation > 0):
+            continue
+        gain = (G_bar - F @ P @ H) / innovation
+        transition = np.zeros((order + 1, order + 1))
+        transition[:order, :order] = F
+        transition[:order, order] = gain
+        noise_input = np.zeros(order + 1)
+        noise_input[order] = np.sqrt(innovation)
+        output = np.append(H, 1.0)
+        if np.max(np.abs(np.linalg.eigvals(transition))) >= 1:
+            continue
+        stationary = solve_discrete_lyapunov(transition, np.outer(noise_input, noise_input))
+        stationary = 0.5 * (stationary + stationary.T)
+        error = _autocorrelation_error(transition, output, stationary, r)
+        candidate = NoiseStateSpace(transition, noise_input, output, stationary, error)
+        if best is None or error < best.autocorrelation_error:
+            best = candidate
+        if error <= accuracy:
+            return candidate
+    if best is None:
+        raise AttendInputError("kernel_width: no finite noise model reproduces this autocorrelation")
+    return best
+
+
+def _autocorrelation_error(transition, output, stationary, target) -> float:
+    """max_l |output' T^l Sigma output - target[l]| over the target's lags."""
+    vector = stationary @ output
+    error = 0.0
+    for lag in range(target.size):
+        error = max(error, abs(output @ vector - target[lag]))
+        vector = transition @ vector
+    return float(error)

@@ -217,27 +217,36 @@ def simulate(
     inputs: np.ndarray,
     dt: float,
     *,
-    kernel_width: float,
+    kernel_width: float | None = None,
     process_std=0.0,
     measurement_std=0.0,
     initial_state=None,
     seed: int | np.random.Generator | None = 0,
+    process_kernel_width: float | None = None,
+    sensor_kernel_width: float | None = None,
 ) -> Trajectory:
     """Simulate the generative process with coloured noise (spec §1).
 
     x[k] = Ad x[k-1] + Bd u[k-1] + dt w[k-1],  y[k] = C x[k] + z[k], with Ad, Bd the zero-order
     hold of (A, B) over dt [s] and w, z white noise convolved with a Gaussian kernel of width
     ``kernel_width`` [s] (standard deviations ``process_std``, ``measurement_std`` per sample,
-    scalars or per channel).
+    scalars or per channel). ``process_kernel_width`` / ``sensor_kernel_width`` [s] set the widths
+    of w and z separately (0: white noise); each defaults to ``kernel_width``.
     """
     dt = positive_scalar(dt, "dt", "s")
+    widths = []
+    for value, field in ((process_kernel_width, "process_kernel_width"), (sensor_kernel_width, "sensor_kernel_width")):
+        value = kernel_width if value is None else value
+        if value is None:
+            raise AttendInputError(f"{field}: required (or kernel_width for both noises)")
+        widths.append(value)
     u = as_matrix(inputs, "inputs", cols=system.n_inputs if np.ndim(inputs) == 2 else 1)
     if u.shape[1] != system.n_inputs:
         raise AttendInputError(f"inputs: expected {system.n_inputs} columns, got {u.shape[1]}")
     n_samples = u.shape[0]
     rng = np.random.default_rng(seed)
-    w = coloured_noise(n_samples, system.n_states, dt, kernel_width, process_std, rng)
-    z = coloured_noise(n_samples, system.n_outputs, dt, kernel_width, measurement_std, rng)
+    w = coloured_noise(n_samples, system.n_states, dt, widths[0], process_std, rng)
+    z = coloured_noise(n_samples, system.n_outputs, dt, widths[1], measurement_std, rng)
     Ad, Bd = system.discretize(dt)
     x = np.zeros((n_samples, system.n_states))
     x[0] = 0.0 if initial_state is None else as_matrix(initial_state, "initial_state", cols=1)[:, 0]

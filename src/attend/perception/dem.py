@@ -18,6 +18,11 @@ deviations of the estimates.
 
 Since the embedding y~[k] = E window[k] is linear in the raw samples, the embedding weights are
 folded into Gamma: each step is a product with the raw window of samples around k.
+
+Before estimating, :meth:`DEMObserver.analysis` says what the observer can promise (stability of
+Phi, how long the start is remembered, the steady-state error std under the model; see
+:mod:`attend.perception.dem_analysis`). Unstable or drifting configurations are refused with an
+AttendInputError naming the setting to change, unless ``allow_unstable=True``.
 """
 
 from __future__ import annotations
@@ -37,15 +42,63 @@ from attend._validation import (
     precision_matrix,
     require_finite,
 )
-from attend.generalized import block_precisions, embedding_weights, shift_operator
+from attend.generalized import block_precisions, embedding_weights, shift_operator, smoothness_condition
+from attend.perception.dem_analysis import (
+    derivative_scales,
+    marginal_variances,
+    start_influence,
+    start_time_constant,
+    steady_state_error_variance,
+)
 from attend.perception.recurrence import linear_recurrence
 from attend.systems import LinearSystem, ModelWarning
 
 
+#: Largest embedding order that embedding_order="auto" considers.
+AUTO_MAX_ORDER = 6
+#: embedding_order="auto" accepts an order only if cond(S) in sample units (s / dt) stays below this.
+AUTO_MAX_CONDITION = 1e8
+#: embedding_order="auto" accepts an order only if its start time constant (see DEMAnalysis) is at
+#: most this many sample times / kernel widths (or twice the best among the stable orders).
+AUTO_START_WIDTHS = 50
+#: A state / input is "unobservable" when its steady-state error variance exceeds this multiple of
+#: its prior (stationary) variance (the estimate is far worse than ignoring the data), is unbounded,
+#: or when the outputs do not change its conditional variance (see DEMObserver.analysis).
+UNOBSERVABLE_RATIO = 100.0
+#: Unknown inputs with at least this prior precision (std <= 1e-5 input units) count as given
+#: (measured inputs passed as unknowns, as io.py and the quadrotor benchmark do): not flagged.
+PINNED_INPUT_PRECISION = 1e10
+#: A log is too short for the observer ("drifting") when 5 start time constants exceed its length.
+DRIFT_FACTOR = 5.0
+
+
+def _width(value, name: str) -> float:
+    """A kernel width > 0 [s]; 0 (white noise) gets its own message."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = None
+    if number == 0.0:
+        raise AttendInputError(
+            f"{name}: 0 means white noise, which has no derivatives, so DEM's generalised coordinates "
+            "carry no information beyond order 0; give the noise's kernel width (> 0 s), or use "
+            "method=\"kalman\" (the coloured-noise Kalman smoother) for white noise"
+        )
+    return positive_scalar(value, name, "s")
+
+
 class DEMEstimate(NamedTuple):
     """Estimates at every sample: states (N, n), inputs (N, r) (the known inputs when they were
-    given), their standard deviations (N, n) / (N, r) from the conditional precision, and the
-    generalised estimates X (N, dim X) when requested (else None)."""
+    given), their standard deviations (N, n) / (N, r), and the generalised estimates X
+    (N, dim X) when requested (else None).
+
+    The standard deviations are the steady-state std of the DEM filter's estimation error under
+    the generative model (coloured noises of covariance inv(Pi_w), inv(Pi_z), unknown inputs a
+    Gaussian process of covariance inv(P_v) about eta; see :mod:`attend.perception.dem_analysis`),
+    the same at every sample: edges (the first and last windows) are not covered. NaN marks a
+    quantity the data do not inform (unobservable given the precisions; a ModelWarning names
+    it) or an observer run with allow_unstable=True. Known inputs have std 0.
+    """
 
     time: np.ndarray
     states: np.ndarray
@@ -55,36 +108,89 @@ class DEMEstimate(NamedTuple):
     generalized: np.ndarray | None
 
 
+class DEMAnalysis(NamedTuple):
+    """What a DEM observer promises before it sees data (:meth:`DEMObserver.analysis`).
+
+    embedding_order: p in use; automatic: chosen by embedding_order="auto";
+    spectral_radius: of the discrete transition Phi = expm(A_obs dt) (stable when < 1);
+    slowest_time_constant: -dt / ln(spectral_radius) [s] over all modes (inf if not stable);
+    start_time_constant: effective time constant [s] of the start transient as seen in the
+    order-0 estimates (modes those estimates do not see excluded; see
+    dem_analysis.start_time_constant). A log shorter than DRIFT_FACTOR (5) of these is
+    "drifting": the start still matters at its end, and estimate() refuses it;
+    condition_S: largest cond(S) of the temporal precisions in sample units (s / dt);
+    precision_singular: Pi_X (Jacobi-scaled) is singular, some coordinate is not pinned down;
+    unobservable: names of states / inputs the outputs do not inform: their conditional variance
+    diag(inv(Pi_X)) does not change when the sensory term is removed from Pi_X (generalised
+    observability given the precisions: C = 0, sensor_precision 0, ...), or their steady-state
+    error variance is unbounded or above UNOBSERVABLE_RATIO (100) times the prior variance
+    (inputs with prior precision >= PINNED_INPUT_PRECISION count as given, not unobservable);
+    state_std (n,), input_std (r,): steady-state std of the estimation error (NaN where
+    unobservable or when the observer is not stable; 0 for known inputs).
+    """
+
+    embedding_order: int
+    automatic: bool
+    spectral_radius: float
+    slowest_time_constant: float
+    start_time_constant: float
+    condition_S: float
+    precision_singular: bool
+    unobservable: tuple
+    state_std: np.ndarray
+    input_std: np.ndarray
+
+
 @dataclass(frozen=True, eq=False)
 class DEMObserver:
     """A DEM state (and unknown-input) observer for an LTI system.
 
     system: the model (A, B, C); dt: sample time [s]; kernel_width: s of the Gaussian noise
-    kernel [s]; sensor_precision: Pi_z [1/output unit^2]; process_precision: Pi_w
-    [s^2/state unit^2 as in dx/dt]; input_prior_precision: P_v [1/input unit^2] (unknown inputs);
-    embedding_order: p (states/outputs have p + 1 orders); input_order: d; known_inputs: inputs
-    measured (True) or estimated (False); precision_convention: "size" (SPM) or "max" (Meera:
-    invert V at max(p, d) then truncate); window_offset: the embedding window of row k is centred
-    on sample k + window_offset (0 centred; -1 reproduces the authors' quadrotor code);
-    edges: where the window reaches past the log, "order0" uses the sample itself with zero
-    derivatives (Meera; the default: repeated end samples fake large derivatives whose effect
-    decays slowly through the imprecise high orders) or "clamp" repeats the end samples (SPM).
+    kernel [s], used for both noises unless process_kernel_width / sensor_kernel_width are
+    given (then it may be None); sensor_precision: Pi_z [1/output unit^2]; process_precision:
+    Pi_w [s^2/state unit^2 as in dx/dt]; input_prior_precision: P_v [1/input unit^2] (unknown
+    inputs); embedding_order: p (states/outputs have p + 1 orders), an int or "auto" (the
+    default: the largest p <= 6 whose observer is stable (spectral radius <= 1 - 1e-9), has
+    cond(S) <= AUTO_MAX_CONDITION in sample units, and forgets its start quickly: start time
+    constant <= max(AUTO_START_WIDTHS (50) sample times or kernel widths, twice the best of
+    the stable orders), since the highest orders are the ones that make the flow slow or
+    unstable; after construction the attribute holds the int and analysis().automatic is
+    True); input_order: d; known_inputs: inputs measured (True) or estimated (False);
+    precision_convention: "size" (SPM) or "max" (Meera: invert V at max(p, d) then truncate);
+    window_offset: the embedding window of row k is centred on sample k + window_offset (0
+    centred; -1 reproduces the authors' quadrotor code); edges: where the window reaches past the
+    log, "order0" uses the sample itself with zero derivatives (Meera; the default: repeated end
+    samples fake large derivatives whose effect decays slowly through the imprecise high orders)
+    or "clamp" repeats the end samples (SPM).
+    process_kernel_width: s_w [s] of the process noise w: W = kron(S_p(s_w), Pi_w); the input
+    prior Vv = kron(S_d(s_w), P_v) uses it too (an unknown input enters the motion like process
+    noise, so its smoothness is modelled alike); sensor_kernel_width: s_z [s] of the sensor noise
+    z: Vy = kron(S_p(s_z), Pi_z). Both default to kernel_width. A width of 0 (white noise) has no
+    derivatives and is refused: use method="kalman" for white noise.
+    initial_state: order-0 states (n,) the flow starts from (default: the static MAP of the
+    first sample, see :meth:`estimate`); allow_unstable: run configurations that analysis()
+    finds unstable or drifting (with a ModelWarning and NaN std) instead of refusing them.
     Precisions are scalars (times I), vectors (diagonal) or matrices.
     """
 
     system: LinearSystem
     dt: float
-    kernel_width: float
+    kernel_width: float | None
     sensor_precision: np.ndarray
     process_precision: np.ndarray
     input_prior_precision: np.ndarray | None = None
-    embedding_order: int = 6
+    embedding_order: int | str = "auto"
     input_order: int = 2
     known_inputs: bool = False
     precision_convention: str = "size"
     window_offset: int = 0
     edges: str = "order0"
+    process_kernel_width: float | None = None
+    sensor_kernel_width: float | None = None
+    initial_state: np.ndarray | None = None
+    allow_unstable: bool = False
     _matrices: dict = field(default_factory=dict, repr=False)
+    _cache: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
         system = self.system
@@ -92,8 +198,15 @@ class DEMObserver:
             raise AttendInputError("system: expected an attend.LinearSystem")
         set_ = object.__setattr__
         set_(self, "dt", positive_scalar(self.dt, "dt", "s"))
-        set_(self, "kernel_width", positive_scalar(self.kernel_width, "kernel_width", "s"))
-        set_(self, "embedding_order", order(self.embedding_order, "embedding_order"))
+        if self.kernel_width is None:
+            if self.process_kernel_width is None or self.sensor_kernel_width is None:
+                raise AttendInputError("kernel_width: required unless process_kernel_width and "
+                                       "sensor_kernel_width are both given")
+        else:
+            set_(self, "kernel_width", _width(self.kernel_width, "kernel_width"))
+        for name in ("process_kernel_width", "sensor_kernel_width"):
+            value = getattr(self, name)
+            set_(self, name, self.kernel_width if value is None else _width(value, name))
         set_(self, "input_order", order(self.input_order, "input_order"))
         set_(self, "sensor_precision", precision_matrix(self.sensor_precision, system.n_outputs, "sensor_precision"))
         set_(self, "process_precision", precision_matrix(self.process_precision, system.n_states, "process_precision"))
@@ -108,9 +221,98 @@ class DEMObserver:
             raise AttendInputError(f"edges: expected 'order0' or 'clamp', got {self.edges!r}")
         if int(self.window_offset) != self.window_offset:
             raise AttendInputError(f"window_offset: expected an integer number of samples, got {self.window_offset!r}")
-        self._matrices.update(self._build())
+        if self.initial_state is not None:
+            start = np.asarray(self.initial_state, dtype=float).reshape(-1)
+            if start.shape != (system.n_states,):
+                raise AttendInputError(f"initial_state: expected {system.n_states} order-0 states, "
+                                       f"got shape {np.shape(self.initial_state)}")
+            require_finite(start, "initial_state")
+            set_(self, "initial_state", start)
+        if self.precision_convention not in ("size", "max"):
+            raise AttendInputError(f"precision_convention: expected 'size' or 'max', got {self.precision_convention!r}")
+        automatic = isinstance(self.embedding_order, str)
+        if automatic:
+            if self.embedding_order != "auto":
+                raise AttendInputError(f"embedding_order: expected an integer or 'auto', got {self.embedding_order!r}")
+            p, matrices = self._choose_order()  # caches the start time constant
+            set_(self, "embedding_order", p)
+            self._matrices.update(matrices)
+        else:
+            set_(self, "embedding_order", order(self.embedding_order, "embedding_order"))
+            self._matrices.update(self._build(self.embedding_order))
+        self._cache["automatic"] = automatic
+        radius = self._matrices["radius"]
+        if radius >= 1.0 and not automatic:
+            message = (f"embedding_order: the DEM observer is unstable at p = {self.embedding_order} for this "
+                       f"model (spectral radius {radius:.6g} >= 1)")
+            if not self.allow_unstable:
+                raise AttendInputError(message + f"; {self._suggestion()} (or allow_unstable=True to run it anyway)")
+            warnings.warn(message + "; running it anyway (allow_unstable=True), std not reported",
+                          ModelWarning, stacklevel=3)
 
     # --- construction ----------------------------------------------------------------------
+
+    def _suggestion(self) -> str:
+        try:
+            p, _ = self._choose_order()
+        except AttendInputError:
+            return "no order 0..6 is stable for this model: check the precisions, kernel widths and input_order"
+        return f"use p <= {p} or embedding_order='auto'"
+
+    def _choose_order(self) -> tuple[int, dict]:
+        """embedding_order="auto": among p = 0..AUTO_MAX_ORDER with cond(S) <= AUTO_MAX_CONDITION
+        (sample units) and spectral radius <= 1 - 1e-9, the largest p whose start time constant
+        is at most max(AUTO_START_WIDTHS * max(dt, s_w, s_z), 2 * the smallest one among them)."""
+        rejected, candidates = [], []
+        for p in range(AUTO_MAX_ORDER, -1, -1):
+            condition = self._condition_S(p)
+            if condition > AUTO_MAX_CONDITION:
+                rejected.append(f"p = {p}: cond(S) {condition:.2g}")
+                continue
+            matrices = self._build(p)
+            if matrices["radius"] >= 1.0 - 1e-9:
+                rejected.append(f"p = {p}: spectral radius {matrices['radius']:.6g}")
+                continue
+            candidates.append((p, matrices, self._start_time_constant(matrices, p)))
+        if not candidates:
+            raise AttendInputError(
+                "embedding_order: 'auto' found no order 0..6 with a stable DEM observer for this model ("
+                + "; ".join(rejected) + "); check the precisions, kernel widths and input_order, or pass "
+                "an explicit embedding_order with allow_unstable=True"
+            )
+        scale = max(self.dt, self.process_kernel_width, self.sensor_kernel_width)
+        limit = max(AUTO_START_WIDTHS * scale, 2.0 * min(tau for _, _, tau in candidates))
+        p, matrices, tau = next(c for c in candidates if c[2] <= limit)
+        self._cache["start_time_constant"] = tau
+        return p, matrices
+
+    def _condition_S(self, p: int) -> float:
+        d = self.input_order
+        widths = {self.process_kernel_width, self.sensor_kernel_width}
+        values = [smoothness_condition(p + 1, s, self.dt) for s in widths]
+        if not self.known_inputs:
+            values.append(smoothness_condition(d + 1, self.process_kernel_width, self.dt))
+        return float(max(values))
+
+    def _readout(self, p: int) -> tuple[np.ndarray, np.ndarray]:
+        n, r = self.system.n_states, self.system.n_inputs
+        n_x = n * (p + 1)
+        rows_v = np.arange(n_x, n_x + r) if not self.known_inputs else np.zeros(0, dtype=int)
+        return np.arange(n), rows_v
+
+    def _start_problem(self, matrices: dict, p: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Phi, order-0 readout rows, natural scale of every coordinate) for the start analysis."""
+        n, r, d = self.system.n_states, self.system.n_inputs, self.input_order
+        scales = np.kron(derivative_scales(p + 1, self.process_kernel_width), np.ones(n))
+        if not self.known_inputs:
+            scales = np.concatenate([scales, np.kron(derivative_scales(d + 1, self.process_kernel_width), np.ones(r))])
+        rows_x, rows_v = self._readout(p)
+        size = matrices["transition"].shape[0]
+        readout = np.eye(size)[np.concatenate([rows_x, rows_v])]
+        return matrices["transition"], readout, scales
+
+    def _start_time_constant(self, matrices: dict, p: int) -> float:
+        return start_time_constant(*self._start_problem(matrices, p), self.dt)
 
     @property
     def n_state_coordinates(self) -> int:
@@ -135,17 +337,19 @@ class DEMObserver:
         """C~, A~, B~, D_x, D_v, Vy, W, Vv, A_obs, B_obs, Pi_X (see the module docstring)."""
         return dict(self._matrices)
 
-    def _build(self) -> dict[str, np.ndarray]:
+    def _build(self, p: int) -> dict[str, np.ndarray]:
         A, B, C = self.system.A, self.system.B, self.system.C
         n, r, m = self.system.n_states, self.system.n_inputs, self.system.n_outputs
-        p, d = self.embedding_order, self.input_order
-        S_p, S_d = block_precisions(p, d, self.kernel_width, self.precision_convention)
+        d = self.input_order
+        S_p, S_d = block_precisions(p, d, self.process_kernel_width, self.precision_convention)
+        S_pz = S_p if self.sensor_kernel_width == self.process_kernel_width else \
+            block_precisions(p, d, self.sensor_kernel_width, self.precision_convention)[0]
         Ct = np.kron(np.eye(p + 1), C)
         At = np.kron(np.eye(p + 1), A)
         Bt = np.kron(np.eye(p + 1, d + 1), B)
         Dx = shift_operator(p + 1, n)
         Dv = shift_operator(d + 1, r)
-        Vy = np.kron(S_p, self.sensor_precision)
+        Vy = np.kron(S_pz, self.sensor_precision)
         W = np.kron(S_p, self.process_precision)
         Vv = np.kron(S_d, self.input_prior_precision)
         motion = Dx - At
@@ -178,15 +382,9 @@ class DEMObserver:
                 "precisions: the observer's flow matrix could not be discretised (overflow); "
                 "check the scale of sensor_precision, process_precision and input_prior_precision"
             )
-        radius = np.max(np.abs(np.linalg.eigvals(transition)))
-        if radius >= 1.0:
-            warnings.warn(
-                f"the DEM observer is not stable for these settings (spectral radius {radius:.6f} >= 1)",
-                ModelWarning,
-                stacklevel=3,
-            )
-        window_gain, offsets = self._fold_embedding(gain)
-        window_B_obs, _ = self._fold_embedding(B_obs)
+        radius = float(np.max(np.abs(np.linalg.eigvals(transition))))
+        window_gain, offsets = self._fold_embedding(gain, p)
+        window_B_obs, _ = self._fold_embedding(B_obs, p)
         order0 = np.r_[0:m, m * (p + 1): m * (p + 1) + r]  # columns of y and eta/u at order 0
         try:
             covariance = np.linalg.inv(Pi_X)
@@ -194,19 +392,19 @@ class DEMObserver:
             covariance = np.linalg.pinv(Pi_X)
         return dict(
             Ct=Ct, At=At, Bt=Bt, Dx=Dx, Dv=Dv, Vy=Vy, W=W, Vv=Vv, S_p=S_p, S_d=S_d,
-            A_obs=A_obs, B_obs=B_obs, Pi_X=Pi_X, Sigma_X=covariance,
+            A_obs=A_obs, B_obs=B_obs, Pi_X=Pi_X, Sigma_X=covariance, S_pz=S_pz, radius=radius,
             transition=transition, gain=gain, window_gain=window_gain, window_B_obs=window_B_obs,
             offsets=offsets, order0_gain=gain[:, order0], order0_B_obs=B_obs[:, order0],
         )
 
-    def _fold_embedding(self, gain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _fold_embedding(self, gain: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray]:
         """Fold the embedding weights into Gamma: drive[k] = sum_i G_i [y; u][k + offset_i].
 
         Returns G stacked as (size, n_offsets * (m + r)) over the raw window (offsets ascending)
         and the offsets relative to k.
         """
         m, r = self.system.n_outputs, self.system.n_inputs
-        p, d = self.embedding_order, self.input_order
+        d = self.input_order
         Ey = embedding_weights(p + 1, self.dt)  # (p+1 orders, p+1 samples)
         Eu = embedding_weights(d + 1, self.dt)
         first = -max((p + 1) // 2, (d + 1) // 2)
@@ -265,17 +463,53 @@ class DEMObserver:
             )
         return np.hstack([y, u])
 
-    def initial_state(self, window: np.ndarray, edge: bool) -> np.ndarray:
-        """Start of the flow: the static MAP of the first row's data, X0 = inv(Pi_X) B_obs Y[0].
+    def _start_state(self, signals: np.ndarray, row: int, edge: bool) -> np.ndarray:
+        """Where the flow starts at row ``row``: order 0 from that row's own sample, every higher
+        order at its prior mean.
 
-        This is the mode of F for that sample's data alone (no generalised motion); the fixed
-        point of the flow, inv(D_X - Pi_X) B_obs Y[0], is ill-conditioned when the highest orders
-        are imprecise and can start the estimate far off. ``window`` is the raw window of the
-        row, or (``edge``) its own sample [y; u] for an order-0 edge row.
+        Order 0 is the static MAP of the sample [y; eta] (or [y; u]) given the prior: it
+        minimises |y - C x|^2_Pi_z + |v - eta|^2_P_v + |A x + B v|^2_Pi_w (the motion error at
+        order 0 with x' at its prior mean 0), by least squares with the minimum-norm deviation
+        from the prior where the data do not decide (so unobservable states start at 0, inputs
+        at eta); the constructor's ``initial_state`` replaces the states' part (the inputs then
+        take their MAP given it). Higher orders: 0 for the states; for unknown inputs the
+        derivatives of eta embedded from its window (0 at an order-0 edge row). Starting the
+        higher orders from the data instead (finite differences of noisy samples, or the static
+        MAP of the whole window) puts large values into the least precise coordinates, which a
+        slow observer mode then carries through the log.
         """
-        mats = self._matrices
-        data = mats["order0_B_obs"] @ window if edge else mats["window_B_obs"] @ window
-        return np.linalg.lstsq(mats["Pi_X"], data, rcond=None)[0]
+        system = self.system
+        n, r, m = system.n_states, system.n_inputs, system.n_outputs
+        A, B, C = system.A, system.B, system.C
+        Pz, Pw, Pv = self.sensor_precision, self.process_precision, self.input_prior_precision
+        sample = self._centre_samples(signals, np.array([row]))[0]
+        y, u = sample[:m], sample[m:]
+        p, d = self.embedding_order, self.input_order
+        X = np.zeros(self._matrices["transition"].shape[0])
+        if self.known_inputs:
+            if self.initial_state is not None:
+                X[:n] = self.initial_state
+            else:
+                normal = C.T @ Pz @ C + A.T @ Pw @ A
+                X[:n] = np.linalg.lstsq(normal, C.T @ Pz @ y - A.T @ Pw @ B @ u, rcond=1e-12)[0]
+            return X
+        if self.initial_state is not None:  # inputs: MAP given the states
+            x = self.initial_state
+            dv = np.linalg.lstsq(Pv + B.T @ Pw @ B, -B.T @ Pw @ (A @ x + B @ u), rcond=1e-12)[0]
+        else:  # deviations (dx, dv) from the prior means (0, eta)
+            normal = np.block([[C.T @ Pz @ C + A.T @ Pw @ A, A.T @ Pw @ B], [B.T @ Pw @ A, Pv + B.T @ Pw @ B]])
+            rhs = np.concatenate([C.T @ Pz @ y - A.T @ Pw @ B @ u, -B.T @ Pw @ B @ u])
+            deviation = np.linalg.lstsq(normal, rhs, rcond=1e-12)[0]
+            x, dv = deviation[:n], deviation[n:]
+        n_x = n * (p + 1)
+        X[:n] = x
+        if not edge:
+            centre = row + self.window_offset
+            window = signals[np.clip(np.arange(centre - (d + 1) // 2, centre - (d + 1) // 2 + d + 1),
+                                     0, signals.shape[0] - 1), m:]
+            X[n_x:] = (embedding_weights(d + 1, self.dt) @ window).reshape(-1)  # eta~, order-major
+        X[n_x: n_x + r] = u + dv
+        return X
 
     def _edge_rows(self, n_samples: int, start: int, stop: int) -> np.ndarray:
         """Rows in [start, stop) whose embedding window reaches past the log (relative indices)."""
@@ -296,18 +530,56 @@ class DEMObserver:
         input prior eta (unknown inputs; default 0). The log is processed in segments of
         ``segment`` samples so memory stays O(segment) beyond the (N, n + r) results.
         Row k is the estimate at sample k (it uses samples up to k + delay).
+        initial_state: the full generalised start X0 (dim X,); default: order 0 from the first
+        sample, higher orders at their prior mean (see :meth:`_start_state`; the constructor's
+        ``initial_state`` sets its order-0 states).
+        Raises AttendInputError when the log is shorter than DRIFT_FACTOR start time constants
+        (analysis().start_time_constant): the start would still matter at its end. The std
+        columns are those of :meth:`analysis` (steady state under the model, edges excluded);
+        with known inputs the state std adds the mean square, over the middle 80 % of the log, of
+        the filter's own error on the noise-free response to the given inputs (see
+        :meth:`_known_input_error`), so it depends on the log.
         """
         signals = self._signals(outputs, inputs)
         n_samples = signals.shape[0]
+        n, r = self.system.n_states, self.system.n_inputs
+        size = self._matrices["transition"].shape[0]
+        self._check_log_length(n_samples)
+        if initial_state is None:
+            state = None
+        else:
+            state = np.asarray(initial_state, dtype=float).reshape(-1)
+            if state.shape != (size,):
+                raise AttendInputError(f"initial_state: expected the generalised start X0 of size {size}, "
+                                       f"got shape {np.shape(initial_state)}")
+            require_finite(state, "initial_state")
+        states, inputs_out, generalized = self._run(signals, state, keep_generalized, segment)
+        analysis = self.analysis()
+        if analysis.unobservable:
+            warnings.warn(
+                f"{', '.join(analysis.unobservable)}: not informed by the outputs under these precisions "
+                "(unobservable given C and sensor_precision, or an unbounded steady-state error); "
+                "their std is NaN and their estimates follow the model and the prior only",
+                ModelWarning, stacklevel=2,
+            )
+        state_std = analysis.state_std
+        if self.known_inputs and np.all(np.isfinite(state_std)) and n_samples >= 10:
+            state_std = np.sqrt(state_std**2 + self._known_input_error(signals, segment))
+        state_std = np.broadcast_to(state_std, (n_samples, n))
+        input_std = np.broadcast_to(analysis.input_std, (n_samples, r))
+        return DEMEstimate(np.arange(n_samples) * self.dt, states, inputs_out, state_std, input_std, generalized)
+
+    def _run(self, signals: np.ndarray, state, keep_generalized: bool, segment: int):
+        """The flow over the whole log: (states (N, n), inputs (N, r), generalised X or None)."""
         mats = self._matrices
-        n, r, p = self.system.n_states, self.system.n_inputs, self.embedding_order
-        n_x = n * (p + 1)
+        n_samples = signals.shape[0]
+        n, r = self.system.n_states, self.system.n_inputs
+        n_x = self.n_state_coordinates
         size = mats["transition"].shape[0]
         states = np.empty((n_samples, n))
         inputs_out = np.empty((n_samples, r))
         generalized = np.empty((n_samples, size)) if keep_generalized else None
         gain_t = mats["window_gain"].T
-        state = None if initial_state is None else np.asarray(initial_state, dtype=float)
         for start in range(0, n_samples, segment):
             stop = min(start + segment, n_samples)
             windows = self._raw_windows(signals, start, stop)
@@ -316,9 +588,7 @@ class DEMObserver:
             if len(edge):
                 drive[edge] = self._centre_samples(signals, start + edge) @ mats["order0_gain"].T
             if state is None:
-                first_is_edge = len(edge) > 0 and edge[0] == 0
-                first = self._centre_samples(signals, np.array([start]))[0] if first_is_edge else windows[0]
-                state = self.initial_state(first, first_is_edge)
+                state = self._start_state(signals, start, len(edge) > 0 and edge[0] == 0)
             X = linear_recurrence(mats["transition"], drive, state)
             state = X[-1]
             states[start:stop] = X[:, :n]
@@ -328,10 +598,128 @@ class DEMObserver:
                 inputs_out[start:stop] = X[:, n_x: n_x + r]
             if keep_generalized:
                 generalized[start:stop] = X
-        std = np.sqrt(np.clip(np.diag(mats["Sigma_X"]), 0, None))
-        state_std = np.broadcast_to(std[:n], (n_samples, n))
-        input_std = np.broadcast_to(std[n_x: n_x + r] if not self.known_inputs else np.zeros(r), (n_samples, r))
-        return DEMEstimate(np.arange(n_samples) * self.dt, states, inputs_out, state_std, input_std, generalized)
+        return states, inputs_out, generalized
+
+    def _known_input_error(self, signals: np.ndarray, segment: int) -> np.ndarray:
+        """Mean square (n,) of the DEM filter's own error on the noise-free response to the known
+        inputs, over the middle 80 % of the log.
+
+        The plant x[k] = Ad x[k-1] + Bd u[k-1] (from x = 0) and DEM's generalised motion
+        dx/dt = A x + B u (embedded u) respond differently to the same input (sample-and-hold
+        delay, finite-difference derivatives); that deterministic error depends on the input
+        signal, so it is measured on the given one and added to the noise-driven variance."""
+        system = self.system
+        m, n = system.n_outputs, system.n_states
+        u = signals[:, m:]
+        Ad, Bd = system.discretize(self.dt)
+        response = np.zeros((signals.shape[0], n))
+        with np.errstate(over="ignore", invalid="ignore"):
+            response[1:] = linear_recurrence(Ad, u[:-1] @ Bd.T, np.zeros(n))
+            clean = np.hstack([response @ system.C.T, u])
+            states = self._run(clean, None, False, segment)[0]
+        middle = slice(signals.shape[0] // 10, signals.shape[0] - signals.shape[0] // 10)
+        error = np.mean((states[middle] - response[middle]) ** 2, axis=0)
+        return np.where(np.isfinite(error), error, np.inf)
+
+    def _check_log_length(self, n_samples: int) -> None:
+        """Drifting: a start error of one natural unit (see DEMAnalysis.start_time_constant) still
+        moves an order-0 estimate by >= 1/e of it somewhere after the first 1/DRIFT_FACTOR of the
+        log (for a single visible mode: time constant > log length / 5)."""
+        if self._matrices["radius"] >= 1.0:
+            return  # refused at construction, or allowed explicitly
+        first = int(np.ceil(n_samples / DRIFT_FACTOR))
+        if self._start_constant() < first * self.dt:
+            return
+        key = ("start_influence", n_samples)
+        if key not in self._cache:
+            self._cache[key] = start_influence(*self._start_problem(self._matrices, self.embedding_order),
+                                               first, n_samples)
+        influence = self._cache[key]
+        if influence < np.exp(-1.0):
+            return
+        length = n_samples * self.dt
+        message = (f"the DEM observer at p = {self.embedding_order} remembers its start for too long for "
+                   f"this log: after a fifth of it ({first * self.dt:.4g} s of {length:.4g} s) a start error "
+                   f"still moves the estimates by {influence:.2g} of itself (start time constant "
+                   f"{self._start_constant():.4g} s)")
+        if not self.allow_unstable:
+            hint = "" if self._cache["automatic"] else "embedding_order='auto' or "
+            raise AttendInputError(
+                f"embedding_order: {message}; use {hint}a longer log, or a larger sensor_precision "
+                "(a faster observer), or allow_unstable=True to run it anyway"
+            )
+        warnings.warn(message, ModelWarning, stacklevel=3)
+
+    def _start_constant(self) -> float:
+        if "start_time_constant" not in self._cache:
+            self._cache["start_time_constant"] = self._start_time_constant(self._matrices, self.embedding_order)
+        return self._cache["start_time_constant"]
+
+    def _not_informed_by_outputs(self) -> np.ndarray:
+        """Generalised observability given the precisions: order-0 coordinate i is not informed
+        by the outputs when its conditional variance, diag(inv(Pi_X)), is the same (to 0.1 %) with
+        the sensory term C~' Vy C~ removed from Pi_X (or is unbounded either way)."""
+        mats = self._matrices
+        rows_x, rows_v = self._readout(self.embedding_order)
+        indices = np.concatenate([rows_x, rows_v])
+        Pi_X = mats["Pi_X"]
+        without = Pi_X.copy()
+        n_x = mats["Ct"].shape[1]
+        without[:n_x, :n_x] -= mats["Ct"].T @ mats["Vy"] @ mats["Ct"]
+        scale = np.clip(np.diag(Pi_X), 1e-300, None)
+        with_data = marginal_variances(Pi_X, indices, scale)
+        no_data = marginal_variances(without, indices, scale)
+        with np.errstate(invalid="ignore"):
+            return ~np.isfinite(with_data) | (with_data >= 0.999 * no_data)
+
+    def analysis(self) -> DEMAnalysis:
+        """Stability, start transient, conditioning and steady-state error std of this observer
+        (see :class:`DEMAnalysis`). Computed once (a frequency integral on a few thousand
+        points) and cached."""
+        if "analysis" in self._cache:
+            return self._cache["analysis"]
+        mats = self._matrices
+        system = self.system
+        n, r, p = system.n_states, system.n_inputs, self.embedding_order
+        radius = mats["radius"]
+        slowest = -self.dt / np.log(radius) if 0 < radius < 1 else (0.0 if radius == 0 else np.inf)
+        tau = self._start_constant()
+        scaled = mats["Pi_X"] / np.sqrt(np.outer(*(2 * [np.clip(np.diag(mats["Pi_X"]), 1e-300, None)])))
+        singular = bool(np.any(np.diag(mats["Pi_X"]) <= 0) or np.linalg.eigvalsh(scaled).min() < 1e-13)
+        names = tuple(system.state_names) + (() if self.known_inputs else tuple(system.input_names))
+        if radius >= 1.0:
+            state_std, input_std = np.full(n, np.nan), np.full(r, 0.0 if self.known_inputs else np.nan)
+            unobservable = ()
+        else:
+            rows_x, rows_v = self._readout(p)
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                error_x, error_v, prior_x, prior_v = steady_state_error_variance(
+                    mats["transition"], mats["window_gain"], mats["offsets"], rows_x, rows_v,
+                    A=system.A, B=system.B, C=system.C, dt=self.dt,
+                    process_precision=self.process_precision, sensor_precision=self.sensor_precision,
+                    input_prior_precision=self.input_prior_precision,
+                    process_width=self.process_kernel_width, sensor_width=self.sensor_kernel_width,
+                    known_inputs=self.known_inputs,
+                )
+            errors = np.concatenate([error_x, error_v if not self.known_inputs else []])
+            priors = np.concatenate([prior_x, prior_v if not self.known_inputs else []])
+            with np.errstate(invalid="ignore", over="ignore"):
+                structural = self._not_informed_by_outputs()
+                if not self.known_inputs:  # measured inputs passed as pinned unknowns are given
+                    structural[n:] &= np.diag(self.input_prior_precision) < PINNED_INPUT_PRECISION
+                uninformed = ~np.isfinite(errors) | (errors > UNOBSERVABLE_RATIO * priors) | structural
+            unobservable = tuple(name for name, bad in zip(names, uninformed) if bad)
+            std = np.where(uninformed, np.nan, np.sqrt(np.where(uninformed, 0.0, errors)))
+            state_std = std[:n]
+            input_std = std[n:] if not self.known_inputs else np.zeros(r)
+        result = DEMAnalysis(
+            embedding_order=p, automatic=self._cache["automatic"], spectral_radius=radius,
+            slowest_time_constant=float(slowest), start_time_constant=float(tau),
+            condition_S=self._condition_S(p), precision_singular=singular, unobservable=unobservable,
+            state_std=state_std, input_std=input_std,
+        )
+        self._cache["analysis"] = result
+        return result
 
     def online(self) -> "OnlineDEM":
         """A fixed-memory observer fed one sample at a time (see :class:`OnlineDEM`)."""
@@ -374,7 +762,7 @@ class OnlineDEM:
             data = self._buffer.reshape(-1)
             drive = self._gain @ data
         if self._state is None:
-            self._state = self.observer.initial_state(data, edge)
+            self._state = self.observer._start_state(self._buffer, self._before, edge)
         self._state = self._transition @ self._state + drive
         states = self._state[: self._n].copy()
         if self.observer.known_inputs:

@@ -1,0 +1,685 @@
+"""Kalman smoother and filter under the coloured-noise model: the estimator that keeps the past.
+
+The generative model is the one :func:`attend.systems.simulate` samples (spec §1)::
+
+    x[k] = Ad x[k-1] + Bd u[k-1] + dt w[k-1]        y[k] = C x[k] + z[k]
+    w = Lw e_w,  z = Lz e_z                          Lw Lw' = inv(Pi_w),  Lz Lz' = inv(Pi_z)
+    e_w, e_z: unit white noise convolved with a Gaussian kernel of width s_w, s_z [s]
+    unknown inputs: u = eta + Lu e_u, Lu Lu' = inv(P_v), e_u Gaussian-correlated with
+                    autocorrelation rho(tau) = exp(-tau^2 / (4 s_u^2))
+
+Each coloured channel e[k] is written as a small linear model (:func:`attend.noise.noise_state_space`:
+a minimum-phase spectral factor of its autocorrelation, 3 to 14 states, autocorrelation matched to
+~1e-7), and the plant state is augmented with those noise states. The Kalman filter on the
+augmented state is then the causal posterior mean E[x[k] | y[0..k]] and the Rauch-Tung-Striebel
+smoother the whole-log posterior mean E[x[k] | y[0..N-1]] of that model: up to the accuracy of
+the noise fit, the exact Gaussian posterior (:func:`attend.perception.baselines.exact_posterior`)
+in O(N). Kernel width 0 is white noise. Unlike the DEM observer, evidence from the whole past
+(and, in the smoother, the whole future) is carried with its precision.
+
+Speed: the gains do not depend on the data, so the covariance recursion runs only until it
+has converged (typically tens to a few hundred samples); from there on the means follow a
+time-invariant linear recurrence, evaluated with :func:`attend.perception.recurrence.linear_recurrence`.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve
+
+from attend._validation import AttendInputError, as_matrix, positive_scalar, precision_matrix, require_finite
+from attend.noise import (
+    NoiseStateSpace,
+    kernel_autocorrelation,
+    noise_state_space,
+    sampled_autocorrelation,
+    white_state_space,
+)
+from attend.perception.recurrence import linear_recurrence
+from attend.systems import LinearSystem, ModelWarning
+
+__all__ = ["KalmanEstimator", "StateEstimate", "OnlineKalman"]
+
+
+class StateEstimate(NamedTuple):
+    """Estimates at every sample: time (N,) [s]; states (N, n) posterior means; inputs (N, r)
+    posterior means of unknown inputs (the given ones when measured); state_std (N, n),
+    input_std (N, r) posterior standard deviations (0 for measured inputs); method: which
+    estimator produced them."""
+
+    time: np.ndarray
+    states: np.ndarray
+    inputs: np.ndarray
+    state_std: np.ndarray
+    input_std: np.ndarray
+    method: str
+
+
+def _width(value, field: str) -> float:
+    """A kernel width >= 0 [s] (0: white noise)."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise AttendInputError(f"{field}: expected a number >= 0 (s; 0 for white noise), got {value!r}") from None
+    if not np.isfinite(number) or number < 0:
+        raise AttendInputError(f"{field}: expected a finite number >= 0 (s; 0 for white noise), got {value!r}")
+    return number
+
+
+def _factor(precision: np.ndarray, field: str) -> np.ndarray:
+    """L with L L' = inv(precision); a singular precision (infinite variance somewhere) is an error."""
+    eigenvalues, vectors = np.linalg.eigh(precision)
+    if eigenvalues.min() <= 1e-300 or eigenvalues.min() <= 1e-14 * eigenvalues.max():
+        raise AttendInputError(
+            f"{field}: expected a positive definite precision (a zero precision means infinite noise: "
+            "the channel carries no information)"
+        )
+    return vectors / np.sqrt(eigenvalues)
+
+
+def _channel_model(dt: float, width: float, kind: str) -> NoiseStateSpace:
+    if width == 0:
+        return white_state_space()
+    sequence = kernel_autocorrelation(dt, width) if kind == "kernel" else sampled_autocorrelation(dt, width)
+    return noise_state_space(sequence)
+
+
+@dataclass(frozen=True, eq=False)
+class KalmanEstimator:
+    """Kalman smoother (batch) and filter (causal, online) for an LTI system under coloured noise.
+
+    system: the model (A, B, C) in continuous time [1/s]; dt: sample time [s];
+    sensor_precision Pi_z [1/output unit^2] and process_precision Pi_w [s^2/state unit^2], as for
+    :class:`attend.perception.dem.DEMObserver` (Pi_w = 1/sigma_w^2 for simulate(process_std=sigma_w));
+    kernel_width s [s] for both noises, or process_kernel_width / sensor_kernel_width separately
+    (0 = white); known_inputs: inputs measured (True), estimated (False), or one flag per input;
+    estimated inputs have a Gaussian-process prior around the prior mean passed to estimate(),
+    with precision input_prior_precision P_v [1/input unit^2] (for all r inputs; the block of the
+    estimated ones is used) and width input_kernel_width s_u [s] (default: the process width);
+    initial_state: prior mean of x[0] (default 0) and initial_state_std its standard deviation
+    (0: known; default: known when initial_state is given, else unknown: a broad prior, 100 times
+    the scale of the state seen through C in the first sample, or of the sensor noise if larger).
+    """
+
+    system: LinearSystem
+    dt: float
+    sensor_precision: np.ndarray
+    process_precision: np.ndarray
+    kernel_width: float | None = None
+    process_kernel_width: float | None = None
+    sensor_kernel_width: float | None = None
+    input_prior_precision: np.ndarray | None = None
+    input_kernel_width: float | None = None
+    known_inputs: bool = True
+    initial_state: np.ndarray | None = None
+    initial_state_std: np.ndarray | float | None = None
+    _model: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self):
+        system = self.system
+        if not isinstance(system, LinearSystem):
+            raise AttendInputError("system: expected an attend.LinearSystem (a python-control StateSpace converts "
+                                   "with attend.interop.from_statespace)")
+        set_ = object.__setattr__
+        n, r, m = system.n_states, system.n_inputs, system.n_outputs
+        set_(self, "dt", positive_scalar(self.dt, "dt", "s"))
+        shared = None if self.kernel_width is None else _width(self.kernel_width, "kernel_width")
+        widths = {}
+        for name in ("process_kernel_width", "sensor_kernel_width"):
+            value = getattr(self, name)
+            if value is None and shared is None:
+                raise AttendInputError(f"{name}: required (or kernel_width for both noises); 0 means white noise")
+            widths[name] = shared if value is None else _width(value, name)
+            set_(self, name, widths[name])
+        set_(self, "sensor_precision", precision_matrix(self.sensor_precision, m, "sensor_precision"))
+        set_(self, "process_precision", precision_matrix(self.process_precision, n, "process_precision"))
+        known = np.broadcast_to(np.asarray(self.known_inputs, dtype=bool), (r,)) if np.ndim(self.known_inputs) == 0 \
+            else np.asarray(self.known_inputs, dtype=bool)
+        if known.shape != (r,):
+            raise AttendInputError(f"known_inputs: expected True, False or {r} flags (one per input)")
+        set_(self, "known_inputs", bool(known.all()) if known.all() or not known.any() else tuple(known.tolist()))
+        if not known.all():
+            if self.input_prior_precision is None:
+                raise AttendInputError("input_prior_precision: required when some inputs are unknown")
+            full = precision_matrix(self.input_prior_precision, r, "input_prior_precision")
+            set_(self, "input_prior_precision", full[np.ix_(~known, ~known)])
+            width = self.input_kernel_width
+            if width is None:
+                width = widths["process_kernel_width"] or widths["sensor_kernel_width"]
+            width = _width(width, "input_kernel_width")
+            if width == 0:
+                raise AttendInputError("input_kernel_width: expected a width > 0 [s] for the unknown inputs' "
+                                       "prior (the noise widths are both 0)")
+            set_(self, "input_kernel_width", width)
+        if self.initial_state is not None:
+            mean = np.asarray(self.initial_state, dtype=float).reshape(-1)
+            if mean.shape != (n,):
+                raise AttendInputError(f"initial_state: expected {n} numbers (one per state), got shape "
+                                       f"{np.shape(self.initial_state)}")
+            require_finite(mean, "initial_state")
+            set_(self, "initial_state", mean)
+        if self.initial_state_std is not None:
+            std = np.broadcast_to(np.asarray(self.initial_state_std, dtype=float), (n,)).copy() \
+                if np.ndim(self.initial_state_std) == 0 else np.asarray(self.initial_state_std, dtype=float)
+            if std.shape != (n,) or not np.all(np.isfinite(std)) or np.any(std < 0):
+                raise AttendInputError(f"initial_state_std: expected a number or {n} numbers >= 0, got "
+                                       f"{self.initial_state_std!r}")
+            set_(self, "initial_state_std", std)
+        self._model.update(self._build())
+        self._check_observable()
+
+    # --- the augmented model -----------------------------------------------------------------
+
+    @property
+    def method(self) -> str:
+        """A short name of the estimator for reports."""
+        return "kalman (coloured-noise Kalman smoother)"
+
+    def _build(self) -> dict:
+        system, dt = self.system, self.dt
+        n, r, m = system.n_states, system.n_inputs, system.n_outputs
+        Ad, Bd = system.discretize(dt)
+        process = _channel_model(dt, self.process_kernel_width, "kernel")
+        sensor = _channel_model(dt, self.sensor_kernel_width, "kernel")
+        estimated = np.flatnonzero(~self._known_mask())
+        unknown = len(estimated) > 0
+        inputs = _channel_model(dt, self.input_kernel_width, "sampled") if unknown else None
+        blocks = [("x", n, None), ("w", n, process), ("z", m, sensor)]
+        if unknown:
+            blocks.append(("u", len(estimated), inputs))
+        slices, start = {}, 0
+        for name, channels, model in blocks:
+            size = channels if model is None else channels * (model.order + 1)
+            slices[name] = slice(start, start + size)
+            start += size
+        dim = start
+        T = np.zeros((dim, dim))
+        noise_in = np.zeros((dim, dim - n))
+        readout = {}
+        column = 0
+        for name, channels, model in blocks[1:]:
+            block = slices[name]
+            T[block, block] = np.kron(np.eye(channels), model.transition)
+            width = block.stop - block.start
+            noise_in[block, column: column + channels] = np.kron(np.eye(channels), model.noise_input[:, None])
+            column += channels
+            readout[name] = np.kron(np.eye(channels), model.output[None, :])  # (channels, width)
+        Lw = _factor(self.process_precision, "process_precision")
+        Lz = _factor(self.sensor_precision, "sensor_precision")
+        T[slices["x"], slices["x"]] = Ad
+        T[slices["x"], slices["w"]] = dt * Lw @ readout["w"]
+        H = np.zeros((m, dim))
+        H[:, slices["x"]] = system.C
+        H[:, slices["z"]] = Lz @ readout["z"]
+        output_map = np.zeros((n + len(estimated), dim))  # [x; u - eta of the estimated inputs]
+        output_map[:n, slices["x"]] = np.eye(n)
+        if unknown:
+            Lu = _factor(self.input_prior_precision, "input_prior_precision")
+            T[slices["x"], slices["u"]] = Bd[:, estimated] @ Lu @ readout["u"]
+            output_map[n:, slices["u"]] = Lu @ readout["u"]
+        stationary = np.zeros((dim, dim))
+        for name, channels, model in blocks[1:]:
+            stationary[slices[name], slices[name]] = np.kron(np.eye(channels), model.stationary_covariance)
+        return dict(T=T, Q=noise_in @ noise_in.T, H=H, Ad=Ad, Bd=Bd, slices=slices, dim=dim,
+                    stationary=stationary, output_map=output_map, unknown=unknown, estimated=estimated,
+                    noise_orders={"process": process.order, "sensor": sensor.order,
+                                  "input": None if inputs is None else inputs.order})
+
+    def _known_mask(self) -> np.ndarray:
+        """(r,) True where the input is measured."""
+        return np.broadcast_to(np.asarray(self.known_inputs, dtype=bool), (self.system.n_inputs,))
+
+    def _check_observable(self) -> None:
+        """States (and estimated inputs, as constants) the outputs cannot see: an error when x[0] is unknown."""
+        system = self.system
+        n = system.n_states
+        estimated = self._model["estimated"]
+        e = len(estimated)
+        A = np.zeros((n + e, n + e))  # continuous time: estimated inputs as constants
+        A[:n, :n] = system.A
+        A[:n, n:] = system.B[:, estimated]
+        C = np.hstack([system.C, np.zeros((system.n_outputs, e))])
+        names = list(system.state_names) + [system.input_names[i] for i in estimated]
+        basis = unobservable_directions(A, C)
+        if basis.shape[1] == 0:
+            return
+        hidden = [names[i] for i in range(n + e) if np.linalg.norm(basis[i]) > 1e-6]
+        rank = n + e - basis.shape[1]
+        unknown_start = self.initial_state_std is None and self.initial_state is None
+        hidden_states = [name for name in hidden if name in system.state_names]
+        message = f"{', '.join(hidden)}: not observable from the outputs (observable dimension {rank} of {n + e})"
+        if hidden_states and unknown_start:
+            raise AttendInputError(message + "; add outputs that see them, or give initial_state and "
+                                   "initial_state_std (their estimate is then the prior's)")
+        warnings.warn(message + "; their estimates follow the prior and its standard deviation", ModelWarning,
+                      stacklevel=3)
+
+    @property
+    def noise_orders(self) -> dict:
+        """Orders of the finite noise models (process, sensor, input; 0 = white)."""
+        return dict(self._model["noise_orders"])
+
+    # --- data --------------------------------------------------------------------------------
+
+    def _signals(self, outputs, inputs) -> tuple[np.ndarray, np.ndarray]:
+        system = self.system
+        m, r = system.n_outputs, system.n_inputs
+        y = as_matrix(outputs, "outputs", cols=m if np.ndim(outputs) == 2 else 1)
+        if y.shape[1] != m:
+            raise AttendInputError(f"outputs: expected {m} columns (one per output), got {y.shape[1]}")
+        if y.shape[0] < 2:
+            raise AttendInputError(f"outputs: expected at least 2 samples, got {y.shape[0]}")
+        field_name = "inputs" if self.known_inputs is True else "input_prior"
+        if inputs is None:
+            if self._known_mask().any():
+                raise AttendInputError("inputs: the estimator was built with known_inputs=True; pass the measured inputs")
+            u = np.zeros((y.shape[0], r))
+        else:
+            u = as_matrix(inputs, field_name, cols=r if np.ndim(inputs) == 2 else 1)
+            if u.shape != (y.shape[0], r):
+                raise AttendInputError(f"{field_name}: expected shape ({y.shape[0]}, {r}), got {u.shape}")
+        return y, u
+
+    def _initial(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Prior mean and covariance of the augmented state at sample 0."""
+        model = self._model
+        n = self.system.n_states
+        mean = np.zeros(model["dim"])
+        cov = model["stationary"].copy()
+        x = model["slices"]["x"]
+        if self.initial_state is not None:
+            mean[x] = self.initial_state
+        if self.initial_state_std is not None:
+            cov[x, x] = np.diag(self.initial_state_std**2)
+        elif self.initial_state is not None:
+            cov[x, x] = 0.0
+        else:  # diffuse: 100 x the scale of the state seen through C in the first sample
+            inverse = np.linalg.pinv(self.system.C)
+            seen = inverse @ y[0]
+            noise = np.sqrt(np.mean(np.diag(inverse @ np.linalg.pinv(self.sensor_precision) @ inverse.T)))
+            scale = max(float(np.sqrt(np.mean(seen**2))), float(noise), 1e-12)
+            cov[x, x] = np.eye(n) * (100 * scale) ** 2
+        return mean, cov
+
+    # --- estimation --------------------------------------------------------------------------
+
+    def estimate(self, outputs, inputs=None) -> StateEstimate:
+        """Posterior means and standard deviations given the whole log (Kalman + RTS smoother).
+
+        outputs (N, m); inputs (N, r): the measured inputs (known_inputs) or the inputs' prior
+        mean eta (unknown inputs; default 0).
+        """
+        return self._run(outputs, inputs, smooth=True)
+
+    def filter(self, outputs, inputs=None) -> StateEstimate:
+        """Causal estimates E[x[k] | y[0..k]] and their standard deviations (the Kalman filter)."""
+        return self._run(outputs, inputs, smooth=False)
+
+    def _run(self, outputs, inputs, smooth: bool) -> StateEstimate:
+        y, u = self._signals(outputs, inputs)
+        N = y.shape[0]
+        model = self._model
+        T, H = model["T"], model["H"]
+        mean0, cov0 = self._initial(y)
+        if "steady_predicted" not in model:
+            model["steady_predicted"] = _steady_predicted_covariance(T, model["Q"], H)
+        schedule = _gain_schedule(T, model["Q"], H, cov0, N, model["steady_predicted"])
+        drive = np.zeros((N, model["dim"]))
+        drive[:, model["slices"]["x"]] = u @ model["Bd"].T  # b[k] = Bd u[k] enters x[k+1]
+        predicted, innovations = _predicted_means(schedule, T, H, y, drive, mean0)
+        if smooth:
+            means = _smoothed_means(schedule, T, H, predicted, innovations)
+            covariance_diag = _smoother_variances(schedule, T, H, model["output_map"], N)
+        else:
+            means = _filtered_means(schedule, predicted, innovations)
+            covariance_diag = _filter_variances(schedule, H, model["output_map"], N)
+        readout = means @ model["output_map"].T
+        n = self.system.n_states
+        states = readout[:, :n]
+        std = np.sqrt(np.clip(covariance_diag, 0, None))
+        estimated_inputs, input_std = u.copy(), np.zeros_like(u)
+        estimated_inputs[:, model["estimated"]] += readout[:, n:]
+        input_std[:, model["estimated"]] = std[:, n:]
+        if not (np.all(np.isfinite(states)) and np.all(np.isfinite(estimated_inputs))):
+            raise AttendInputError("outputs: the estimate went non-finite; check the scale of the log and of the "
+                                   "precisions")
+        method = "kalman smoother" if smooth else "kalman filter"
+        return StateEstimate(np.arange(N) * self.dt, states, estimated_inputs, std[:, :n], input_std, method)
+
+    def online(self) -> "OnlineKalman":
+        """A fixed-memory filter fed one sample at a time (see :class:`OnlineKalman`)."""
+        return OnlineKalman(self)
+
+
+def unobservable_directions(A: np.ndarray, C: np.ndarray, tolerance: float = 1e-9) -> np.ndarray:
+    """Orthonormal basis (columns) of the unobservable subspace of (A, C).
+
+    The observable subspace is the Krylov space span{C', A' C', A'^2 C', ...}, built with an
+    orthogonalisation at every step (a staircase) instead of the powers of A, whose columns
+    become nearly parallel; a new direction counts when its norm exceeds ``tolerance`` times the
+    scale of A and C.
+    """
+    size = A.shape[0]
+    scale_A = max(np.linalg.norm(A, 2), 1e-300)
+    basis = np.zeros((size, 0))
+    block = C.T / max(np.linalg.norm(C, 2), 1e-300)
+    for _ in range(size + 1):
+        block = block - basis @ (basis.T @ block)
+        block = block - basis @ (basis.T @ block)
+        U, singular, _ = np.linalg.svd(block, full_matrices=False)
+        new = U[:, singular > tolerance]
+        if new.shape[1] == 0:
+            break
+        basis = np.hstack([basis, new])
+        block = A.T @ new / scale_A
+    if basis.shape[1] >= size:
+        return np.zeros((size, 0))
+    complement = np.linalg.svd(np.eye(size) - basis @ basis.T)[0][:, : size - basis.shape[1]]
+    return complement
+
+
+# --- the recursions --------------------------------------------------------------------------
+#
+# Filter (sample k): a_p[k] = T a_f[k-1] + b[k-1], nu[k] = y[k] - H a_p[k], a_f[k] = a_p[k] + K[k] nu[k].
+# Smoother in the Bryson-Frazier form (no inverse of the predicted covariance, which the nearly
+# deterministic noise states make ill-conditioned):
+#     lam[k] = H' inv(S[k]) nu[k] + (I - K[k] H)' T' lam[k+1],      lam[N] = 0
+#     a_s[k] = a_p[k] + P_p[k] lam[k]
+#     Lam[k] = H' inv(S[k]) H + (I - K[k] H)' T' Lam[k+1] T (I - K[k] H),   P_s[k] = P_p[k] - P_p[k] Lam[k] P_p[k]
+
+STEADY_TOLERANCE = 1e-6
+"""Relative change of the gain (and of the smoother's Lam) below which the recursion is steady.
+
+The noise models' white floor (1e-8 of each noise's variance) makes the covariances
+ill-conditioned enough that rounding moves the gain by ~1e-7 relative from step to step, so the
+test cannot be much tighter; the estimates move by about this relative amount."""
+
+
+class _GainSchedule(NamedTuple):
+    """Gains and covariances of samples 0..steady; from ``steady`` on they are constant."""
+
+    gains: np.ndarray          # (steady + 1, dim, m): K[k]
+    innovation_weights: np.ndarray  # (steady + 1, dim, m): H' inv(S[k])
+    predicted: np.ndarray      # (steady + 1, dim, dim): P_p[k] (P_p[0] = the prior)
+    steady: int                # first sample whose gain is the steady gain (or the last sample)
+
+
+def _steady_predicted_covariance(T, Q, H) -> np.ndarray | None:
+    """P_p of the steady filter from the discrete algebraic Riccati equation, or None.
+
+    The measurement noise lives in the state (R = 0); a white measurement variance of 1e-14 of
+    the predicted outputs' scale makes the equation regular without changing the result.
+    """
+    from scipy.linalg import solve_discrete_are
+
+    scale = max(float(np.max(np.abs(np.diag(H @ Q @ H.T)))), float(np.max(np.abs(np.diag(Q)))), 1e-300)
+    try:
+        with np.errstate(all="ignore"):
+            P = solve_discrete_are(T.T, H.T, Q, 1e-14 * scale * np.eye(H.shape[0]))
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    if not np.all(np.isfinite(P)):
+        return None
+    # polish: iterate the filter's own recursion (Joseph form, as _gain_stream) to its fixed point,
+    # which the regularised solver misses by up to ~1e-5 when the noise models are ill-conditioned
+    identity = np.eye(T.shape[0])
+    best = np.inf
+    stalled = 0
+    for _ in range(500):
+        P = 0.5 * (P + P.T)
+        try:
+            K = cho_solve(cho_factor(H @ P @ H.T, lower=True), H @ P).T
+        except np.linalg.LinAlgError:
+            return None
+        A = identity - K @ H
+        new = T @ (A @ P @ A.T) @ T.T + Q
+        change = np.max(np.abs(new - P)) / max(np.max(np.abs(np.diag(new))), 1e-300)
+        P = new
+        if change < 1e-13:
+            break
+        stalled = stalled + 1 if change >= 0.5 * best else 0
+        best = min(best, change)
+        if stalled >= 10:  # at the rounding floor
+            break
+    return 0.5 * (P + P.T)
+
+
+class _Plateau:
+    """Detects a recursion that has stopped converging: its distance to the limit is below 1e-3
+    and has not halved in ``window`` steps (rounding noise; going on would not get closer)."""
+
+    def __init__(self, window: int = 25):
+        self.window, self.best, self.since = window, np.inf, 0
+
+    def reached(self, distance: float) -> bool:
+        if distance < 0.5 * self.best:
+            self.best, self.since = distance, 0
+        else:
+            self.since += 1
+        return self.best < 1e-3 and self.since >= self.window
+
+
+def _gain_stream(T, Q, H, P0, steady_predicted=None, patience: int = 3):
+    """Yield (K[k], H' inv(S[k]), P_p[k], steady) for k = 0, 1, ...
+
+    The covariance recursion runs until its gain is within STEADY_TOLERANCE (relative) of the
+    steady gain of the Riccati equation for ``patience`` samples; from then on the Riccati
+    solution itself is yielded with steady = True (every later sample uses it).
+    """
+    tolerance = STEADY_TOLERANCE
+    steady = None
+    if steady_predicted is not None:
+        try:
+            factor = cho_factor(H @ steady_predicted @ H.T, lower=True)
+            weight = cho_solve(factor, H).T
+            steady = (steady_predicted @ weight, weight, steady_predicted, True)
+        except np.linalg.LinAlgError:
+            steady = None
+    P = 0.5 * (P0 + P0.T)
+    calm = 0
+    plateau = _Plateau()
+    identity = np.eye(T.shape[0])
+    K = None
+    while True:
+        if K is not None:
+            A = identity - K @ H
+            P = T @ (A @ P @ A.T) @ T.T + Q  # Joseph form of the update, then predict
+            P = 0.5 * (P + P.T)
+        try:
+            factor = cho_factor(H @ P @ H.T, lower=True)
+        except np.linalg.LinAlgError:
+            raise AttendInputError("sensor_precision: the predicted outputs' covariance is singular; "
+                                   "check sensor_precision and C") from None
+        weight = cho_solve(factor, H).T  # H' inv(S)
+        K = P @ weight
+        if steady is not None and tolerance >= 0:
+            distance = np.max(np.abs(K - steady[0])) / max(np.max(np.abs(steady[0])), 1e-300)
+            calm = calm + 1 if distance <= tolerance else 0
+            if plateau.reached(distance):
+                calm = patience
+        if calm >= patience:
+            while True:
+                yield steady
+        yield K, weight, P, False
+
+
+def _gain_schedule(T, Q, H, P0, n_samples: int, steady_predicted=None) -> _GainSchedule:
+    """The first samples of :func:`_gain_stream`: up to the first steady one, or the whole log."""
+    gains, weights, predicted = [], [], []
+    for k, (K, weight, P, steady) in zip(range(n_samples), _gain_stream(T, Q, H, P0, steady_predicted)):
+        gains.append(K)
+        weights.append(weight)
+        predicted.append(P)
+        if steady:
+            break
+    return _GainSchedule(np.array(gains), np.array(weights), np.array(predicted), len(gains) - 1)
+
+
+def _at(array: np.ndarray, k: int) -> np.ndarray:
+    """Entry k of a schedule array, the steady (last) entry beyond it."""
+    return array[min(k, len(array) - 1)]
+
+
+def _predicted_means(schedule: _GainSchedule, T, H, y, drive, mean0) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted means a_p[k] and innovations nu[k] for every sample."""
+    N, dim = y.shape[0], T.shape[0]
+    predicted = np.empty((N, dim))
+    mean = mean0
+    head = min(schedule.steady + 1, N)
+    for k in range(head):
+        if k:
+            mean = T @ (mean + schedule.gains[k - 1] @ (y[k - 1] - H @ mean)) + drive[k - 1]
+        predicted[k] = mean
+    if head < N:  # a_p[k] = T (I - K H) a_p[k-1] + T K y[k-1] + b[k-1]
+        K = schedule.gains[-1]
+        transition = T @ (np.eye(dim) - K @ H)
+        forcing = y[head - 1: N - 1] @ (T @ K).T + drive[head - 1: N - 1]
+        predicted[head:] = linear_recurrence(transition, forcing, predicted[head - 1])
+    return predicted, y - predicted @ H.T
+
+
+def _filtered_means(schedule: _GainSchedule, predicted, innovations) -> np.ndarray:
+    N = predicted.shape[0]
+    head = min(schedule.steady, N)
+    out = predicted.copy()
+    for k in range(head):
+        out[k] += schedule.gains[k] @ innovations[k]
+    out[head:] += innovations[head:] @ schedule.gains[-1].T
+    return out
+
+
+def _smoothed_means(schedule: _GainSchedule, T, H, predicted, innovations) -> np.ndarray:
+    N, dim = predicted.shape
+    s = min(schedule.steady, N - 1)
+    lam = np.empty((N, dim))
+    scaled = np.empty((N, dim))  # H' inv(S[k]) nu[k]
+    scaled[s:] = innovations[s:] @ schedule.innovation_weights[-1].T
+    for k in range(s):
+        scaled[k] = schedule.innovation_weights[k] @ innovations[k]
+    # steady region: lam[k] = M lam[k+1] + scaled[k], M = (I - K H)' T'
+    K = schedule.gains[-1]
+    M = (np.eye(dim) - K @ H).T @ T.T
+    lam[s:] = linear_recurrence(M, scaled[s:][::-1], np.zeros(dim))[::-1]
+    for k in range(s - 1, -1, -1):
+        lam[k] = scaled[k] + (np.eye(dim) - schedule.gains[k] @ H).T @ (T.T @ lam[k + 1])
+    out = np.empty_like(predicted)
+    out[s:] = predicted[s:] + lam[s:] @ schedule.predicted[-1].T
+    for k in range(s):
+        out[k] = predicted[k] + schedule.predicted[k] @ lam[k]
+    return out
+
+
+def _filter_variances(schedule: _GainSchedule, H, output_map, N: int) -> np.ndarray:
+    out = np.empty((N, output_map.shape[0]))
+    identity = np.eye(H.shape[1])
+    for k in range(min(N, schedule.steady + 1)):
+        A = identity - schedule.gains[k] @ H
+        out[k] = np.einsum("ij,jl,il->i", output_map, A @ schedule.predicted[k] @ A.T, output_map)
+    out[schedule.steady + 1:] = out[min(N, schedule.steady + 1) - 1]
+    return out
+
+
+def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int) -> np.ndarray:
+    """diag(O P_s[k] O') with the backward recursion of Lam; constant in the middle of long logs."""
+    tolerance = STEADY_TOLERANCE
+    dim = T.shape[0]
+    identity = np.eye(dim)
+    s = min(schedule.steady, N - 1)
+
+    def closed(k):
+        return identity - _at(schedule.gains, k) @ H
+
+    def variance(k, Lam):
+        P = _at(schedule.predicted, k)
+        return np.einsum("ij,jl,il->i", output_map, P - P @ Lam @ P, output_map)
+
+    out = np.empty((N, output_map.shape[0]))
+    Lam = _at(schedule.innovation_weights, N - 1) @ H
+    out[N - 1] = variance(N - 1, Lam)
+    k = N - 2
+    calm = 0
+    previous_change = np.inf
+    plateau = _Plateau()
+    while k >= s:  # steady gains: Lam converges geometrically going backwards
+        A = closed(k)
+        new = schedule.innovation_weights[-1] @ H + A.T @ T.T @ Lam @ T @ A
+        new = 0.5 * (new + new.T)
+        change = np.max(np.abs(new - Lam))
+        rate = min(change / previous_change, 0.999999) if previous_change > 0 else 0.0
+        previous_change = change
+        remaining = change * rate / (1 - rate)  # distance to the limit of a geometric sequence
+        scale = max(np.max(np.abs(new)), 1e-300)
+        calm = calm + 1 if remaining <= tolerance * scale else 0
+        if plateau.reached(change / scale):
+            calm = 3
+        Lam = new
+        out[k] = variance(k, Lam)
+        k -= 1
+        if calm >= 3:
+            out[s: k + 1] = out[k + 1]
+            k = s - 1
+            break
+    for j in range(k, -1, -1):
+        A = closed(j)
+        Lam = schedule.innovation_weights[j] @ H + A.T @ T.T @ Lam @ T @ A
+        Lam = 0.5 * (Lam + Lam.T)
+        out[j] = variance(j, Lam)
+    return out
+
+
+class OnlineKalman:
+    """The Kalman filter fed one sample at a time: ``step(y, u)`` returns (states, inputs,
+    state_std, input_std) of the same sample (no delay), equal to :meth:`KalmanEstimator.filter`
+    sample by sample. Memory does not grow with the stream; once the gain is steady each step is
+    two small matrix-vector products."""
+
+    def __init__(self, estimator: KalmanEstimator):
+        self.estimator = estimator
+        self._model = estimator._model
+        self._count = 0
+        self._mean = None
+        self._previous_drive = None
+        self._stream = None
+        self._steady = False
+
+    def step(self, output, input_value=None):
+        """Feed sample k (outputs (m,), measured input or input prior (r,)); return its estimate."""
+        est, model = self.estimator, self._model
+        m, r, n = est.system.n_outputs, est.system.n_inputs, est.system.n_states
+        try:
+            y = np.asarray(output, dtype=float).reshape(-1)
+            u = np.zeros(r) if input_value is None else np.asarray(input_value, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise AttendInputError(f"step: expected {m} output numbers and {r} input numbers") from None
+        if y.shape != (m,) or u.shape != (r,):
+            raise AttendInputError(f"step: expected {m} outputs and {r} inputs, got {y.shape[0]} and {u.shape[0]}")
+        require_finite(np.concatenate([y, u]), "step sample")
+        T, H = model["T"], model["H"]
+        if self._count == 0:
+            if "steady_predicted" not in model:
+                model["steady_predicted"] = _steady_predicted_covariance(T, model["Q"], H)
+            mean, P0 = est._initial(y[None, :])
+            self._stream = _gain_stream(T, model["Q"], H, P0, model["steady_predicted"])
+        else:
+            mean = T @ self._mean + self._previous_drive
+        if not self._steady:
+            K, _, P, self._steady = next(self._stream)
+            A = np.eye(model["dim"]) - K @ H
+            self._gain = K
+            self._variances = np.einsum("ij,jl,il->i", model["output_map"], A @ P @ A.T, model["output_map"])
+        mean = mean + self._gain @ (y - H @ mean)
+        self._mean = mean
+        drive = np.zeros(model["dim"])
+        drive[model["slices"]["x"]] = model["Bd"] @ u
+        self._previous_drive = drive
+        self._count += 1
+        readout = model["output_map"] @ mean
+        std = np.sqrt(np.clip(self._variances, 0, None))
+        inputs, input_std = u.copy(), np.zeros(r)
+        inputs[model["estimated"]] += readout[n:]
+        input_std[model["estimated"]] = std[n:]
+        return readout[:n], inputs, std[:n], input_std

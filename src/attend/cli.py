@@ -158,7 +158,8 @@ def _command_identify(args) -> int:
     accepted = ", ".join(f"{step}: {count}" for step, count in result.steps_accepted.items())
     print(f"free energy: {result.free_energy[0]:.6g} -> {result.free_energy[-1]:.6g} over {result.iterations} "
           f"iterations ({result.message}); "
-          f"steps accepted {accepted}; {result.settings['state_model']} state model; {elapsed:.2f} s")
+          f"steps accepted {accepted}; {result.settings['state_model']} state model, top order "
+          f"{result.settings['top_order']}; {elapsed:.2f} s")
     problems = io.check_learned_model(model, log, result)
     if result.converged and not problems:
         path = io.write_learned_model(args.out, model, result)

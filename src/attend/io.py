@@ -49,6 +49,7 @@ Model file (all times in seconds)::
     max_iterations = 50
     tolerance = 1e-3                # stop when an iteration raises F by less
     states = "sample"               # "sample" (paper's eq. 8) or "path" (one state path, data counted once)
+    top_order = "marginal"          # top-order motion error: "marginal" (default) or "truncate" (eq. 8)
 
 Log file: CSV with a header row; the time column, the output columns and the known-input
 columns named in the model file (other columns are ignored).
@@ -85,7 +86,7 @@ _SECTIONS = {
     "log": {"time_column"},
     "learning": {
         "free", "free_prior_precision", "known_prior_precision", "noise_prior_mean",
-        "noise_prior_precision", "max_iterations", "tolerance", "states",
+        "noise_prior_precision", "max_iterations", "tolerance", "states", "top_order",
     },
     # written by `attend identify`; informative, not used by the observer
     "learned": {
@@ -456,7 +457,7 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
     settings = dict(model.learning or {})
     options = {key: settings[key] for key in (
         "free", "free_prior_precision", "known_prior_precision", "noise_prior_mean", "noise_prior_precision",
-        "max_iterations", "tolerance", "states") if key in settings}
+        "max_iterations", "tolerance", "states", "top_order") if key in settings}
     if "noise_prior_mean" in options:
         options["noise_prior_mean"] = tuple(options["noise_prior_mean"])
     return identify(model.system, outputs, inputs, dt, kernel_width=model.kernel_width,

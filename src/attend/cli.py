@@ -188,6 +188,9 @@ def _advice(result, model) -> str:
                     f"{learning.get('noise_prior_precision', 1.0)}) to keep the noise log-precisions near noise_prior_mean.")
         return ("Change: learn fewer entries (free) or raise free_prior_precision (now "
                 f"{learning.get('free_prior_precision', 1.0)}) so the prior holds them.")
+    if "known entries moved" in result.message:
+        return (f"Change: known_prior_precision (now {learning.get('known_prior_precision', 3.3e6)}) = inf in "
+                "[learning] to hold the entries that are not learned at their values in [model].")
     if "max_iterations" in result.message:
         other = "path" if result.settings.get("state_model") == "sample" else "sample"
         return (f"Change: raise max_iterations (now {learning.get('max_iterations', 50)}) or tolerance "

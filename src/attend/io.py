@@ -43,7 +43,7 @@ Model file (all times in seconds)::
     [learning]                      # only for `attend identify` (all inputs measured)
     free = ["A[2,1]", "A[2,2]", "B[2,1]"]   # entries to learn (1-based row, column)
     free_prior_precision = 1.0      # P_theta of the free entries (their prior means: [model])
-    known_prior_precision = 3.3e6   # P_theta of the other entries (exp(15))
+    known_prior_precision = inf     # P_theta of the other entries: inf holds them fixed (exp(15) = 3.3e6: nearly)
     noise_prior_mean = [0.0, 0.0]   # eta_lambda of [lambda_z, lambda_w] (log-precisions)
     noise_prior_precision = 1.0     # P_lambda
     max_iterations = 50
@@ -469,7 +469,7 @@ LEARNING_EXAMPLE = """\
     [learning]
     free = ["A[2,1]", "A[2,2]", "B[2,1]"]   # entries to learn (1-based row, column)
     free_prior_precision = 1.0
-    known_prior_precision = 3.3e6
+    known_prior_precision = inf             # hold the other entries fixed
     noise_prior_mean = [0.0, 0.0]
     noise_prior_precision = 1.0
     max_iterations = 50

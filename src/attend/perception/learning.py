@@ -152,6 +152,7 @@ __all__ = [
 ]
 
 KNOWN_PRIOR_PRECISION = float(np.exp(15.0))  # ~3.3e6: "known" entries (seed §4.2.3)
+KNOWN_DISPLACED_STD = 5.0  # identify warns when a known entry ends this many prior std from its mean
 
 #: The learner exactly as published (eq. 8 with the top-order motion error truncated, plain D-E-M
 #: sweeps): what the paper reproductions (fig3, fig4, fig5, rhythm-learning) pass to learn_batch
@@ -1464,6 +1465,23 @@ def identify(
     message = batch.messages[0]
     if message.startswith("stopped:"):
         warnings.warn(message, LearningWarning, stacklevel=2)
+    # "known" entries (not free, finite prior precision) that the data moved many prior std away: on long,
+    # precise logs exp(15) does not hold them, and moving them can reach a (C, A) with an unobservable
+    # mode, where eq. 8's F grows without bound (the state entropy of that mode; module docstring)
+    theta_hat = batch.parameters[0]
+    held = ~free_mask & np.isfinite(prec) & (prec > 0)
+    shift = np.where(held, np.abs(theta_hat - eta) * np.sqrt(np.where(held, prec, 0.0)), 0.0)
+    displaced = held & (shift > KNOWN_DISPLACED_STD)
+    if displaced.any():
+        worst = np.argsort(-shift)[:3]
+        listed = ", ".join(f"{names[j]} {eta[j]:.4g} -> {theta_hat[j]:.4g} ({shift[j]:.0f} prior std)"
+                           for j in worst if displaced[j])
+        note = (f"known entries moved far from their prior means ({listed}): the log outweighs "
+                f"known_prior_precision; hold them fixed (known_prior_precision = inf) unless they are meant "
+                f"to be learned")
+        if not batch.converged[0]:
+            message = f"{message}; {note}"
+        warnings.warn(note, IdentifiabilityWarning, stacklevel=2)
     H_info = np.diag(batch.parameter_precision[0]) - prec
     weak = learn & np.isfinite(H_info) & (H_info <= 1e-9 * np.maximum(1.0, prec))
     if weak.any():

@@ -31,7 +31,7 @@ from attend.perception.learning import identify, parameter_vector
 from attend.systems import LinearSystem
 
 DATA = Path(os.environ.get("ATTEND_QUADROTOR_DATA", "/work/shared/data/quadrotor-wind"))
-FREE = ["A[2,1]", "A[2,2]", "B[2,1]"]
+FREE = ["A[2,1]", "A[2,2]", "B[2,1]", "B[2,2]", "B[2,3]", "B[2,4]"]
 LEARNING = dict(free=FREE, free_prior_precision=1.0, known_prior_precision=np.inf, noise_prior_mean=(0.0, 0.0),
                 noise_prior_precision=1.0, max_iterations=50, tolerance=1e-3)
 PRIOR = LinearSystem(A=np.array([[0.0, 1.0], [0.0, 0.0]]),
@@ -50,6 +50,7 @@ def load(path: Path, start: int, samples: int | None):
 
 
 CORRUPTED = {"exp_26_WW_WM_0"}
+HORIZON = 12  # samples (0.1 s) ahead for the second prediction metric
 
 
 def one_step_error(system: LinearSystem, states, inputs, relative: bool = True) -> float:
@@ -69,6 +70,28 @@ def prediction_ratio(system: LinearSystem, logs, skip, relative: bool = True) ->
     learned = np.mean([one_step_error(system, logs[o][2], logs[o][1], relative) for o in others])
     prior = np.mean([one_step_error(PRIOR, logs[o][2], logs[o][1], relative) for o in others])
     return learned, prior, learned / prior
+
+
+def horizon_error(system: LinearSystem, states, inputs, steps: int) -> np.ndarray:
+    """Mean squared error [phi, phi_dot] of the prediction ``steps`` samples ahead from the measured state
+    (operating-point relative) and the measured inputs in between (zero-order hold)."""
+    states = states - states.mean(axis=0)
+    Ad, Bd = system.discretize(DT)
+    count = len(states) - steps
+    predicted = states[:count].copy()
+    for j in range(steps):
+        predicted = predicted @ Ad.T + inputs[j:j + count] @ Bd.T
+    return np.mean((states[steps:] - predicted) ** 2, axis=0)
+
+
+def horizon_ratio(system: LinearSystem, logs, skip, steps: int = HORIZON) -> np.ndarray:
+    """Learned / prior ``steps``-ahead error [phi, phi_dot], averaged over the other flights (corrupted left out)."""
+    if not all(np.all(np.isfinite(M)) for M in (system.A, system.B)):
+        return np.full(2, np.inf)
+    others = [o for o in logs if o != skip and o not in CORRUPTED]
+    learned = np.mean([horizon_error(system, logs[o][2], logs[o][1], steps) for o in others], axis=0)
+    prior = np.mean([horizon_error(PRIOR, logs[o][2], logs[o][1], steps) for o in others], axis=0)
+    return learned / prior
 
 
 def main(argv=None) -> int:
@@ -93,12 +116,14 @@ def main(argv=None) -> int:
     summary = {}
     print(f"{len(names)} flights, {samples or 'all'} samples each from sample {args.start}, roll model, README "
           f"[learning] (known_prior_precision = {args.known_prior_precision:g})")
-    header = (f"{'flight':16s} {'states':6s} {'T':>5s} {'iter':>4s} {'conv':>4s} {'F':>12s}  "
-              + "  ".join(f"{n:>17s}" for n in FREE) + f"  {'lam_z':>6s} {'lam_w':>6s} {'eig(A)':>17s} "
-              f"{'pred learned/prior':>18s} {'ratio':>6s} {'raw':>6s} {'s':>5s}")
+    print("per flight: iterations, converged, F, lambda, eig(A), one-step roll-rate error learned/prior on the other "
+          "flights (operating-point relative; 'raw': absolute states), 0.1 s-ahead error ratio [phi, phi_dot]; "
+          "then the learned free entries +- posterior std")
+    header = (f"{'flight':16s} {'states':6s} {'T':>5s} {'iter':>4s} {'conv':>4s} {'F':>12s} {'lam_z':>6s} {'lam_w':>6s} "
+              f"{'eig(A)':>22s} {'1-step':>7s} {'raw':>6s} {'phi@.1s':>8s} {'dphi@.1s':>8s} {'s':>5s}")
     print(header)
     for states in args.states:
-        converged, ratios, raws, unstable = 0, [], [], 0
+        converged, ratios, raws, horizons, unstable = 0, [], [], [], 0
         for name in names:
             y, u, _ = logs[name]
             started = time.perf_counter()
@@ -108,31 +133,36 @@ def main(argv=None) -> int:
                                   precision_convention="max", states=states, **learning)
             elapsed = time.perf_counter() - started
             learned = result.system()
-            err_learned, err_prior, ratio = prediction_ratio(learned, logs, name)
+            ratio = prediction_ratio(learned, logs, name)[2]
             raw = prediction_ratio(learned, logs, name, relative=False)[2]
+            horizon = horizon_ratio(learned, logs, name)
             if name not in CORRUPTED:
                 ratios.append(ratio)
                 raws.append(raw)
+                horizons.append(horizon)
             converged += bool(result.converged)
             eig = np.linalg.eigvals(learned.A) if np.all(np.isfinite(learned.A)) else np.full(2, np.nan)
             unstable += bool(np.max(eig.real) > 0)
+            eig_txt = ",".join(f"{e.real:.3g}" + (f"{e.imag:+.3g}j" if e.imag > 0 else "") for e in eig
+                               if e.imag >= 0)
+            print(f"{name:16s} {states:6s} {len(y):5d} {result.iterations:4d} {'yes' if result.converged else 'no':>4s} "
+                  f"{result.free_energy[-1]:12.6g} {result.log_precision[0]:6.2f} {result.log_precision[1]:6.2f} "
+                  f"{eig_txt:>22s} {ratio:7.3f} {raw:6.3f} {horizon[0]:8.3f} {horizon[1]:8.3f} {elapsed:5.1f}"
+                  + ("  (corrupted flight: not in the summary)" if name in CORRUPTED else ""), flush=True)
             idx = [result.parameter_names.index(n) for n in FREE]
             std = result.parameter_std
-            cells = "  ".join(f"{result.parameters[i]:8.4g}+-{std[i]:<7.2g}" for i in idx)
-            eig_txt = ",".join(f"{e.real:.3g}" + (f"{e.imag:+.2g}j" if abs(e.imag) > 0 else "") for e in eig)
-            print(f"{name:16s} {states:6s} {len(y):5d} {result.iterations:4d} {'yes' if result.converged else 'no':>4s} "
-                  f"{result.free_energy[-1]:12.6g}  {cells}  {result.log_precision[0]:6.2f} {result.log_precision[1]:6.2f} "
-                  f"{eig_txt:>17s} {err_learned:8.4g}/{err_prior:<9.4g} {ratio:6.3f} {raw:6.3f} {elapsed:5.1f}"
-                  + ("  (corrupted flight)" if name in CORRUPTED else ""), flush=True)
+            print("    " + "  ".join(f"{n} {result.parameters[i]:.4g} +- {std[i]:.2g}" for n, i in zip(FREE, idx)))
             if not result.converged:
                 print(f"    {result.message}")
-        summary[states] = (converged, np.array(ratios), np.array(raws), unstable)
+        summary[states] = (converged, np.array(ratios), np.array(raws), np.array(horizons), unstable)
     print()
-    for states, (count, ratios, raws, unstable) in summary.items():
-        print(f"{states:6s}: {count}/{len(names)} flights converge; {unstable}/{len(names)} learned A unstable; one-step "
-              f"roll-rate error learned/prior on the other flights (operating-point relative): median "
-              f"{np.median(ratios):.4f}, worst {np.max(ratios):.4f} ({int(np.sum(ratios <= 1))}/{len(ratios)} not worse); "
-              f"raw states: median {np.median(raws):.4f}, worst {np.max(raws):.4f} ({int(np.sum(raws <= 1))}/{len(raws)})")
+    for states, (count, ratios, raws, horizons, unstable) in summary.items():
+        print(f"{states:6s}: {count}/{len(names)} flights converge; {unstable}/{len(names)} learned A unstable")
+        for label, values in (("one-step roll rate", ratios), ("one-step roll rate, raw states", raws),
+                              (f"{HORIZON * DT:.1f} s ahead phi", horizons[:, 0]),
+                              (f"{HORIZON * DT:.1f} s ahead phi_dot", horizons[:, 1])):
+            print(f"    error learned/prior on the other flights, {label:31s}: median {np.median(values):.3f}, worst "
+                  f"{np.max(values):.3f} ({int(np.sum(values <= 1))}/{len(values)} not worse)")
     print(f"target: {len(names)}/{len(names)} flights converge, both state models; ratio <= 1")
     return 0
 

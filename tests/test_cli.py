@@ -125,3 +125,24 @@ def test_search_offers_every_planner():
     parser = _build_parser()
     search = next(a for a in parser._subparsers._group_actions[0].choices["search"]._actions if a.dest == "planner")
     assert set(search.choices) == set(PLANNERS)
+
+
+def test_identify_readme_example_on_the_whole_bundled_flight(tmp_path, capsys):
+    """README 'Identify your model': the bundled roll model + its [learning] section on the whole bundled
+    flight (3481 samples) converges (exit 0) and reports the learned A's eigenvalues."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).parents[1]
+    readme = (root / "README.md").read_text()
+    section = readme[readme.index("### Identify your model"):]
+    learning = re.search(r"```toml\n(\[learning\].*?)```", section, re.S).group(1)
+    assert "known_prior_precision = inf" in learning
+    data = root / "src" / "attend" / "data"
+    (tmp_path / "model.toml").write_text((data / "quadrotor_roll.toml").read_text() + "\n" + learning)
+    out = tmp_path / "learned.toml"
+    assert main(["identify", str(tmp_path / "model.toml"), str(data / "quadrotor_roll_wind.csv"), "--out", str(out),
+                 "--no-progress"]) == 0
+    report = capsys.readouterr().out
+    assert "converged at iteration" in report and "eigenvalues of the learned A" in report
+    assert out.exists()

@@ -147,6 +147,8 @@ def _build_parser() -> argparse.ArgumentParser:
 
 
 def _command_identify(args) -> int:
+    import numpy as np
+
     from attend import io
 
     model = io.read_model(args.model)
@@ -160,6 +162,13 @@ def _command_identify(args) -> int:
           f"iterations ({result.message}); "
           f"steps accepted {accepted}; {result.settings['state_model']} state model, top order "
           f"{result.settings['top_order']}; {elapsed:.2f} s")
+    learned_A = result.system().A
+    if np.all(np.isfinite(learned_A)):
+        eig = np.linalg.eigvals(learned_A)
+        listed = ", ".join(f"{complex(e).real:.4g}" + (f"{complex(e).imag:+.4g}j" if complex(e).imag else "") for e in eig)
+        note = ("UNSTABLE (reported, not enforced: learning does not constrain A's stability)"
+                if np.max(eig.real) > 0 else "stable")
+        print(f"eigenvalues of the learned A [1/s]: {listed}: {note}")
     problems = io.check_learned_model(model, log, result)
     if result.converged and not problems:
         path = io.write_learned_model(args.out, model, result)

@@ -41,7 +41,7 @@ Model file (all times in seconds)::
     time_column = "t"               # CSV column with time stamps [s], uniform spacing
 
     [learning]                      # only for `attend identify` (all inputs measured)
-    free = ["A[2,1]", "A[2,2]", "B[2,1]"]   # entries to learn (1-based row, column)
+    free = ["A[2,1]", "A[2,2]", "B[2,1]", "B[2,2]", "B[2,3]", "B[2,4]"]   # entries to learn (1-based)
     free_prior_precision = 1.0      # P_theta of the free entries (their prior means: [model])
     known_prior_precision = inf     # P_theta of the other entries: inf holds them fixed (exp(15) = 3.3e6: nearly)
     noise_prior_mean = [0.0, 0.0]   # eta_lambda of [lambda_z, lambda_w] (log-precisions)
@@ -467,7 +467,7 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
 
 LEARNING_EXAMPLE = """\
     [learning]
-    free = ["A[2,1]", "A[2,2]", "B[2,1]"]   # entries to learn (1-based row, column)
+    free = ["A[2,1]", "A[2,2]", "B[2,1]", "B[2,2]", "B[2,3]", "B[2,4]"]   # entries to learn (1-based)
     free_prior_precision = 1.0
     known_prior_precision = inf             # hold the other entries fixed
     noise_prior_mean = [0.0, 0.0]

@@ -390,3 +390,83 @@ def test_readme_learning_section_converges_on_real_flights(flight):
     observer = DEMObserver(result.system(), DT, 0.006, result.sensor_precision, result.process_precision, None,
                            "auto", 2, known_inputs=True, precision_convention="max")
     assert np.all(np.isfinite(observer.estimate(y, u).states))
+
+
+# --- top order, the published learner, whole flights ----------------------------------------------
+
+def test_top_order_option_is_validated_and_reported():
+    system, log = _msd_log(seed=0, n=120)
+    kw = dict(n_states=2, kernel_width=0.5, prior_mean=L.parameter_vector(system)[None],
+              prior_precision=np.where(FREE_MSD, 1.0, np.exp(15))[None], max_iterations=3)
+    with pytest.raises(AttendInputError, match="top_order"):
+        L.learn_batch(log.outputs[None], log.inputs[None], DT, top_order="zero", **kw)
+    truncate = L.learn_batch(log.outputs[None], log.inputs[None], DT, top_order="truncate", **kw)
+    marginal = L.learn_batch(log.outputs[None], log.inputs[None], DT, top_order="marginal", **kw)
+    assert not np.allclose(truncate.free_energy[0, -1], marginal.free_energy[0, -1])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", L.IdentifiabilityWarning)
+        result = L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5, max_iterations=2)
+        path = L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5, max_iterations=2, states="path")
+    assert result.settings["top_order"] == "marginal" and path.settings["top_order"] == "truncate"
+
+
+def test_paper_reproduction_numbers_are_the_published_learners():
+    """fig3 (quick) passes PAPER_LEARNER: its numbers are those of the learner before the top-order,
+    over-relaxation, Newton and scaling changes (values from main before they were made)."""
+    from attend.experiments import fig3
+
+    assert L.PAPER_LEARNER == dict(top_order="truncate", overrelax=False, newton=False, scaled=False)
+    got = {m.name: m.value for m in fig3.run(quick=True, out_dir=None, progress=False).metrics}
+    expected = {"theta3_seed0": -0.5312380550798431, "theta4_seed0": -0.2138427184277307,
+                "theta3_median_relative_error_path_mode": 0.019351323261938055,
+                "lambda_w_seed0": 15.890143322456774, "free_energy_rise_seed0": 10022.555505288108}
+    for name, value in expected.items():
+        assert got[name] == pytest.approx(value, rel=1e-12, abs=0), name
+
+
+BUNDLED = __import__("pathlib").Path(__file__).parents[2] / "src" / "attend" / "data" / "quadrotor_roll_wind.csv"
+
+
+def _bundled_flight():
+    table = np.genfromtxt(BUNDLED, delimiter=",", names=True)
+    motors = np.column_stack([table[f"motor_{i}"] for i in range(1, 5)])
+    return table["meas_phi"][:, None], motors - motors.mean(axis=0)
+
+
+def test_readme_example_converges_on_the_whole_bundled_flight():
+    """The README [learning] example (known entries held: inf) on all 3481 samples of the bundled flight
+    converges in sample mode (it hit the 50-iteration cap with known_prior_precision = 3.3e6)."""
+    import sys
+
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parents[2] / "benchmarks"))
+    from bench_identify_flights import DT as DT_FLIGHT, LEARNING, PRIOR
+
+    y, u = _bundled_flight()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", L.IdentifiabilityWarning)
+        result = L.identify(PRIOR, y, u, DT_FLIGHT, kernel_width=0.006, embedding_order=6, input_order=2,
+                            precision_convention="max", **LEARNING)
+    assert result.converged and result.iterations < 50, result.message
+    assert np.all(np.diff(result.settings["free_energy_trace"]) >= 0)
+    known = ~result.free
+    assert np.array_equal(result.parameters[known], result.prior_mean[known])
+
+
+def test_drifting_known_entries_are_named():
+    """Known entries (finite known_prior_precision) that end many prior std from their means are named, and
+    an unconverged run says to hold them (on the whole bundled flight with exp(15) and B[2,1] the only free
+    input gain, C[1,2] and A[1,2] drifted 43 and 21 prior std towards a (C, A) with an unobservable mode,
+    where F is unbounded). Here the run starts displaced (C[1,2] = 0.02, 36 prior std) and stops after 2."""
+    import sys
+
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parents[2] / "benchmarks"))
+    from bench_identify_flights import DT as DT_FLIGHT, LEARNING, PRIOR
+
+    y, u = _bundled_flight()
+    start = L.parameter_vector(PRIOR)
+    start[L.parameter_names(PRIOR).index("C[1,2]")] = 0.02
+    with pytest.warns(L.IdentifiabilityWarning, match=r"known entries moved .*C\[1,2\]"):
+        result = L.identify(PRIOR, y, u, DT_FLIGHT, kernel_width=0.006, embedding_order=6, input_order=2,
+                            precision_convention="max", initial=start,
+                            **dict(LEARNING, known_prior_precision=3.3e6, max_iterations=2))
+    assert not result.converged and "known_prior_precision = inf" in result.message

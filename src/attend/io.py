@@ -431,7 +431,8 @@ def write_estimates(path: str | Path, log: Log, system: LinearSystem, estimate: 
 def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
     """Run attend's learning (D, E, M steps) on the log with the model file's [learning] settings.
 
-    The model's A, B, C are the prior means; every input must be measured (a column).
+    The model's A, B, C are the prior means; every input must be measured (a column). An
+    [observer] embedding_order of "auto" means p = 6 here (the learning default).
     """
     from attend.perception.learning import identify
 
@@ -460,8 +461,11 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
         "max_iterations", "tolerance", "states", "top_order") if key in settings}
     if "noise_prior_mean" in options:
         options["noise_prior_mean"] = tuple(options["noise_prior_mean"])
+    # [observer] embedding_order = "auto" (the default) picks the observer's order from its stability
+    # analysis; learning has no such analysis and uses its own default p = 6 then
+    order = 6 if model.embedding_order == "auto" else model.embedding_order
     return identify(model.system, outputs, inputs, dt, kernel_width=model.kernel_width,
-                    embedding_order=model.embedding_order, input_order=model.input_order,
+                    embedding_order=order, input_order=model.input_order,
                     precision_convention=model.precision_convention, progress=progress, **options)
 
 

@@ -77,7 +77,7 @@ sensor_precision = 2980.0
 process_precision = 2980.0
 [learning]
 free = ["A[2,1]", "A[2,2]", "B[2,1]"]
-max_iterations = 20
+max_iterations = 50
 """)
     out = tmp_path / "learned.toml"
     assert main(["identify", str(tmp_path / "model.toml"), str(tmp_path / "log.csv"), "--out", str(out),
@@ -91,6 +91,33 @@ max_iterations = 20
     assert abs(learned.system.B[1, 0] - system.B[1, 0]) < 0.1  # 1/m = 0.714 from a prior of 1
     assert main(["estimate", str(out), str(tmp_path / "log.csv"), "--out", str(tmp_path / "e.csv")]) == 0
     assert main(["identify", str(tmp_path / "missing.toml"), str(tmp_path / "log.csv")]) == 2
+    capsys.readouterr()
+
+    # not converged: exit 3, one line naming what to change, nothing written unless --allow-unconverged
+    text = (tmp_path / "model.toml").read_text().replace("max_iterations = 50", "max_iterations = 1")
+    (tmp_path / "short.toml").write_text(text)
+    out1 = tmp_path / "short_learned.toml"
+    assert main(["identify", str(tmp_path / "short.toml"), str(tmp_path / "log.csv"), "--out", str(out1),
+                 "--no-progress"]) == 3
+    err = capsys.readouterr().err
+    assert "did not converge" in err and "max_iterations" in err and "Change:" in err
+    assert not out1.exists()
+    assert main(["identify", str(tmp_path / "short.toml"), str(tmp_path / "log.csv"), "--out", str(out1),
+                 "--no-progress", "--allow-unconverged"]) == 3
+    assert out1.exists()
+
+    # no [learning] section: exit 2 with an example section
+    (tmp_path / "plain.toml").write_text(text.split("[learning]")[0])
+    assert main(["identify", str(tmp_path / "plain.toml"), str(tmp_path / "log.csv"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "[learning]" in err and 'free = ["A[2,1]"' in err
+
+
+def test_identify_help_documents_exit_status_3(capsys):
+    with pytest.raises(SystemExit):
+        main(["identify", "--help"])
+    text = capsys.readouterr().out
+    assert "3 the learning did not converge" in text and "--allow-unconverged" in text
 
 
 def test_search_offers_every_planner():
@@ -351,3 +378,24 @@ def test_reproduce_all_reports_bad_input_and_bugs_of_experiments_apart(tmp_path,
     assert "attend: internal error: experiment buggy failed: RuntimeError: slip; please report it" in err
     del modules["buggy"]
     assert main(["reproduce", "all", "--out", str(tmp_path)]) == 2
+
+
+def test_identify_readme_example_on_the_whole_bundled_flight(tmp_path, capsys):
+    """README 'Identify your model': the bundled roll model + its [learning] section on the whole bundled
+    flight (3481 samples) converges (exit 0) and reports the learned A's eigenvalues."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).parents[1]
+    readme = (root / "README.md").read_text()
+    section = readme[readme.index("### Identify your model"):]
+    learning = re.search(r"```toml\n(\[learning\].*?)```", section, re.S).group(1)
+    assert "known_prior_precision = inf" in learning
+    data = root / "src" / "attend" / "data"
+    (tmp_path / "model.toml").write_text((data / "quadrotor_roll.toml").read_text() + "\n" + learning)
+    out = tmp_path / "learned.toml"
+    assert main(["identify", str(tmp_path / "model.toml"), str(data / "quadrotor_roll_wind.csv"), "--out", str(out),
+                 "--no-progress"]) == 0
+    report = capsys.readouterr().out
+    assert "converged at iteration" in report and "eigenvalues of the learned A" in report
+    assert out.exists()

@@ -108,13 +108,21 @@ def _build_parser() -> argparse.ArgumentParser:
         "file's A, B, C are the prior means, its [learning] section says which entries are free and how "
         "precise the priors are. Writes a learned model file (posterior means and precisions of the "
         "parameters, learned noise precisions) and prints the convergence report.",
-        epilog="See README.md ('Identify your model') for the [learning] section.",
+        epilog="See README.md ('Identify your model') for the [learning] section.\n\n"
+        "exit status: 0 converged and the learned model written; 2 bad input (e.g. no [learning] section);\n"
+        "3 the learning did not converge (max_iterations reached or a step diverged) or the learned model\n"
+        "would give non-finite estimates: nothing is written unless --allow-unconverged (a model that\n"
+        "gives non-finite estimates is never written).",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     identify.add_argument("model", help="model file (TOML) with a [learning] section; all inputs measured")
     identify.add_argument("log", help="log file (CSV, uniform time column in seconds)")
     identify.add_argument("--out", default="learned_model.toml",
                           help="learned model file, usable by 'attend estimate' (default: %(default)s)")
     identify.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    identify.add_argument("--allow-unconverged", action="store_true",
+                          help="write the last accepted estimate even when the learning did not converge "
+                          "(the exit status is still 3)")
 
     search = commands.add_parser(
         "search",
@@ -186,6 +194,8 @@ def _output_directory(path: str, option: str) -> Path:
 
 
 def _command_identify(args) -> int:
+    import numpy as np
+
     from attend import io
 
     model = io.read_model(args.model)
@@ -198,10 +208,52 @@ def _command_identify(args) -> int:
     accepted = ", ".join(f"{step}: {count}" for step, count in result.steps_accepted.items())
     print(f"free energy: {result.free_energy[0]:.6g} -> {result.free_energy[-1]:.6g} over {result.iterations} "
           f"iterations ({result.message}); "
-          f"steps accepted {accepted}; {result.settings['state_model']} state model; {elapsed:.2f} s")
-    path = io.write_learned_model(args.out, model, result)
-    print(f"learned model -> {path}")
-    return 0
+          f"steps accepted {accepted}; {result.settings['state_model']} state model, top order "
+          f"{result.settings['top_order']}; {elapsed:.2f} s")
+    learned_A = result.system().A
+    if np.all(np.isfinite(learned_A)):
+        eig = np.linalg.eigvals(learned_A)
+        listed = ", ".join(f"{complex(e).real:.4g}" + (f"{complex(e).imag:+.4g}j" if complex(e).imag else "") for e in eig)
+        note = ("UNSTABLE (reported, not enforced: learning does not constrain A's stability)"
+                if np.max(eig.real) > 0 else "stable")
+        print(f"eigenvalues of the learned A [1/s]: {listed}: {note}")
+    problems = io.check_learned_model(model, log, result)
+    if result.converged and not problems:
+        path = io.write_learned_model(args.out, model, result)
+        print(f"learned model -> {path}")
+        return 0
+    if problems:
+        print(f"attend: error: {model.path}: identify: the learned model is unusable: {'; '.join(problems)}; not written. "
+              f"{_advice(result, model)}", file=sys.stderr)
+        return 3
+    written = "" if args.allow_unconverged else \
+        " No learned model written (--allow-unconverged writes the last accepted estimate)."
+    print(f"attend: error: {model.path}: identify did not converge on {log.path}: {result.message}. {_advice(result, model)}{written}",
+          file=sys.stderr)
+    if args.allow_unconverged:
+        path = io.write_learned_model(args.out, model, result)
+        print(f"learned model (NOT converged, --allow-unconverged) -> {path}")
+    return 3
+
+
+def _advice(result, model) -> str:
+    """What to change in the [learning] section after a failed identification (one sentence)."""
+    learning = model.learning or {}
+    if "diverged" in result.message:
+        step = result.message.split("the ", 1)[1].split("-step", 1)[0] if "-step" in result.message else "a"
+        if step == "M":
+            return ("Change: raise noise_prior_precision (now "
+                    f"{learning.get('noise_prior_precision', 1.0)}) to keep the noise log-precisions near noise_prior_mean.")
+        return ("Change: learn fewer entries (free) or raise free_prior_precision (now "
+                f"{learning.get('free_prior_precision', 1.0)}) so the prior holds them.")
+    if "known entries moved" in result.message:
+        return (f"Change: known_prior_precision (now {learning.get('known_prior_precision', 3.3e6)}) = inf in "
+                "[learning] to hold the entries that are not learned at their values in [model].")
+    if "max_iterations" in result.message:
+        other = "path" if result.settings.get("state_model") == "sample" else "sample"
+        return (f"Change: raise max_iterations (now {learning.get('max_iterations', 50)}) or tolerance "
+                f"(now {learning.get('tolerance', 1e-3)}) in [learning], or try states = \"{other}\".")
+    return "Change: check the log (excitation, units) and the prior means in [model]."
 
 
 def _command_search(args) -> int:

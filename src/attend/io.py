@@ -41,14 +41,15 @@ Model file (all times in seconds)::
     time_column = "t"               # CSV column with time stamps [s], uniform spacing
 
     [learning]                      # only for `attend identify` (all inputs measured)
-    free = ["A[2,1]", "A[2,2]", "B[2,1]"]   # entries to learn (1-based row, column)
+    free = ["A[2,1]", "A[2,2]", "B[2,1]", "B[2,2]", "B[2,3]", "B[2,4]"]   # entries to learn (1-based)
     free_prior_precision = 1.0      # P_theta of the free entries (their prior means: [model])
-    known_prior_precision = 3.3e6   # P_theta of the other entries (exp(15))
+    known_prior_precision = inf     # P_theta of the other entries: inf holds them fixed (exp(15) = 3.3e6: nearly)
     noise_prior_mean = [0.0, 0.0]   # eta_lambda of [lambda_z, lambda_w] (log-precisions)
     noise_prior_precision = 1.0     # P_lambda
     max_iterations = 50
     tolerance = 1e-3                # stop when an iteration raises F by less
     states = "sample"               # "sample" (paper's eq. 8) or "path" (one state path, data counted once)
+    top_order = "marginal"          # top-order motion error: "marginal" (default) or "truncate" (eq. 8)
 
 Log file: CSV with a header row; the time column, the output columns and the known-input
 columns named in the model file (other columns are ignored).
@@ -98,7 +99,7 @@ _SECTIONS = {
     "log": {"time_column"},
     "learning": {
         "free", "free_prior_precision", "known_prior_precision", "noise_prior_mean",
-        "noise_prior_precision", "max_iterations", "tolerance", "states",
+        "noise_prior_precision", "max_iterations", "tolerance", "states", "top_order",
     },
     # written by `attend identify`; informative, not used by the observer
     "learned": {
@@ -628,7 +629,8 @@ def write_estimates(path: str | Path, log: Log, system: LinearSystem, estimate: 
 def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
     """Run attend's learning (D, E, M steps) on the log with the model file's [learning] settings.
 
-    The model's A, B, C are the prior means; every input must be measured (a column).
+    The model's A, B, C are the prior means; every input must be measured (a column). An
+    [observer] embedding_order of "auto" means p = 6 here (the learning default).
     """
     from attend.perception.learning import identify
 
@@ -646,12 +648,17 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
     inputs = np.zeros((len(log.time), model.system.n_inputs))
     for j, spec in enumerate(model.inputs):
         inputs[:, j] = log.matrix([spec.column])[:, 0] - spec.operating_point
+    if not model.learning:
+        raise AttendInputError(
+            f"{model.path}: identify needs a [learning] section saying which entries to learn, e.g.\n"
+            + LEARNING_EXAMPLE + "(see README.md, 'Identify your model')"
+        )
     window = max(model.learning_order, model.input_order) + 1
     dt = _check_samples(model, log, 3 * window, f"3 embedding windows of order {window - 1}")
     settings = dict(model.learning or {})
     options = {key: settings[key] for key in (
         "free", "free_prior_precision", "known_prior_precision", "noise_prior_mean", "noise_prior_precision",
-        "max_iterations", "tolerance", "states") if key in settings}
+        "max_iterations", "tolerance", "states", "top_order") if key in settings}
     if "noise_prior_mean" in options:
         options["noise_prior_mean"] = tuple(np.atleast_1d(options["noise_prior_mean"]))
     if model.kernel_width is None or model.kernel_width == 0:
@@ -682,6 +689,49 @@ def _in_file_terms(message: str, model: ModelFile, log: Log) -> str:
     if field in _LEARNING_FIELDS:
         return f"{model.path}: [learning] {message}"
     return f"{model.path}: {message}"
+
+
+LEARNING_EXAMPLE = """\
+    [learning]
+    free = ["A[2,1]", "A[2,2]", "B[2,1]", "B[2,2]", "B[2,3]", "B[2,4]"]   # entries to learn (1-based)
+    free_prior_precision = 1.0
+    known_prior_precision = inf             # hold the other entries fixed
+    noise_prior_mean = [0.0, 0.0]
+    noise_prior_precision = 1.0
+    max_iterations = 50
+    tolerance = 1e-3
+"""
+
+
+def check_learned_model(model: ModelFile, log: Log, result) -> list[str]:
+    """Problems that make a learned model unusable by `attend estimate` (empty list: usable).
+
+    Checks finite matrices, finite positive noise precisions, and runs the model file's observer with
+    the learned A, B, C and precisions on the log: every estimate must be finite.
+    """
+    from dataclasses import replace
+
+    problems = []
+    system = result.system()
+    if not all(np.all(np.isfinite(M)) for M in (system.A, system.B, system.C)):
+        problems.append("the learned A, B or C has non-finite entries")
+    precisions = np.array([result.sensor_precision, result.process_precision])
+    if not np.all(np.isfinite(precisions)) or np.any(precisions <= 0):
+        problems.append(f"the learned noise precisions exp(lambda) = {precisions.tolist()} are not finite and positive")
+    if problems:
+        return problems
+    learned = replace(model, system=system, sensor_precision=float(result.sensor_precision),
+                      process_precision=float(result.process_precision))
+    try:
+        with np.errstate(all="ignore"):
+            _, estimate = estimate_from_files(learned, log)
+    except (np.linalg.LinAlgError, AttendInputError, ValueError) as error:
+        return [f"the observer of the learned model fails on this log ({error})"]
+    bad = ~np.all(np.isfinite(estimate.states), axis=1) | ~np.all(np.isfinite(estimate.state_std), axis=1)
+    if bad.any():
+        problems.append(f"the learned model gives non-finite state estimates on {int(bad.sum())} of {len(bad)} "
+                        "samples of this log")
+    return problems
 
 
 def write_learned_model(path: str | Path, model: ModelFile, result) -> Path:

@@ -40,6 +40,12 @@ def _problem(seed=0, p=4, lam=(6.0, 5.0), states="sample"):
     return st, Y, U, priors, mu, K_mean, Sigma_X, theta, lam
 
 
+def _sqrt_psd(M):
+    """R with R'R = M for a positive semi-definite M (the motion precision gives the top order none)."""
+    w, V = np.linalg.eigh(0.5 * (M + M.T))
+    return (V * np.sqrt(np.clip(w, 0, None))).T
+
+
 def _F_fixed_q(st, priors, mu, K_mean, Sigma_X, theta, lam):
     """Free energy with q(X) = (mu, Sigma_X) held fixed."""
     return L._evaluate(L._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X).F[0]
@@ -82,8 +88,8 @@ def test_expected_energy_matches_dense_generalised_errors():
     ev = L._evaluate(L._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X)
     A, B, C = theta[:4].reshape(2, 2), theta[4:6].reshape(2, 1), theta[6:].reshape(1, 2)
     Ct, At, Bt = np.kron(np.eye(P), C), np.kron(np.eye(P), A), np.kron(np.eye(P), B)
-    Dx = np.kron(np.eye(P, k=1), np.eye(n))
-    Vy, W = np.kron(st.S, np.exp(lam[0, 0]) * np.eye(m)), np.kron(st.S, np.exp(lam[0, 1]) * np.eye(n))
+    Dx = np.kron(np.eye(P, k=1), np.eye(n)) / st.time_scale  # order k held as sigma^k d^k/dt^k
+    Vy, W = np.kron(st.S, np.exp(lam[0, 0]) * np.eye(m)), np.kron(st.S_motion, np.exp(lam[0, 1]) * np.eye(n))
     total = 0.0
     for t in np.flatnonzero(st.used):
         x, y, u = mu[0, t].ravel(), Y[0, t].ravel(), U[0, t].ravel()
@@ -104,11 +110,11 @@ def test_e_step_with_known_states_and_flat_prior_is_least_squares():
     P, n, m = st.orders, st.n, st.m
     rows, rhs = [], []
     wy = np.linalg.cholesky(np.kron(st.S, np.exp(lam[0, 0]) * np.eye(m))).T
-    ww = np.linalg.cholesky(np.kron(st.S, np.exp(lam[0, 1]) * np.eye(n))).T
+    ww = _sqrt_psd(np.kron(st.S_motion, np.exp(lam[0, 1]) * np.eye(n)))
     for t in np.flatnonzero(st.used):
         x = mu[0, t]  # (P, n)
         u = U[0, t]  # (P, 1)
-        tau = np.vstack([x[1:], np.zeros((1, n))])
+        tau = np.vstack([x[1:], np.zeros((1, n))]) / st.time_scale  # scaled coordinates
         # e_x = tau - A x - B u per order; e_y = y - C x per order (theta public order)
         Nx = np.zeros((P * n, 8))
         Ny = np.zeros((P * m, 8))
@@ -155,7 +161,7 @@ def test_batch_equals_single_runs():
                           prior_mean=eta, **kw)
     for k, log in enumerate((log0, log1)):
         single = L.learn_batch(log.outputs[None], log.inputs[None], DT, prior_mean=eta[k:k + 1], **kw)
-        np.testing.assert_allclose(batch.parameters[k], single.parameters[0], rtol=1e-10)
+        np.testing.assert_allclose(batch.parameters[k], single.parameters[0], rtol=1e-10, atol=1e-12)
         np.testing.assert_allclose(batch.free_energy[k], single.free_energy[0][: batch.free_energy.shape[1]], rtol=1e-10)
 
 
@@ -252,7 +258,7 @@ def test_path_posterior_matches_dense_gaussian(p):
     post = L._path_posterior(theta, lam, Y, U, st)
     Pi_X, _, CtVy, MtWB = L._observer(theta, lam, st, want_inverse=False)
     P, n, T = p + 1, 2, Y.shape[1]
-    G = np.kron(L.embedding_weights(P, DT), np.eye(n))
+    G = np.kron(st.E, np.eye(n))  # embedding weights in the scaled coordinates
     used = np.flatnonzero(st.used)
     starts = used - P // 2
     for r in range(2):
@@ -296,7 +302,9 @@ def test_path_mode_free_energy_rises_and_recovers_the_damping():
         assert np.all(steps[np.isfinite(steps)] >= 0)
         errors[states] = np.median(np.abs(res.parameters[:, FREE_MSD] - theta[FREE_MSD]) / np.abs(theta[FREE_MSD]), axis=0)
     assert np.all(errors["path"] <= 0.06), errors
-    assert errors["path"][1] <= 0.5 * errors["sample"][1], errors
+    # with the top-order motion error marginalised, sample mode no longer drives lambda_w up and its
+    # damping error falls too (measured: path 5.2 %, sample 4.6 %; 12.5 % before): both are small
+    assert np.all(errors["sample"] <= 0.06), errors
     assert np.all(np.abs(res.log_precision[:, 0] - 8.0) < 0.5)
 
 
@@ -349,3 +357,116 @@ def test_path_mode_warns_above_order_six():
         L.learn_batch(log.outputs[None], log.inputs[None], DT, n_states=2, kernel_width=0.5,
                       prior_mean=L.parameter_vector(system)[None], prior_precision=np.where(FREE_MSD, 1.0, np.exp(15))[None],
                       embedding_order=8, max_iterations=1, states="path")
+
+
+QUADROTOR = __import__("pathlib").Path("/work/shared/data/quadrotor-wind")
+
+
+@pytest.mark.skipif(not QUADROTOR.exists(), reason="quadrotor flight data not available")
+@pytest.mark.parametrize("flight", ["exp_21_WW_WM_1", "exp_24_WW_WM_0"])
+def test_readme_learning_section_converges_on_real_flights(flight):
+    """The README's [learning] example on 2 s ... 10 s slices of real 120 Hz flights (s = 0.006 s, p = 6):
+    converges, F never decreases over accepted steps, lambda stays finite and moderate, and the
+    learned model's estimates are finite (it used to diverge with lambda_w ~ 44)."""
+    import sys
+
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parents[2] / "benchmarks"))
+    from bench_identify_flights import DT, LEARNING, PRIOR, load
+
+    y, u, _ = load(QUADROTOR / f"{flight}.csv", 399, 1200)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", L.IdentifiabilityWarning)
+        result = L.identify(PRIOR, y, u, DT, kernel_width=0.006, embedding_order=6, input_order=2,
+                            precision_convention="max", states="sample", **LEARNING)
+    assert result.converged, result.message
+    trace = result.settings["free_energy_trace"]
+    assert np.all(np.diff(trace) >= 0)
+    assert np.all(np.isfinite(result.log_precision)) and np.all(np.abs(result.log_precision) < 25)
+    assert np.all(np.isfinite(result.parameter_std[result.free]))
+    from attend.perception.dem import DEMObserver
+
+    # embedding_order "auto" as `attend estimate` uses: at p = 6 the DEM stability analysis (main) refuses this
+    # slice for the PRIOR model too at the learned sensor precision (a start error would outlive the log)
+    observer = DEMObserver(result.system(), DT, 0.006, result.sensor_precision, result.process_precision, None,
+                           "auto", 2, known_inputs=True, precision_convention="max")
+    assert np.all(np.isfinite(observer.estimate(y, u).states))
+
+
+# --- top order, the published learner, whole flights ----------------------------------------------
+
+def test_top_order_option_is_validated_and_reported():
+    system, log = _msd_log(seed=0, n=120)
+    kw = dict(n_states=2, kernel_width=0.5, prior_mean=L.parameter_vector(system)[None],
+              prior_precision=np.where(FREE_MSD, 1.0, np.exp(15))[None], max_iterations=3)
+    with pytest.raises(AttendInputError, match="top_order"):
+        L.learn_batch(log.outputs[None], log.inputs[None], DT, top_order="zero", **kw)
+    truncate = L.learn_batch(log.outputs[None], log.inputs[None], DT, top_order="truncate", **kw)
+    marginal = L.learn_batch(log.outputs[None], log.inputs[None], DT, top_order="marginal", **kw)
+    assert not np.allclose(truncate.free_energy[0, -1], marginal.free_energy[0, -1])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", L.IdentifiabilityWarning)
+        result = L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5, max_iterations=2)
+        path = L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5, max_iterations=2, states="path")
+    assert result.settings["top_order"] == "marginal" and path.settings["top_order"] == "truncate"
+
+
+def test_paper_reproduction_numbers_are_the_published_learners():
+    """fig3 (quick) passes PAPER_LEARNER: its numbers are those of the learner before the top-order,
+    over-relaxation, Newton and scaling changes (values from main before they were made)."""
+    from attend.experiments import fig3
+
+    assert L.PAPER_LEARNER == dict(top_order="truncate", overrelax=False, newton=False, scaled=False)
+    got = {m.name: m.value for m in fig3.run(quick=True, out_dir=None, progress=False).metrics}
+    expected = {"theta3_seed0": -0.5312380550798431, "theta4_seed0": -0.2138427184277307,
+                "theta3_median_relative_error_path_mode": 0.019351323261938055,
+                "lambda_w_seed0": 15.890143322456774, "free_energy_rise_seed0": 10022.555505288108}
+    for name, value in expected.items():
+        assert got[name] == pytest.approx(value, rel=1e-12, abs=0), name
+
+
+BUNDLED = __import__("pathlib").Path(__file__).parents[2] / "src" / "attend" / "data" / "quadrotor_roll_wind.csv"
+
+
+def _bundled_flight():
+    table = np.genfromtxt(BUNDLED, delimiter=",", names=True)
+    motors = np.column_stack([table[f"motor_{i}"] for i in range(1, 5)])
+    return table["meas_phi"][:, None], motors - motors.mean(axis=0)
+
+
+def test_readme_example_converges_on_the_whole_bundled_flight():
+    """The README [learning] example (known entries held: inf) on all 3481 samples of the bundled flight
+    converges in sample mode (it hit the 50-iteration cap with known_prior_precision = 3.3e6)."""
+    import sys
+
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parents[2] / "benchmarks"))
+    from bench_identify_flights import DT as DT_FLIGHT, LEARNING, PRIOR
+
+    y, u = _bundled_flight()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", L.IdentifiabilityWarning)
+        result = L.identify(PRIOR, y, u, DT_FLIGHT, kernel_width=0.006, embedding_order=6, input_order=2,
+                            precision_convention="max", **LEARNING)
+    assert result.converged and result.iterations < 50, result.message
+    assert np.all(np.diff(result.settings["free_energy_trace"]) >= 0)
+    known = ~result.free
+    assert np.array_equal(result.parameters[known], result.prior_mean[known])
+
+
+def test_drifting_known_entries_are_named():
+    """Known entries (finite known_prior_precision) that end many prior std from their means are named, and
+    an unconverged run says to hold them (on the whole bundled flight with exp(15) and B[2,1] the only free
+    input gain, C[1,2] and A[1,2] drifted 43 and 21 prior std towards a (C, A) with an unobservable mode,
+    where F is unbounded). Here the run starts displaced (C[1,2] = 0.02, 36 prior std) and stops after 2."""
+    import sys
+
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parents[2] / "benchmarks"))
+    from bench_identify_flights import DT as DT_FLIGHT, LEARNING, PRIOR
+
+    y, u = _bundled_flight()
+    start = L.parameter_vector(PRIOR)
+    start[L.parameter_names(PRIOR).index("C[1,2]")] = 0.02
+    with pytest.warns(L.IdentifiabilityWarning, match=r"known entries moved .*C\[1,2\]"):
+        result = L.identify(PRIOR, y, u, DT_FLIGHT, kernel_width=0.006, embedding_order=6, input_order=2,
+                            precision_convention="max", initial=start,
+                            **dict(LEARNING, known_prior_precision=3.3e6, max_iterations=2))
+    assert not result.converged and "known_prior_precision = inf" in result.message

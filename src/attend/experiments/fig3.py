@@ -25,7 +25,7 @@ import numpy as np
 
 from attend.experiments._result import ExperimentResult
 from attend.experiments.fig4 import FREE, KNOWN_PRECISION, PUBLISHED_THETA, msd_logs, random_priors
-from attend.perception.learning import learn_batch, parameter_vector
+from attend.perception.learning import PAPER_LEARNER, learn_batch, parameter_vector
 from attend.systems import mass_spring_damper
 
 SETTINGS = dict(dt=0.1, duration=32.0, kernel_width=0.5, noise_log_precision=8.0, embedding_order=6,
@@ -46,7 +46,7 @@ def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentRe
                          prior_precision=P, noise_prior_mean=cfg["noise_prior_mean"],
                          noise_prior_precision=cfg["noise_prior_precision"],
                          embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"],
-                         progress=progress)
+                         progress=progress, **PAPER_LEARNER)
     out = ExperimentResult("fig3", settings=cfg)
     positions = {"theta3": 2, "theta4": 3, "theta6": 5}
     for name, j in positions.items():
@@ -60,7 +60,7 @@ def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentRe
                        prior_precision=P, noise_prior_mean=cfg["noise_prior_mean"],
                        noise_prior_precision=cfg["noise_prior_precision"],
                        embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"],
-                       states="path", progress=progress)
+                       states="path", progress=progress, **PAPER_LEARNER)
     for name, j in positions.items():
         rel = np.abs(path.parameters[:, j] - theta_true[j]) / abs(theta_true[j])
         out.add(f"{name}_median_relative_error_path_mode", np.median(rel), "", None)

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from attend.experiments._result import ExperimentResult
-from attend.perception.learning import learn_batch, parameter_vector
+from attend.perception.learning import PAPER_LEARNER, learn_batch, parameter_vector
 from attend.sweep import chunk_slices, run_tasks
 from attend.systems import mass_spring_damper, simulate
 
@@ -96,7 +96,8 @@ def learn_msd_runs(task: dict) -> dict:
     P = np.where(FREE[None], np.asarray(task["prior_precision"], dtype=float)[:, None], KNOWN_PRECISION)
     result = learn_batch(Y, U, cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"],
                          prior_mean=np.asarray(task["prior_mean"], dtype=float), prior_precision=P,
-                         embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"])
+                         embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"],
+                         **PAPER_LEARNER)
     return dict(parameters=result.parameters, log_precision=result.log_precision,
                 iterations=result.iterations, parameter_history=result.parameter_history)
 

@@ -42,7 +42,7 @@ import numpy as np
 
 from attend.experiments._result import ExperimentResult
 from attend.experiments.fig4 import FREE, KNOWN_PRECISION, RUNS_PER_TASK, task_logs
-from attend.perception.learning import learn_batch, parameter_vector
+from attend.perception.learning import PAPER_LEARNER, learn_batch, parameter_vector
 from attend.rhythm.learning_schedule import prior_precision_schedule, rhythmic_prior_precision
 from attend.rhythm.oscillator import PrecisionOscillator
 from attend.sweep import chunk_slices, run_tasks
@@ -87,7 +87,8 @@ def learn_schedule_runs(task: dict) -> dict:
     P = prior_precision_schedule(np.asarray(task["schedule"], dtype=float), FREE, KNOWN_PRECISION)
     result = learn_batch(Y, U, cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"],
                          prior_mean=np.asarray(task["prior_mean"], dtype=float), prior_precision=P,
-                         embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"])
+                         embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"],
+                         **PAPER_LEARNER)
     return dict(parameters=result.parameters, log_precision=result.log_precision)
 
 

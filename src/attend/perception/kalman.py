@@ -237,7 +237,9 @@ class KalmanEstimator:
         stationary = np.zeros((dim, dim))
         for name, channels, model in blocks[1:]:
             stationary[slices[name], slices[name]] = np.kron(np.eye(channels), model.stationary_covariance)
-        return dict(T=T, Q=noise_in @ noise_in.T, H=H, Ad=Ad, Bd=Bd, slices=slices, dim=dim,
+        Bd_augmented = np.zeros((dim, r))  # b = Bd u enters the plant block
+        Bd_augmented[slices["x"]] = Bd
+        return dict(T=T, Q=noise_in @ noise_in.T, H=H, Ad=Ad, Bd=Bd, slices=slices, dim=dim, Bd_augmented=Bd_augmented,
                     stationary=stationary, output_map=output_map, unknown=unknown, estimated=estimated,
                     noise_orders={"process": process.order, "sensor": sensor.order,
                                   "input": None if inputs is None else inputs.order})
@@ -673,26 +675,30 @@ class OnlineKalman:
             raise AttendInputError(f"step: expected {m} outputs and {r} inputs, got {y.shape[0]} and {u.shape[0]}")
         require_finite(np.concatenate([y, u]), "step sample")
         T, H = model["T"], model["H"]
-        if self._count == 0:
-            if "steady_predicted" not in model:
-                model["steady_predicted"] = _steady_predicted_covariance(T, model["Q"], H)
-            mean, P0 = est._initial(y[None, :])
-            self._stream = _gain_stream(T, model["Q"], H, P0, model["steady_predicted"])
+        if self._steady:  # a_f[k] = (I - K H)(T a_f[k-1] + b[k-1]) + K y[k]: precomputed products
+            mean = self._closed @ self._mean + self._drive_gain @ self._previous_input + self._gain @ y
         else:
-            mean = T @ self._mean + self._previous_drive
-        if not self._steady:
+            if self._count == 0:
+                if "steady_predicted" not in model:
+                    model["steady_predicted"] = _steady_predicted_covariance(T, model["Q"], H)
+                mean, P0 = est._initial(y[None, :])
+                self._stream = _gain_stream(T, model["Q"], H, P0, model["steady_predicted"])
+            else:
+                mean = T @ self._mean + model["Bd_augmented"] @ self._previous_input
             K, _, P, self._steady = next(self._stream)
             A = np.eye(model["dim"]) - K @ H
             self._gain = K
-            self._variances = np.einsum("ij,jl,il->i", model["output_map"], A @ P @ A.T, model["output_map"])
-        mean = mean + self._gain @ (y - H @ mean)
+            variances = np.einsum("ij,jl,il->i", model["output_map"], A @ P @ A.T, model["output_map"])
+            self._std = np.sqrt(np.clip(variances, 0, None))
+            mean = mean + K @ (y - H @ mean)
+            if self._steady:
+                self._closed = A @ T
+                self._drive_gain = A @ model["Bd_augmented"]
         self._mean = mean
-        drive = np.zeros(model["dim"])
-        drive[model["slices"]["x"]] = model["Bd"] @ u
-        self._previous_drive = drive
+        self._previous_input = u
         self._count += 1
         readout = model["output_map"] @ mean
-        std = np.sqrt(np.clip(self._variances, 0, None))
+        std = self._std
         inputs, input_std = u.copy(), np.zeros(r)
         inputs[model["estimated"]] += readout[n:]
         input_std[model["estimated"]] = std[n:]

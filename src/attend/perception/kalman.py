@@ -658,7 +658,7 @@ class OnlineKalman:
         self._model = estimator._model
         self._count = 0
         self._mean = None
-        self._previous_drive = None
+        self._previous_input = None
         self._stream = None
         self._steady = False
 

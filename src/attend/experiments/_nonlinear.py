@@ -4,7 +4,6 @@ DEM and the baselines on it, SSE per method, a figure of seed 0 and the SSE spre
 from __future__ import annotations
 
 import importlib
-import os
 import time as clock
 from pathlib import Path
 
@@ -94,30 +93,11 @@ def compare(name: str, cfg: dict, progress: bool) -> ExperimentResult:
     particle smoother on ``cfg['seeds']`` simulated logs of experiment ``name`` (a module with
     build_system(cfg) and true_input(time)); SSE over samples p + 2 .. N - p - 2 (1-based).
 
-    The small matrices of these estimators run many times slower with a multi-threaded BLAS: unless
-    OPENBLAS_NUM_THREADS=1 is already set, the seeds run in one spawned worker process with one
-    BLAS thread (the variable must be set before numpy is imported).
+    The estimators run their small matrices with one BLAS thread by themselves
+    (:mod:`attend._threads`): no environment variable is needed.
     """
     seeds = range(cfg["seeds"])
-    if os.environ.get("OPENBLAS_NUM_THREADS") == "1":
-        outs = [_one_seed(name, cfg, seed) for seed in tqdm(seeds, desc=f"{name} seeds", disable=not progress)]
-    else:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
-        keys = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-        saved = {key: os.environ.get(key) for key in keys}
-        os.environ.update({key: "1" for key in keys})
-        try:
-            with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as pool:
-                jobs = pool.map(_one_seed, [name] * len(seeds), [cfg] * len(seeds), seeds)
-                outs = list(tqdm(jobs, total=len(seeds), desc=f"{name} seeds", disable=not progress))
-        finally:
-            for key, value in saved.items():
-                if value is None:
-                    os.environ.pop(key, None)
-                else:
-                    os.environ[key] = value
+    outs = [_one_seed(name, cfg, seed) for seed in tqdm(seeds, desc=f"{name} seeds", disable=not progress)]
     methods = tuple(cfg.get("methods", METHODS))
     state_sse = {m: np.array([o["state_sse"][m] for o in outs]) for m in methods}
     input_sse = {m: np.array([o["input_sse"][m] for o in outs]) for m in methods}

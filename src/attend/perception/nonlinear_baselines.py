@@ -33,6 +33,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg import solve_toeplitz
 
+from attend._threads import with_single_blas_thread
 from attend._validation import AttendInputError, as_matrix, positive_scalar, require_finite, symmetric_matrix
 from attend.noise import autocorrelation
 from attend.perception.baselines import KalmanEstimate
@@ -212,6 +213,7 @@ def _rts(mf, Pf, mp, Pp, cross):
     return ms, Ps
 
 
+@with_single_blas_thread
 def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance,
                     measurement_covariance, input_variance=None, input_mean=None, initial_mean=None,
                     initial_covariance=None, smooth: bool | int = True, substeps: int = 10) -> KalmanEstimate:
@@ -264,6 +266,7 @@ def _sigma_points(mean, cov, alpha, beta, kappa):
     return points, wm, wc
 
 
+@with_single_blas_thread
 def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance,
                      measurement_covariance, input_variance=None, input_mean=None, initial_mean=None,
                      initial_covariance=None, smooth: bool | int = True, substeps: int = 10, alpha: float = 1.0,
@@ -311,6 +314,7 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name):
     return means, covs, ll
 
 
+@with_single_blas_thread
 def coloured_unscented_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, *, kernel_width: float,
                                 process_std, measurement_std, input_prior_std=None, input_prior_mean=None,
                                 initial_mean=None, initial_std=None, ar_order: int = 3, substeps: int = 4,
@@ -412,6 +416,7 @@ def _yule_walker(rho: np.ndarray, q: int):
     return a, float(max(1.0 - a @ rho[1: q + 1], 1e-12))
 
 
+@with_single_blas_thread
 def particle_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, *, kernel_width: float,
                       process_std, measurement_std, input_prior_std=None, input_prior_mean=None,
                       initial_mean=None, initial_std=None, n_particles: int = 2000, ar_order: int = 3,

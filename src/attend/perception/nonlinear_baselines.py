@@ -90,7 +90,7 @@ class _Model:
     """The discrete (possibly input-augmented) model z = [x; u] seen by the Kalman baselines."""
 
     def __init__(self, system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
-                 measurement_covariance, initial_mean, initial_covariance, substeps):
+                 measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs=None):
         if not isinstance(system, NonlinearSystem):
             raise AttendInputError("system: expected an attend NonlinearSystem")
         self.system = system
@@ -101,11 +101,17 @@ class _Model:
             raise AttendInputError(f"outputs: expected {m} columns, got {self.y.shape[1]}")
         N = self.y.shape[0]
         self.augmented = input_variance is not None and r > 0
-        if self.augmented:
+        self.known = np.zeros(r, dtype=bool)
+        if known_inputs is not None and r > 0:
+            self.known = np.broadcast_to(np.asarray(known_inputs, dtype=bool), (r,)).copy()
+        if self.augmented and not self.known.any():
             if inputs is not None:
-                raise AttendInputError("inputs: give either measured inputs or input_variance (unknown inputs), not both")
+                raise AttendInputError("inputs: give either measured inputs or input_variance (unknown inputs), not "
+                                       "both (or say which are measured with known_inputs)")
             self.Qu = symmetric_matrix(input_variance, r, "input_variance", "variances")
             self.u = np.zeros((N, r))
+        elif self.augmented and inputs is None:
+            raise AttendInputError("inputs: known_inputs marks measured inputs: pass their values (N, r)")
         elif inputs is None:
             self.u = np.zeros((N, r))
         else:
@@ -114,6 +120,11 @@ class _Model:
                 raise AttendInputError(f"inputs: expected shape ({N}, {r})")
             require_finite(u, "inputs")
             self.u = u
+            if self.augmented:  # some measured, some unknown: the measured ones have no random walk
+                Qu = symmetric_matrix(input_variance, r, "input_variance", "variances").copy()
+                Qu[self.known, :] = 0.0
+                Qu[:, self.known] = 0.0
+                self.Qu = Qu
         self.Q = symmetric_matrix(process_covariance, n, "process_covariance", "variances")
         self.R = symmetric_matrix(measurement_covariance, m, "measurement_covariance", "variances")
         if np.linalg.eigvalsh(self.R).min() <= 0:
@@ -139,7 +150,11 @@ class _Model:
 
     def split(self, z, k):
         n = self.system.n_states
-        return (z[:n], z[n:]) if self.augmented else (z, self.u[k])
+        if not self.augmented:
+            return z, self.u[k]
+        if self.known.any():
+            return z[:n], np.where(self.known, self.u[k], z[n:])
+        return z[:n], z[n:]
 
     def transition(self, z, k):
         """z[k] = F(z[k-1]) with the input of sample k - 1."""
@@ -156,7 +171,9 @@ class _Model:
         N = means.shape[0]
         std = np.sqrt(np.clip(np.diagonal(covs, axis1=1, axis2=2), 0, None))
         if self.augmented:
-            inputs, input_std = means[:, n:], std[:, n:]
+            inputs, input_std = means[:, n:].copy(), std[:, n:].copy()
+            inputs[:, self.known] = self.u[:, self.known]
+            input_std[:, self.known] = 0.0
         else:
             inputs, input_std = self.u, np.zeros_like(self.u)
         return KalmanEstimate(np.arange(N) * self.dt, means[:, :n], inputs, std[:, :n], input_std,
@@ -270,16 +287,17 @@ def _sigma_points(mean, cov, alpha, beta, kappa):
 def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance,
                      measurement_covariance, input_variance=None, input_mean=None, initial_mean=None,
                      initial_covariance=None, smooth: bool | int = True, substeps: int = 10, alpha: float = 1.0,
-                     beta: float = 2.0, kappa: float = 0.0) -> KalmanEstimate:
+                     beta: float = 2.0, kappa: float = 0.0, known_inputs=None) -> KalmanEstimate:
     """Unscented Kalman filter (``smooth=False``), filter + unscented RTS smoother (``True``,
     Sarkka 2008) or fixed-lag smoother (``smooth=L`` samples).
 
     Arguments as :func:`extended_kalman`; alpha, beta, kappa: the sigma-point spread
     (lambda = alpha^2 (d + kappa) - d; the defaults put the 2d points at +-sqrt(d) std with equal
-    weights and none on the mean).
+    weights and none on the mean). known_inputs: with ``input_variance``, a mask (r,) of the inputs
+    that are measured (their values from ``inputs``, no random walk); the others are estimated.
     """
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
-                   measurement_covariance, initial_mean, initial_covariance, substeps)
+                   measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs)
     means, covs, ll = _unscented(model.transition, model.observation, model.y, model.m0, model.P0, model.Qz,
                                  model.R, smooth, (alpha, beta, kappa), "unscented_kalman")
     return model.result(means, covs, ll)

@@ -86,6 +86,9 @@ from attend.perception.nonlinear import NonlinearSystem
 from attend.systems import LinearSystem
 
 KNOWN_INPUT_PRECISION = math.exp(32)
+#: Nonlinear DEM's default prior precision of measured inputs beside unknown ones (exp(32) overflows
+#: the linear algebra of its flow; 1e8 pins them to the measurement to ~1e-8 on the pendulum).
+NONLINEAR_KNOWN_INPUT_PRECISION = 1e8
 #: The estimator of nonlinear models when [observer] method is not given (see NONLINEAR_METHODS).
 NONLINEAR_METHOD = "ukf"
 
@@ -336,7 +339,13 @@ class NonlinearFileEstimator:
         """x[0] and its std from DEM on the first samples (the smoother's prior on the initial state)."""
         dem = self.dem()
         count = min(len(outputs), 4 * (max(self.embedding_order, self.model.input_order) + 1))
-        first = dem.estimate(outputs[:count], signals[:count])
+        try:
+            first = dem.estimate(outputs[:count], signals[:count])
+        except AttendInputError as error:
+            if self.model.python_path and str(error).startswith(self.model.python_path):
+                raise
+            raise AttendInputError(f"the smoother starts from DEM's estimate of the first sample, which failed "
+                                   f"({error}); give initial_state and initial_state_std") from None
         return first.states[0], first.state_std[0]
 
 
@@ -477,6 +486,8 @@ class _UserFunction:
                 f"{_one_line(error)} (at x = {_short(x)}, v = {_short(v)}); this is an error in the model's code"
             ) from None
         try:
+            if value is None:
+                raise TypeError("None")
             value = np.asarray(value, dtype=float)
         except (TypeError, ValueError):
             raise _UserShapeError(f"{self.source}: {self.name}(x, v) returned {type(value).__name__} "
@@ -783,7 +794,8 @@ def read_model(path: str | Path) -> ModelFile:
         process_precision=observer["process_precision"],
         precision_convention=observer.get("precision_convention", "size"),
         known_input_precision=_file_number(observer, "known_input_precision", f"{path}: [observer] known_input_precision",
-                                           KNOWN_INPUT_PRECISION, positive=True),
+                                           NONLINEAR_KNOWN_INPUT_PRECISION if nonlinear else KNOWN_INPUT_PRECISION,
+                                           positive=True),
         time_column=time_column,
         learning=learning,
         path=str(path),

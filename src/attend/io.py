@@ -240,14 +240,6 @@ class ModelFile:
             raise AttendInputError(f"{self.path}: [observer] {error}") from None
 
 
-def input_random_walk_variance(prior_precision, kernel_width: float, dt: float) -> np.ndarray:
-    """Per-sample variance of a random walk matching a smooth input prior: the variance of the
-    one-sample increments v(t + dt) - v(t) of a Gaussian-kernel process of variance 1/P_v and
-    width s_v, 2 (1 - rho(dt)) / P_v with rho(dt) = exp(-dt^2 / (4 s_v^2))."""
-    rho = math.exp(-dt**2 / (4 * kernel_width**2))
-    return 2.0 * (1.0 - rho) / np.asarray(prior_precision, dtype=float)
-
-
 @dataclass(frozen=True)
 class NonlinearFileEstimator:
     """The estimator of a nonlinear model file ([model] python), for logs sampled every ``dt`` s.
@@ -255,7 +247,7 @@ class NonlinearFileEstimator:
     method "ukf": the unscented Kalman (RTS) smoother on a white-noise model with the coloured
     noises' per-sample variance (Q = dt^2 inv(Pi_w), R = inv(Pi_z)); unknown inputs ride in the
     state as random walks whose one-sample increments have the variance of their prior's
-    (:func:`input_random_walk_variance`), started at the prior mean; measured inputs drive f and g.
+    (:func:`attend.perception.nonlinear_baselines.input_random_walk_variance`), started at the prior mean; measured inputs drive f and g.
     Without [observer] initial_state the smoother starts from DEM's estimate of the first sample
     and its std. method "dem": :class:`attend.perception.nonlinear.NonlinearDEM` (measured inputs,
     when some are unknown, get their measurement as prior mean with precision known_input_precision).
@@ -300,7 +292,7 @@ class NonlinearFileEstimator:
         initial = None if model.initial_state is None else np.array(model.initial_state)
         if self.method == "dem":
             return self.dem().estimate(outputs, signals, initial_state=initial)
-        from attend.perception.nonlinear_baselines import unscented_kalman
+        from attend.perception.nonlinear_baselines import input_random_walk_variance, unscented_kalman
 
         n, r = self.system.n_states, self.system.n_inputs
         Pi_w = precision_matrix(model.process_precision, n, "process_precision")

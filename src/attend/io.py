@@ -50,6 +50,18 @@ Model file (all times in seconds)::
     tolerance = 1e-3                # stop when an iteration raises F by less
     states = "sample"               # "sample" (paper's eq. 8) or "path" (one state path, data counted once)
 
+Nonlinear models: in [model], instead of A, B, C::
+
+    python = "model.py"             # beside the model file: defines f(x, v) -> dx/dt and g(x, v) -> y
+    n_states = 2                    # (or f(x, v, parameters), g(x, v, parameters) with a dict
+    n_inputs = 1                    #  `parameters` in model.py; [model] parameters = {...} overrides it)
+    n_outputs = 2
+    parameters = { damping = 0.3 }  # optional
+
+[outputs], [[inputs]] (one per input of f and g; none when n_inputs = 0), [observer] (one
+kernel_width; method "ukf", the default, or "dem") and [log] as above. Errors in f or g name the
+Python file, the line and the function.
+
 Log file: CSV with a header row; the time column, the output columns and the known-input
 columns named in the model file (other columns are ignored).
 """

@@ -1,7 +1,11 @@
 """Nonlinear DEM against its references on the Lorenz and pendulum reproductions.
 
-    PYTHONPATH=src python benchmarks/bench_nonlinear.py [--seeds 20] [--sweep-seeds 10]
+    PYTHONPATH=src python benchmarks/bench_nonlinear.py [--seeds 20] [--sweep-seeds 10] [--prior-seeds 20]
 
+Part 0 (speed): samples/s of nonlinear DEM and the UKF smoother on a 2 s Lorenz log, each in a fresh
+process: BLAS as it comes (threaded) without attend's limiter (ATTEND_BLAS_THREADS=keep: the speed
+before the estimators limited their threads), with the limiter (the default now: nothing set by
+the caller), and with OPENBLAS_NUM_THREADS=1 set by the caller before numpy is imported.
 Part 1 (the reproductions' settings, s/dt = 2, ``--seeds`` seeds each): state SSE of DEM over the
 particle smoother (target: median ratio <= 1.2), over the UKF smoother (target: DEM <= UKF median
 where s/dt >= 2), beside the coloured-noise UKS, the UKF filter and the fixed-lag UKF with DEM's
@@ -9,25 +13,66 @@ delay (the same data window as DEM); input SSE beside the
 augmented UKF (pendulum); samples/s of each method.
 Part 2 (``--sweep-seeds`` seeds): DEM / UKF smoother, filter and fixed-lag state SSE as s/dt
 varies (1, 2, 4, 8), the noise levels fixed.
-Not part of the test run. One BLAS thread (set before numpy is imported).
+Part 3 (``--prior-seeds`` seeds): the pendulum's input prior smoothness: input SSE of DEM and the
+augmented UKF smoother with the noise's s = 0.1 s (and the old fixed random-walk variance 0.5)
+against the pushes' 0.7 s (the random walk matched to the prior).
+Not part of the test run. No BLAS environment variable is needed (attend._threads).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import subprocess
+import sys
 import time
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy: one BLAS thread
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from attend.experiments import lorenz, pendulum  # noqa: E402
-from attend.experiments import _nonlinear  # noqa: E402
+from attend.experiments import lorenz, pendulum
+from attend.experiments import _nonlinear
 
 
 def _verdict(ok: bool) -> str:
     return "meets target" if ok else "MISSES target"
+
+
+def speed_worker() -> None:
+    """Print 'DEM <samples/s> UKF <samples/s>' on a 2 s Lorenz log (best of 3)."""
+    from attend.perception.nonlinear import NonlinearDEM, simulate_nonlinear
+    from attend.perception.nonlinear_baselines import unscented_kalman, white_noise_covariances
+
+    cfg = lorenz.SETTINGS
+    system = lorenz.build_system(cfg)
+    dt, s = cfg["dt"], cfg["kernel_width"]
+    log = simulate_nonlinear(system, 200, dt, kernel_width=s, process_std=20.0, measurement_std=1.0,
+                             initial_state=cfg["initial_state"], seed=0)
+    dem = NonlinearDEM(system, dt, s, 1.0, 1 / 400, embedding_order=6)
+    Q, R = white_noise_covariances(system, dt, s, 20.0, 1.0)
+    rates = {}
+    for name, run in (("DEM", lambda: dem.estimate(log.outputs)),
+                      ("UKF", lambda: unscented_kalman(system, dt, log.outputs, process_covariance=Q,
+                                                       measurement_covariance=R, initial_mean=cfg["initial_state"],
+                                                       initial_covariance=1.0))):
+        best = np.inf
+        for _ in range(3):
+            start = time.perf_counter()
+            run()
+            best = min(best, time.perf_counter() - start)
+        rates[name] = 200 / best
+    print(f"DEM {rates['DEM']:.0f} UKF {rates['UKF']:.0f}")
+
+
+def part0() -> None:
+    print(f"\n== speed (samples/s, 2 s Lorenz log, best of 3, fresh process each; {os.cpu_count()} cores)")
+    keys = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "ATTEND_BLAS_THREADS")
+    base = {key: value for key, value in os.environ.items() if key not in keys}
+    for label, extra in (("before: threaded BLAS, no limiter (ATTEND_BLAS_THREADS=keep)", {"ATTEND_BLAS_THREADS": "keep"}),
+                         ("now: nothing set by the caller (attend limits its loops)", {}),
+                         ("caller sets OPENBLAS_NUM_THREADS=1", {"OPENBLAS_NUM_THREADS": "1"})):
+        out = subprocess.run([sys.executable, __file__, "--speed-worker"], env={**base, **extra},
+                             capture_output=True, text=True, check=True).stdout.split()
+        print(f"  {label:62s} DEM {float(out[1]):7.0f}   UKF smoother {float(out[3]):6.0f}")
 
 
 def part1(seeds: int) -> None:
@@ -78,14 +123,41 @@ def part2(seeds: int) -> None:
                   f"DEM/UKF filter {filt:6.3f}  DEM/UKF lag {lag:6.3f}{target}")
 
 
+def part3(seeds: int) -> None:
+    print(f"\n== pendulum input prior smoothness ({seeds} seeds, 20 s; input SSE median, (rad/s^2)^2; states in brackets)")
+    cases = (("before: s_v = s = 0.1 s, UKF random walk 0.5 (fixed)", dict(input_kernel_width=None,
+                                                                          input_random_walk_variance=0.5)),
+             ("s_v = s = 0.1 s, UKF random walk matched to the prior", dict(input_kernel_width=None)),
+             ("after: s_v = 0.7 s (the pushes), random walk matched", dict(input_kernel_width=0.7)))
+    for label, change in cases:
+        cfg = dict(pendulum.SETTINGS, seeds=seeds, methods=("DEM", "UKF", "UKF lag"), **change)
+        result = _nonlinear.compare("pendulum", cfg, False)
+        value = lambda name: result.metric(name).value  # noqa: E731
+        print(f"  {label:55s} DEM {value('DEM input SSE (median)'):7.1f} ({value('DEM state SSE (median)'):5.2f})  "
+              f"augmented UKF smoother {value('augmented UKF input SSE (median)'):7.1f} "
+              f"({value('UKF state SSE (median)'):5.2f})  fixed-lag UKF {value('augmented UKF lag input SSE (median)'):7.1f}  "
+              f"DEM/UKF {value('DEM / augmented UKF input SSE (median ratio)'):5.2f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--sweep-seeds", type=int, default=10)
+    parser.add_argument("--prior-seeds", type=int, default=20)
+    parser.add_argument("--parts", default="0123", help="which parts to run (default: all)")
+    parser.add_argument("--speed-worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    part1(args.seeds)
-    if args.sweep_seeds > 0:
+    if args.speed_worker:
+        speed_worker()
+        return
+    if "0" in args.parts:
+        part0()
+    if "1" in args.parts:
+        part1(args.seeds)
+    if "2" in args.parts and args.sweep_seeds > 0:
         part2(args.sweep_seeds)
+    if "3" in args.parts and args.prior_seeds > 0:
+        part3(args.prior_seeds)
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ Public API (everything else is private):
 - generalised coordinates: :func:`smoothness_precision`, :func:`embed`, :func:`shift_operator`
 - perception: :class:`KalmanEstimator` (coloured-noise Kalman smoother/filter, the default of
   ``attend estimate``), :class:`StateEstimate`, :class:`DEMObserver`, :class:`DEMEstimate`
+- nonlinear models: :class:`NonlinearSystem` (f, g), :class:`NonlinearDEM`, :func:`simulate_nonlinear`
 - learning: :func:`identify`, :class:`IdentificationResult`
 - errors: :class:`AttendInputError`, :class:`ModelWarning`
 """
@@ -18,6 +19,7 @@ from attend.noise import coloured_noise
 from attend.perception.dem import DEMEstimate, DEMObserver, OnlineDEM
 from attend.perception.kalman import KalmanEstimator, OnlineKalman, StateEstimate
 from attend.perception.learning import IdentificationResult, identify
+from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem, simulate_nonlinear
 from attend.systems import (
     LinearSystem,
     ModelWarning,
@@ -39,6 +41,8 @@ __all__ = [
     "KalmanEstimator",
     "LinearSystem",
     "ModelWarning",
+    "NonlinearDEM",
+    "NonlinearSystem",
     "OnlineDEM",
     "OnlineKalman",
     "StateEstimate",
@@ -54,5 +58,6 @@ __all__ = [
     "quadrotor_roll",
     "shift_operator",
     "simulate",
+    "simulate_nonlinear",
     "smoothness_precision",
 ]

@@ -286,7 +286,8 @@ def _command_estimate(args) -> int:
         raise AttendInputError("estimate: expected MODEL and LOG paths (or --demo)")
     model = io.read_model(model_path)
     log = io.read_log(log_path, model.time_column)
-    model.system.check()
+    if not model.nonlinear:
+        model.system.check()
     _output_file(args.out, "--out", "estimates.csv")
     if args.plot:
         _output_file(args.plot, "--plot", "estimates.png")
@@ -308,8 +309,28 @@ def _describe_estimator(estimator) -> str:
     """One line: which estimator ran, with its settings."""
     import numpy as np
 
+    from attend.io import NonlinearFileEstimator
     from attend.perception.dem import DEMObserver
 
+    if isinstance(estimator, NonlinearFileEstimator):
+        model = estimator.model
+        if estimator.method == "dem":
+            chosen = " (automatic)" if estimator.automatic_order else ""
+            input_width = (f", input prior width {estimator.input_kernel_width:g} s" if estimator.system.n_inputs
+                           and not estimator.known.all() else "")
+            return (f"method dem (nonlinear DEM, model {model.python_path}): embedding order p = "
+                    f"{estimator.embedding_order}{chosen}, input order d = {model.input_order}, kernel width "
+                    f"{model.kernel_width:g} s{input_width}, delay {estimator.dem().delay} samples; "
+                    f"[observer] method = \"ukf\" (the default) runs the unscented Kalman smoother")
+        unknown = estimator.system.n_inputs and not estimator.known.all()
+        inputs = (f"; unknown inputs as random walks matching their prior (width {estimator.input_kernel_width:g} s)"
+                  if unknown else "")
+        start = ("[observer] initial_state" if model.initial_state is not None
+                 else "DEM's estimate of the first sample")
+        return (f"method ukf (unscented Kalman smoother, the default for nonlinear models; model "
+                f"{model.python_path}): white-noise model with the per-sample variance of the coloured noise "
+                f"(kernel width {model.kernel_width:g} s){inputs}; start: {start}; [observer] method = \"dem\" "
+                "runs the nonlinear DEM")
     if isinstance(estimator, DEMObserver):
         analysis = estimator.analysis()
         chosen = " (automatic)" if analysis.automatic else ""

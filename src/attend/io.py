@@ -51,6 +51,18 @@ Model file (all times in seconds)::
     states = "sample"               # "sample" (paper's eq. 8) or "path" (one state path, data counted once)
     top_order = "marginal"          # top-order motion error: "marginal" (default) or "truncate" (eq. 8)
 
+Nonlinear models: in [model], instead of A, B, C::
+
+    python = "model.py"             # beside the model file: defines f(x, v) -> dx/dt and g(x, v) -> y
+    n_states = 2                    # (or f(x, v, parameters), g(x, v, parameters) with a dict
+    n_inputs = 1                    #  `parameters` in model.py; [model] parameters = {...} overrides it)
+    n_outputs = 2
+    parameters = { damping = 0.3 }  # optional
+
+[outputs], [[inputs]] (one per input of f and g; none when n_inputs = 0), [observer] (one
+kernel_width; method "ukf", the default, or "dem") and [log] as above. Errors in f or g name the
+Python file, the line and the function.
+
 Log file: CSV with a header row; the time column, the output columns and the known-input
 columns named in the model file (other columns are ignored).
 """
@@ -83,12 +95,20 @@ from attend._validation import (
     unique_names,
 )
 from attend.perception.dem import DEMEstimate, DEMObserver
+from attend.perception.nonlinear import NonlinearSystem
 from attend.systems import LinearSystem
 
 KNOWN_INPUT_PRECISION = math.exp(32)
+#: Nonlinear DEM's default prior precision of measured inputs beside unknown ones (exp(32) overflows
+#: the linear algebra of its flow; 1e8 pins them to the measurement to ~1e-8 on the pendulum).
+NONLINEAR_KNOWN_INPUT_PRECISION = 1e8
+#: The estimator of nonlinear models when [observer] method is not given (see NONLINEAR_METHODS).
+NONLINEAR_METHOD = "ukf"
 
+_LINEAR_KEYS = {"A", "B", "C"}
+_NONLINEAR_KEYS = {"python", "n_states", "n_inputs", "n_outputs", "parameters"}
 _SECTIONS = {
-    "model": {"A", "B", "C", "states", "dt"},
+    "model": _LINEAR_KEYS | _NONLINEAR_KEYS | {"states", "dt"},
     "outputs": {"columns"},
     "inputs": None,  # array of tables, checked separately
     "observer": {
@@ -150,6 +170,12 @@ class ModelFile:
     input_kernel_width: float | None = None
     initial_state: tuple | None = None
     initial_state_std: object = None
+    python_path: str = ""  # the Python file of a nonlinear model ([model] python), resolved
+
+    @property
+    def nonlinear(self) -> bool:
+        """True for a model given by f and g in a Python file ([model] python)."""
+        return isinstance(self.system, NonlinearSystem)
 
     @property
     def learning_order(self) -> int:
@@ -158,9 +184,35 @@ class ModelFile:
 
     def observer(self, dt: float):
         """The estimator the file describes (``[observer] method``), for logs sampled every ``dt`` s."""
+        if self.nonlinear:
+            return self.nonlinear_estimator(dt)
         if self.method == "kalman":
             return self.kalman(dt)
         return self.dem(dt)
+
+    def nonlinear_order(self, dt: float) -> int:
+        """The DEM embedding order of a nonlinear model: the file's, or under "auto" the largest
+        p <= 6 whose S(s) stays well conditioned (cond <= 1e8 in sample units; the stability check
+        of the linear "auto" needs A, B, C)."""
+        from attend.generalized import smoothness_condition
+        from attend.perception.dem import AUTO_MAX_CONDITION, AUTO_MAX_ORDER
+
+        if self.embedding_order != "auto":
+            return int(self.embedding_order)
+        for p in range(AUTO_MAX_ORDER, 0, -1):
+            if smoothness_condition(p + 1, self.kernel_width, dt) <= AUTO_MAX_CONDITION:
+                return p
+        return 0
+
+    def nonlinear_estimator(self, dt: float) -> "NonlinearFileEstimator":
+        """The estimator of a nonlinear model file (see :class:`NonlinearFileEstimator`)."""
+        estimator = NonlinearFileEstimator(self, dt, self.method, self.nonlinear_order(dt),
+                                           self.embedding_order == "auto")
+        try:
+            estimator.dem()  # the settings are checked here, whichever method runs
+        except AttendInputError as error:
+            raise AttendInputError(f"{self.path}: [observer] {error}") from None
+        return estimator
 
     def kalman(self, dt: float):
         """The coloured-noise Kalman smoother: measured inputs drive the model, the others are estimated."""
@@ -199,6 +251,107 @@ class ModelFile:
             )
         except AttendInputError as error:
             raise AttendInputError(f"{self.path}: [observer] {error}") from None
+
+
+@dataclass(frozen=True)
+class NonlinearFileEstimator:
+    """The estimator of a nonlinear model file ([model] python), for logs sampled every ``dt`` s.
+
+    method "ukf": the unscented Kalman (RTS) smoother on a white-noise model with the coloured
+    noises' per-sample variance (Q = dt^2 inv(Pi_w), R = inv(Pi_z)); unknown inputs ride in the
+    state as random walks whose one-sample increments have the variance of their prior's
+    (:func:`attend.perception.nonlinear_baselines.input_random_walk_variance`), started at the prior mean; measured inputs drive f and g.
+    Without [observer] initial_state the smoother starts from DEM's estimate of the first sample
+    and its std. method "dem": :class:`attend.perception.nonlinear.NonlinearDEM` (measured inputs,
+    when some are unknown, get their measurement as prior mean with precision known_input_precision).
+    """
+
+    model: "ModelFile"
+    dt: float
+    method: str
+    embedding_order: int
+    automatic_order: bool
+
+    @property
+    def system(self) -> NonlinearSystem:
+        return self.model.system
+
+    @property
+    def known(self) -> np.ndarray:
+        return np.array([spec.known for spec in self.model.inputs], dtype=bool)
+
+    def dem(self):
+        """The NonlinearDEM of the file's settings."""
+        from attend.perception.nonlinear import NonlinearDEM
+
+        model, known = self.model, self.known
+        all_known = bool(known.all())
+        prior = None if all_known else np.array(
+            [model.known_input_precision if spec.known else spec.prior_precision for spec in model.inputs])
+        return NonlinearDEM(
+            self.system, self.dt, model.kernel_width, model.sensor_precision, model.process_precision, prior,
+            self.embedding_order, model.input_order, known_inputs=all_known,
+            precision_convention=model.precision_convention, input_kernel_width=model.input_kernel_width,
+        )
+
+    @property
+    def input_kernel_width(self) -> float:
+        return self.model.input_kernel_width or self.model.kernel_width
+
+    def estimate(self, outputs, signals):
+        """Estimates (time, states, inputs, state_std, input_std, ...) on outputs (N, m); signals
+        (N, r): measured inputs (operating point removed) or the prior means of the unknown ones."""
+        model = self.model
+        initial = None if model.initial_state is None else np.array(model.initial_state)
+        if self.method == "dem":
+            return self.dem().estimate(outputs, signals, initial_state=initial)
+        from attend.perception.nonlinear_baselines import input_random_walk_variance, unscented_kalman
+
+        n, r = self.system.n_states, self.system.n_inputs
+        Pi_w = precision_matrix(model.process_precision, n, "process_precision")
+        Pi_z = precision_matrix(model.sensor_precision, self.system.n_outputs, "sensor_precision")
+        covariances = {}
+        for key, matrix in (("process_precision", Pi_w), ("sensor_precision", Pi_z)):
+            if np.linalg.eigvalsh(matrix).min() <= 0:
+                raise AttendInputError(f"{key}: method \"ukf\" needs a positive definite precision (it is "
+                                       "inverted into a covariance); every entry > 0")
+            covariances[key] = np.linalg.inv(matrix)
+        options = dict(process_covariance=self.dt**2 * covariances["process_precision"],
+                       measurement_covariance=covariances["sensor_precision"])
+        known = self.known
+        if r and not known.all():
+            precisions = np.array([spec.prior_precision for spec in model.inputs])
+            bad = [spec.name for spec in model.inputs if not spec.known and not spec.prior_precision > 0]
+            if bad:
+                raise AttendInputError(f"[[inputs]] {', '.join(map(repr, bad))} prior_precision: method \"ukf\" "
+                                       "needs a prior precision > 0 (it sets the random walk of the input)")
+            variance = input_random_walk_variance(np.where(known, 1.0, precisions), self.input_kernel_width, self.dt)
+            options.update(input_variance=np.diag(np.where(known, 0.0, variance)), input_mean=signals[0],
+                           known_inputs=known)
+            inputs = signals if known.any() else None
+        else:
+            inputs = signals if r else None
+        if initial is None:
+            mean, std = self._start(outputs, signals)
+        else:
+            mean = initial
+            std = np.broadcast_to(np.asarray(0.0 if model.initial_state_std is None else model.initial_state_std,
+                                             dtype=float), (n,))
+        return unscented_kalman(self.system, self.dt, outputs, inputs, initial_mean=mean,
+                                initial_covariance=np.diag(np.asarray(std, dtype=float) ** 2), **options)
+
+    def _start(self, outputs, signals):
+        """x[0] and its std from DEM on the first samples (the smoother's prior on the initial state)."""
+        dem = self.dem()
+        count = min(len(outputs), 4 * (max(self.embedding_order, self.model.input_order) + 1))
+        try:
+            first = dem.estimate(outputs[:count], signals[:count])
+        except AttendInputError as error:
+            if self.model.python_path and str(error).startswith(self.model.python_path):
+                raise
+            raise AttendInputError(f"the smoother starts from DEM's estimate of the first sample, which failed "
+                                   f"({error}); give initial_state and initial_state_std") from None
+        return first.states[0], first.state_std[0]
 
 
 def _check_keys(table: dict, allowed: set[str], where: str, path: str) -> None:
@@ -276,6 +429,199 @@ def _text_list(value, field: str, size: int | None = None, what: str = "names") 
     return names
 
 
+# --- nonlinear models: f and g from the user's Python file ----------------------------------
+
+def _model_size(model: dict, key: str, path) -> int:
+    """[model] n_states / n_inputs / n_outputs of a nonlinear model: an integer (n_inputs may be 0)."""
+    low = 0 if key == "n_inputs" else 1
+    if key not in model:
+        raise AttendInputError(f"{path}: [model] needs {key} (an integer >= {low}) with python = ... (a nonlinear model)")
+    value = model[key]
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= 10_000:
+        raise AttendInputError(f"{path}: [model] {key}: expected an integer in {low}..10000, got {value!r}")
+    return value
+
+
+def _takes_parameters(function, name: str, source) -> bool:
+    """Whether the user's function takes a third argument (the parameters)."""
+    import inspect
+
+    try:
+        signature = inspect.signature(function)
+    except (TypeError, ValueError):
+        return False
+    positional = [p for p in signature.parameters.values()
+                  if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    required = [p for p in positional if p.default is p.empty]
+    if any(p.kind == p.VAR_POSITIONAL for p in signature.parameters.values()):
+        return True
+    if len(required) > 3 or len(positional) < 2:
+        raise AttendInputError(f"{source}: {name}{signature}: expected {name}(x, v) or {name}(x, v, parameters)")
+    return len(positional) >= 3
+
+
+class _UserShapeError(AttendInputError):
+    """f or g returned something of the wrong shape or type (reported when the model is read)."""
+
+
+class _UserFunction:
+    """f or g of the user's file: called with (x, v) [and the parameters]; every value checked.
+
+    An exception inside the user's code, a wrong shape or a non-finite value is an
+    AttendInputError naming the file, the line of the user's code, the function and the point."""
+
+    def __init__(self, function, name: str, size: int, what: str, source: Path, parameters):
+        self.function, self.name, self.size, self.what = function, name, size, what
+        self.source, self.parameters = source, parameters
+
+    def _where(self, error: BaseException) -> str:
+        import traceback
+
+        lines = [frame.lineno for frame in traceback.extract_tb(error.__traceback__)
+                 if Path(frame.filename).resolve() == self.source.resolve()]
+        return f" (line {lines[-1]})" if lines else ""
+
+    def __call__(self, x, v, *unused):
+        try:
+            with np.errstate(all="ignore"):
+                value = self.function(x, v) if self.parameters is None else self.function(x, v, self.parameters)
+        except Exception as error:  # the user's code failed: say so, with its own message
+            raise AttendInputError(
+                f"{self.source}: {self.name}(x, v) failed{self._where(error)}: {type(error).__name__}: "
+                f"{_one_line(error)} (at x = {_short(x)}, v = {_short(v)}); this is an error in the model's code"
+            ) from None
+        try:
+            if value is None:
+                raise TypeError("None")
+            value = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise _UserShapeError(f"{self.source}: {self.name}(x, v) returned {type(value).__name__} "
+                                   f"{_short(value)}; expected {self.size} numbers ({self.what})") from None
+        if value.shape != (self.size,):
+            if value.size == self.size and value.ndim <= 2:
+                value = value.reshape(self.size)
+            else:
+                raise _UserShapeError(
+                    f"{self.source}: {self.name}(x, v) returned shape {value.shape}; expected {self.size} "
+                    f"values ({self.what})")
+        if not np.all(np.isfinite(value)):
+            raise AttendInputError(
+                f"{self.source}: {self.name}(x, v) returned non-finite values {_short(value)} at x = {_short(x)}, "
+                f"v = {_short(v)}; expected finite numbers")
+        return value
+
+
+def _short(value) -> str:
+    text = np.array2string(np.asarray(value), precision=4, separator=", ", threshold=8) \
+        if isinstance(value, (np.ndarray, list, tuple)) else repr(value)
+    return _one_line(text)[:200]
+
+
+def _one_line(text) -> str:
+    return " ".join(str(text).split())
+
+
+def _toml_parameters(value, where: str) -> dict:
+    """[model] parameters: a table of numbers, lists of numbers (as float arrays), text or booleans."""
+    if not isinstance(value, dict):
+        raise AttendInputError(f"{where}: expected a table, e.g. parameters = {{ gravity = 9.81, damping = 0.3 }}, "
+                               f"got {value!r}")
+    out = {}
+    for key, item in value.items():
+        if isinstance(item, list):
+            array = numeric_array(item, f"{where} {key}", "a number, a list of numbers or a matrix")
+            require_finite(array, f"{where} {key}")
+            out[key] = array
+        else:
+            out[key] = item
+    return out
+
+
+def _python_model(path: Path, model: dict, n_states: int, n_inputs: int, n_outputs: int, state_names, input_names):
+    """The NonlinearSystem of [model] python = "file.py" (relative to the model file)."""
+    import importlib.util
+    import sys
+
+    where = f"{path}: [model] python"
+    name = _text(model["python"], where)
+    source = (path.parent / name)
+    if not source.exists():
+        raise AttendInputError(f"{where}: {source} does not exist (the path is relative to the model file's folder)")
+    if not source.is_file():
+        raise AttendInputError(f"{where}: {source} is not a file; expected a Python file defining f(x, v) and g(x, v)")
+    _read_text(source, "Python model file")  # readable UTF-8 text, or an error naming it
+    module_name = f"attend_user_model_{abs(hash(str(source.resolve())))}"
+    spec = importlib.util.spec_from_file_location(module_name, source)
+    if spec is None or spec.loader is None:
+        raise AttendInputError(f"{where}: {source} cannot be loaded as Python (expected a .py file)")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[module_name] = module  # dataclasses and pickling inside the user's file need it
+    folder = str(source.parent.resolve())
+    sys.path.insert(0, folder)  # the file may import helpers beside it
+    try:
+        spec.loader.exec_module(module)
+    except SyntaxError as error:
+        raise AttendInputError(f"{source}: line {error.lineno}: not valid Python ({error.msg})") from None
+    except Exception as error:
+        lines = [frame.lineno for frame in __import__("traceback").extract_tb(error.__traceback__)
+                 if Path(frame.filename).resolve() == source.resolve()]
+        at = f" (line {lines[-1]})" if lines else ""
+        raise AttendInputError(f"{source}: the model's code failed when loaded{at}: {type(error).__name__}: "
+                               f"{_one_line(error)}") from None
+    finally:
+        if sys.path and sys.path[0] == folder:
+            sys.path.pop(0)
+    functions = {}
+    for key in ("f", "g"):
+        function = getattr(module, key, None)
+        if function is None:
+            raise AttendInputError(
+                f"{source}: defines no function {key}; expected f(x, v) -> dx/dt ({n_states} values) and "
+                f"g(x, v) -> y ({n_outputs} values), optionally with a third argument, the parameters")
+        if not callable(function):
+            raise AttendInputError(f"{source}: {key} is a {type(function).__name__}; expected a function {key}(x, v)")
+        functions[key] = function
+    parameters = getattr(module, "parameters", None)
+    if parameters is not None and not isinstance(parameters, dict):
+        raise AttendInputError(f"{source}: parameters is a {type(parameters).__name__}; expected a dict of the "
+                               "model's parameters (passed to f and g as their third argument)")
+    if "parameters" in model:
+        parameters = {**(parameters or {}), **_toml_parameters(model["parameters"], f"{path}: [model] parameters")}
+    takes = {key: _takes_parameters(function, key, source) for key, function in functions.items()}
+    if any(takes.values()) and parameters is None:
+        needs = " and ".join(key for key, value in takes.items() if value)
+        raise AttendInputError(f"{source}: {needs} take a third argument (the parameters) but neither the file nor "
+                               f"the model file gives them; define parameters = {{...}} in {source.name} or "
+                               "[model] parameters in the model file")
+    if parameters is not None and not any(takes.values()):
+        raise AttendInputError(f"{source}: parameters are given but neither f nor g takes them; write "
+                               "f(x, v, parameters) and g(x, v, parameters)")
+    f = _UserFunction(functions["f"], "f", n_states,
+                      f"dx/dt, one per state: [model] n_states = {n_states}", source, parameters if takes["f"] else None)
+    g = _UserFunction(functions["g"], "g", n_outputs,
+                      f"y, one per output: [model] n_outputs = {n_outputs}", source, parameters if takes["g"] else None)
+    try:
+        return NonlinearSystem(f, g, n_states, n_inputs, n_outputs, state_names=state_names,
+                               input_names=input_names)
+    except AttendInputError as error:
+        raise AttendInputError(f"{path}: [model] {error}") from None
+
+
+def _probe(system: NonlinearSystem, initial_state, inputs) -> None:
+    """Call f and g once (at initial_state or zeros, the inputs' prior means or operating points):
+    a wrong output shape is reported when the model is read. An exception or a non-finite value
+    there is left for the estimate (the point may be outside the model's domain)."""
+    x = np.zeros(system.n_states) if initial_state is None else np.array(initial_state, dtype=float)
+    v = np.array([spec.operating_point if spec.known else spec.prior_mean for spec in inputs], dtype=float)
+    for function in (system.f, system.g):
+        try:
+            function(x, v)
+        except _UserShapeError:
+            raise
+        except AttendInputError:
+            pass
+
+
 def read_model(path: str | Path) -> ModelFile:
     """Parse and validate a model TOML file (format in the module docstring)."""
     path = Path(path)
@@ -297,20 +643,43 @@ def read_model(path: str | Path) -> ModelFile:
     if not data:
         raise AttendInputError(f"{path}: the model file is empty; expected [model], [outputs] and [observer] sections")
     model = data.get("model", {})
-    for key in ("A", "B", "C"):
-        if key not in model:
-            raise AttendInputError(f"{path}: [model] needs {key} (a matrix as a list of rows)")
-    A = as_matrix(model["A"], f"{path}: [model] A")
-    require_moderate(A, f"{path}: [model] A")
-    if A.shape[0] != A.shape[1]:
-        raise AttendInputError(f"{path}: [model] A: expected a square matrix, got shape {A.shape}")
-    B = _matrix(model["B"], f"{path}: [model] B")
-    C = _matrix(model["C"], f"{path}: [model] C")
+    nonlinear = "python" in model
     raw_inputs = data.get("inputs", [])
     if not isinstance(raw_inputs, list) or not all(isinstance(spec, dict) for spec in raw_inputs):
-        raise AttendInputError(f"{path}: expected [[inputs]] tables (one per column of B), got inputs = {raw_inputs!r}")
-    n_inputs = B.shape[1] if B.ndim == 2 else 1
+        per = "one per input of f and g" if nonlinear else "one per column of B"
+        raise AttendInputError(f"{path}: expected [[inputs]] tables ({per}), got inputs = {raw_inputs!r}")
+    if nonlinear:
+        mixed = sorted(_LINEAR_KEYS & set(model))
+        if mixed:
+            raise AttendInputError(f"{path}: [model] has both python (a nonlinear model f, g) and {', '.join(mixed)} "
+                                   "(a linear model); give one of them")
+        n_states, n_inputs, n_outputs = (_model_size(model, key, path) for key in ("n_states", "n_inputs", "n_outputs"))
+    else:
+        extra = sorted((_NONLINEAR_KEYS - {"python"}) & set(model))
+        if extra:
+            raise AttendInputError(
+                f"{path}: [model] {', '.join(extra)}: only for nonlinear models ([model] python = \"model.py\" "
+                "with f and g); a linear model's sizes come from A, B and C"
+            )
+        for key in ("A", "B", "C"):
+            if key not in model:
+                raise AttendInputError(f"{path}: [model] needs {key} (a matrix as a list of rows), or python = "
+                                       "\"model.py\" (a nonlinear model: f, g and n_states, n_inputs, n_outputs)")
+        A = as_matrix(model["A"], f"{path}: [model] A")
+        require_moderate(A, f"{path}: [model] A")
+        if A.shape[0] != A.shape[1]:
+            raise AttendInputError(f"{path}: [model] A: expected a square matrix, got shape {A.shape}")
+        B = _matrix(model["B"], f"{path}: [model] B")
+        C = _matrix(model["C"], f"{path}: [model] C")
+        n_states = A.shape[0]
+        n_inputs = B.shape[1] if B.ndim == 2 else 1
+        n_outputs = C.shape[0] if C.ndim == 2 else 1
     if len(raw_inputs) != n_inputs:
+        if nonlinear:
+            raise AttendInputError(
+                f"{path}: [model] n_inputs = {n_inputs} but the file has {len(raw_inputs)} [[inputs]] "
+                f"table{'s' if len(raw_inputs) != 1 else ''}; expected one table per input of f and g"
+            )
         raise AttendInputError(
             f"{path}: [model] B has {n_inputs} column{'s' if n_inputs != 1 else ''} but the file has "
             f"{len(raw_inputs)} [[inputs]] table{'s' if len(raw_inputs) != 1 else ''}; expected one table per column of B"
@@ -321,13 +690,15 @@ def read_model(path: str | Path) -> ModelFile:
         [_text(spec.get("name", f"u{i + 1}"), f"{path}: [[inputs]] table {i + 1} name") for i, spec in enumerate(raw_inputs)],
         f"{path}: [[inputs]] name",
     )
-    n_states = A.shape[0]
     state_names = _text_list(model["states"], f"{path}: [model] states", n_states, "state names") if "states" in model else ()
     unique_names(state_names + input_names + ("t",), f"{path}: [model] states and [[inputs]] names (and 't', the time column of the estimates)")
-    try:
-        system = LinearSystem(A, B, C, state_names=state_names, input_names=input_names)
-    except AttendInputError as error:
-        raise AttendInputError(f"{path}: [model] {error}") from None
+    if nonlinear:
+        system = _python_model(path, model, n_states, n_inputs, n_outputs, state_names, input_names)
+    else:
+        try:
+            system = LinearSystem(A, B, C, state_names=state_names, input_names=input_names)
+        except AttendInputError as error:
+            raise AttendInputError(f"{path}: [model] {error}") from None
     inputs = []
     for i, spec in enumerate(raw_inputs):
         name = input_names[i]
@@ -344,32 +715,49 @@ def read_model(path: str | Path) -> ModelFile:
             name, column, _file_number(spec, "prior_mean", f"{where} prior_mean", 0.0), precision,
             _file_number(spec, "operating_point", f"{where} operating_point", 0.0),
         ))
+    per_output = "one per output of g: [model] n_outputs" if nonlinear else "one per row of C"
     outputs = data.get("outputs", {}).get("columns")
     if outputs is None:
-        raise AttendInputError(f"{path}: [outputs] needs columns (the CSV columns of the {system.n_outputs} outputs, one per row of C)")
+        raise AttendInputError(f"{path}: [outputs] needs columns (the CSV columns of the {system.n_outputs} outputs, {per_output})")
     if not isinstance(outputs, list) or len(outputs) != system.n_outputs:
         raise AttendInputError(
-            f"{path}: [outputs] columns: expected {system.n_outputs} column names (one per row of C), got {outputs!r}"
+            f"{path}: [outputs] columns: expected {system.n_outputs} column names ({per_output}), got {outputs!r}"
         )
     outputs = _text_list(outputs, f"{path}: [outputs] columns", what="column names")
     observer = data.get("observer", {})
     for key in ("sensor_precision", "process_precision"):
         if key not in observer:
             raise AttendInputError(f"{path}: [observer] needs {key}")
-    method = observer.get("method", "kalman")
-    if method not in ("kalman", "dem"):
-        raise AttendInputError(f"{path}: [observer] method: expected \"kalman\" or \"dem\", got {method!r}")
+    if nonlinear:
+        method = observer.get("method", NONLINEAR_METHOD)
+        if method not in ("ukf", "dem"):
+            raise AttendInputError(f"{path}: [observer] method: expected \"ukf\" or \"dem\" for a nonlinear model "
+                                   f"([model] python), got {method!r}")
+        separate = sorted({"process_kernel_width", "sensor_kernel_width"} & set(observer))
+        if separate:
+            raise AttendInputError(f"{path}: [observer] {', '.join(separate)}: nonlinear models take one kernel_width "
+                                   "[s] for both noises (separate widths are for linear models)")
+        if "kernel_width" not in observer:
+            raise AttendInputError(f"{path}: [observer] needs kernel_width (seconds, > 0): the smoothness of the noises")
+    else:
+        method = observer.get("method", "kalman")
+        if method not in ("kalman", "dem"):
+            hint = " (\"ukf\" is for nonlinear models: [model] python)" if method == "ukf" else ""
+            raise AttendInputError(f"{path}: [observer] method: expected \"kalman\" or \"dem\"{hint}, got {method!r}")
     widths = {}
     for key in ("kernel_width", "process_kernel_width", "sensor_kernel_width", "input_kernel_width"):
         value = observer.get(key)
         if value is None:
             widths[key] = None
             continue
-        positive_only = method == "dem" and key == "kernel_width"
+        positive_only = (method == "dem" or nonlinear) and key == "kernel_width"
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
                 or value < 0 or (positive_only and value == 0):
             expected = "a number > 0" if positive_only else "a number >= 0 (0: white noise)"
             raise AttendInputError(f"{path}: [observer] {key}: expected {expected} (seconds), got {value!r}")
+        if nonlinear and key == "input_kernel_width" and value == 0:
+            raise AttendInputError(f"{path}: [observer] input_kernel_width: expected a number > 0 (seconds) for a "
+                                   "nonlinear model, got 0")
         widths[key] = float(value)
     kernel_width = widths["kernel_width"]
     if kernel_width is None and (widths["process_kernel_width"] is None or widths["sensor_kernel_width"] is None):
@@ -391,6 +779,8 @@ def read_model(path: str | Path) -> ModelFile:
                                    f"{system.n_states} of them, got {initial_std!r}")
         initial_std = float(values[0]) if len(values) == 1 else tuple(float(v) for v in values)
     _check_observer(observer, system, f"{path}: [observer]")
+    if nonlinear:
+        _probe(system, initial_state, inputs)
     dt = model.get("dt")
     if dt is not None:
         dt = positive_scalar(dt, f"{path}: [model] dt", "seconds")
@@ -409,7 +799,8 @@ def read_model(path: str | Path) -> ModelFile:
         process_precision=observer["process_precision"],
         precision_convention=observer.get("precision_convention", "size"),
         known_input_precision=_file_number(observer, "known_input_precision", f"{path}: [observer] known_input_precision",
-                                           KNOWN_INPUT_PRECISION, positive=True),
+                                           NONLINEAR_KNOWN_INPUT_PRECISION if nonlinear else KNOWN_INPUT_PRECISION,
+                                           positive=True),
         time_column=time_column,
         learning=learning,
         path=str(path),
@@ -419,6 +810,7 @@ def read_model(path: str | Path) -> ModelFile:
         input_kernel_width=widths["input_kernel_width"],
         initial_state=initial_state,
         initial_state_std=initial_std,
+        python_path=str(system.f.source) if nonlinear else "",
     )
 
 
@@ -586,7 +978,12 @@ def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEst
             signals[:, j] = log.matrix([spec.column])[:, 0] - spec.operating_point
         else:
             signals[:, j] = spec.prior_mean
-    if model.method == "dem":
+    if model.nonlinear and model.method == "dem":
+        window = max(model.nonlinear_order(log.dt), model.input_order) + 1
+        dt = _check_samples(model, log, max(2, window), f"the embedding window of order {window - 1}")
+    elif model.nonlinear:
+        dt = _check_samples(model, log, 2, "the unscented Kalman smoother")
+    elif model.method == "dem":
         order = model.learning_order  # "auto" picks p <= 6
         window = max(order, model.input_order) + 1
         dt = _check_samples(model, log, max(2, window), f"the embedding window of order {window - 1}")
@@ -594,7 +991,16 @@ def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEst
         dt = _check_samples(model, log, 2, "the Kalman smoother")
     observer = _observer_of(model, dt)
     with np.errstate(over="ignore", invalid="ignore"):
-        estimate = observer.estimate(outputs, signals)
+        if model.nonlinear:
+            try:
+                estimate = observer.estimate(outputs, signals)
+            except AttendInputError as error:
+                text = str(error)
+                if model.python_path and text.startswith(model.python_path):
+                    raise  # the user's f or g failed: the message names the file and the function
+                raise AttendInputError(f"{model.path}: [observer] method {model.method!r}: {text}") from None
+        else:
+            estimate = observer.estimate(outputs, signals)
     for name, values in (("states", estimate.states), ("inputs", estimate.inputs)):
         if not np.all(np.isfinite(values)):
             raise AttendInputError(
@@ -606,10 +1012,12 @@ def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEst
     undefined = ~np.all(np.isfinite(np.hstack([estimate.state_std, estimate.input_std])), axis=0)
     if undefined.any():
         hidden = ", ".join(name for name, bad in zip(names, undefined) if bad)
+        remedy = ("check the precisions and that g depends on them" if model.nonlinear else
+                  "or give [observer] initial_state and initial_state_std with method = \"kalman\" (their "
+                  "estimate is then the prior's)")
         raise AttendInputError(
             f"{model.path}: [observer] {hidden}: not informed by the outputs under these settings (no finite "
-            "standard deviation); add outputs that see them, or give [observer] initial_state and "
-            "initial_state_std with method = \"kalman\" (their estimate is then the prior's)"
+            f"standard deviation); add outputs that see them, {remedy}"
         )
     return observer, estimate
 
@@ -634,6 +1042,9 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
     """
     from attend.perception.learning import identify
 
+    if model.nonlinear:
+        raise AttendInputError(f"{model.path}: identify needs a linear model (A, B, C in [model]); nonlinear models "
+                               "([model] python) can be estimated (attend estimate) but not identified yet")
     unknown = [spec.name for spec in model.inputs if not spec.known]
     if unknown:
         raise AttendInputError(

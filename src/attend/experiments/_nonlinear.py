@@ -4,7 +4,6 @@ DEM and the baselines on it, SSE per method, a figure of seed 0 and the SSE spre
 from __future__ import annotations
 
 import importlib
-import os
 import time as clock
 from pathlib import Path
 
@@ -16,6 +15,7 @@ from attend.perception.nonlinear import NonlinearDEM, simulate_nonlinear
 from attend.perception.nonlinear_baselines import (
     coloured_unscented_smoother,
     extended_kalman,
+    input_random_walk_variance,
     particle_smoother,
     unscented_kalman,
     white_noise_covariances,
@@ -45,13 +45,18 @@ def _one_seed(name: str, cfg: dict, seed: int) -> dict:
     p = cfg["embedding_order"]
     trim = slice(p + 1, n_samples - p - 1)
     methods = tuple(cfg.get("methods", METHODS))
-    dem = NonlinearDEM(system, dt, s, 1.0 / sz**2, 1.0 / sw**2,
-                       np.exp(cfg["input_prior_log_precision"]) if unknown else None, p, cfg["input_order"])
+    input_width = cfg.get("input_kernel_width") or s  # the input prior's smoothness s_v (default: the noise's)
+    prior_precision = np.exp(cfg["input_prior_log_precision"])
+    dem = NonlinearDEM(system, dt, s, 1.0 / sz**2, 1.0 / sw**2, prior_precision if unknown else None, p,
+                       cfg["input_order"], input_kernel_width=input_width if unknown else None)
     Q, R = white_noise_covariances(system, dt, s, sw, sz)
     kalman = dict(process_covariance=Q, measurement_covariance=R, initial_mean=cfg["initial_state"],
                   initial_covariance=np.asarray(cfg["initial_std"], float) ** 2)
     if unknown:
-        kalman["input_variance"] = cfg["input_random_walk_variance"]
+        # the random walk whose one-sample steps have the prior's variance (same prior information)
+        # (a settings key input_random_walk_variance overrides it: the reproduction before this matching)
+        kalman["input_variance"] = cfg.get("input_random_walk_variance") or float(
+            input_random_walk_variance(prior_precision, input_width, dt))
     log = simulate_nonlinear(system, u, dt, kernel_width=s, process_std=sw, measurement_std=sz,
                              initial_state=cfg["initial_state"], seed=seed)
     estimates, runtime = {}, {}
@@ -66,7 +71,8 @@ def _one_seed(name: str, cfg: dict, seed: int) -> dict:
             runtime[method] = clock.perf_counter() - start
     coloured = dict(kernel_width=s, process_std=sw, measurement_std=sz,
                     input_prior_std=np.exp(-cfg["input_prior_log_precision"] / 2) if unknown else None,
-                    initial_mean=cfg["initial_state"], initial_std=cfg["initial_std"], ar_order=cfg["ar_order"])
+                    initial_mean=cfg["initial_state"], initial_std=cfg["initial_std"], ar_order=cfg["ar_order"],
+                    input_kernel_width=input_width if unknown else None)
     if "coloured UKS" in methods:
         start = clock.perf_counter()
         estimates["coloured UKS"] = coloured_unscented_smoother(system, dt, log.outputs, **coloured)
@@ -94,30 +100,11 @@ def compare(name: str, cfg: dict, progress: bool) -> ExperimentResult:
     particle smoother on ``cfg['seeds']`` simulated logs of experiment ``name`` (a module with
     build_system(cfg) and true_input(time)); SSE over samples p + 2 .. N - p - 2 (1-based).
 
-    The small matrices of these estimators run many times slower with a multi-threaded BLAS: unless
-    OPENBLAS_NUM_THREADS=1 is already set, the seeds run in one spawned worker process with one
-    BLAS thread (the variable must be set before numpy is imported).
+    The estimators run their small matrices with one BLAS thread by themselves
+    (:mod:`attend._threads`): no environment variable is needed.
     """
     seeds = range(cfg["seeds"])
-    if os.environ.get("OPENBLAS_NUM_THREADS") == "1":
-        outs = [_one_seed(name, cfg, seed) for seed in tqdm(seeds, desc=f"{name} seeds", disable=not progress)]
-    else:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
-        keys = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-        saved = {key: os.environ.get(key) for key in keys}
-        os.environ.update({key: "1" for key in keys})
-        try:
-            with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as pool:
-                jobs = pool.map(_one_seed, [name] * len(seeds), [cfg] * len(seeds), seeds)
-                outs = list(tqdm(jobs, total=len(seeds), desc=f"{name} seeds", disable=not progress))
-        finally:
-            for key, value in saved.items():
-                if value is None:
-                    os.environ.pop(key, None)
-                else:
-                    os.environ[key] = value
+    outs = [_one_seed(name, cfg, seed) for seed in tqdm(seeds, desc=f"{name} seeds", disable=not progress)]
     methods = tuple(cfg.get("methods", METHODS))
     state_sse = {m: np.array([o["state_sse"][m] for o in outs]) for m in methods}
     input_sse = {m: np.array([o["input_sse"][m] for o in outs]) for m in methods}

@@ -5,8 +5,11 @@ d theta/dt = omega, d omega/dt = -(g/L) sin theta - b omega + u + w; y = [sin th
 (the angle measured as a unit vector, e.g. an accelerometer pair or a rotary encoder's quadrature
 signals). g/L = 9.81 1/s^2, b = 0.3 1/s. The input u(t) [rad/s^2] is two smooth pushes,
 4 exp(-(t-5)^2/(2 0.7^2)) - 3 exp(-(t-12)^2/2), unknown to every estimator: DEM gives it a
-zero-mean prior of precision exp(input_prior_log_precision) (smoothness S(s) as the noise), the
-Kalman baselines a random walk, the particle smoother the DEM prior as a coloured process.
+zero-mean prior of precision exp(input_prior_log_precision) and smoothness input_kernel_width = 0.7 s
+(the pushes' own time scale; the noise's s = 0.1 s would be far rougher), the Kalman baselines a
+random walk whose one-sample steps have that prior's variance
+(:func:`attend.perception.nonlinear_baselines.input_random_walk_variance`), the coloured UKS and
+the particle smoother the DEM prior as a coloured process.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from attend.perception.nonlinear import NonlinearSystem
 
 SETTINGS = dict(
     dt=0.05, duration=20.0, kernel_width=0.1, process_std=[0.05, 0.5], measurement_std=0.05, embedding_order=6,
-    input_order=2, input_prior_log_precision=-2.0, input_random_walk_variance=0.5, initial_state=[0.5, 0.0],
+    input_order=2, input_prior_log_precision=-2.0, input_kernel_width=0.7, initial_state=[0.5, 0.0],
     initial_std=[0.05, 0.2], gravity_over_length=9.81, damping=0.3, particles=3000, ar_order=3, particle_lag=20,
 )
 

@@ -33,6 +33,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg import solve_toeplitz
 
+from attend._threads import with_single_blas_thread
 from attend._validation import AttendInputError, as_matrix, positive_scalar, require_finite, symmetric_matrix
 from attend.noise import autocorrelation
 from attend.perception.baselines import KalmanEstimate
@@ -40,6 +41,7 @@ from attend.perception.nonlinear import NonlinearSystem
 
 __all__ = [
     "white_noise_covariances",
+    "input_random_walk_variance",
     "extended_kalman",
     "unscented_kalman",
     "particle_smoother",
@@ -69,6 +71,17 @@ def white_noise_covariances(system: NonlinearSystem, dt: float, kernel_width: fl
     return np.diag(dt**2 * sw**2 * power), np.diag(sz**2)
 
 
+def input_random_walk_variance(prior_precision, kernel_width: float, dt: float) -> np.ndarray:
+    """Per-sample variance of the random walk that matches a smooth input prior: the variance of
+    the one-sample increments v(t + dt) - v(t) of a Gaussian-kernel process of variance 1/P_v and
+    width s_v [s], 2 (1 - rho(dt)) / P_v with rho(dt) = exp(-dt^2 / (4 s_v^2)). The Kalman
+    baselines' random-walk input model then has the prior's local roughness."""
+    dt = positive_scalar(dt, "dt", "s")
+    s = positive_scalar(kernel_width, "kernel_width", "s")
+    rho = float(autocorrelation(np.array([dt]), s)[0])
+    return 2.0 * (1.0 - rho) / np.asarray(prior_precision, dtype=float)
+
+
 # --- shared plumbing ----------------------------------------------------------------------------
 
 def _rk4(system: NonlinearSystem, x, u, dt: float, substeps: int, w=None):
@@ -89,7 +102,7 @@ class _Model:
     """The discrete (possibly input-augmented) model z = [x; u] seen by the Kalman baselines."""
 
     def __init__(self, system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
-                 measurement_covariance, initial_mean, initial_covariance, substeps):
+                 measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs=None):
         if not isinstance(system, NonlinearSystem):
             raise AttendInputError("system: expected an attend NonlinearSystem")
         self.system = system
@@ -100,11 +113,17 @@ class _Model:
             raise AttendInputError(f"outputs: expected {m} columns, got {self.y.shape[1]}")
         N = self.y.shape[0]
         self.augmented = input_variance is not None and r > 0
-        if self.augmented:
+        self.known = np.zeros(r, dtype=bool)
+        if known_inputs is not None and r > 0:
+            self.known = np.broadcast_to(np.asarray(known_inputs, dtype=bool), (r,)).copy()
+        if self.augmented and not self.known.any():
             if inputs is not None:
-                raise AttendInputError("inputs: give either measured inputs or input_variance (unknown inputs), not both")
+                raise AttendInputError("inputs: give either measured inputs or input_variance (unknown inputs), not "
+                                       "both (or say which are measured with known_inputs)")
             self.Qu = symmetric_matrix(input_variance, r, "input_variance", "variances")
             self.u = np.zeros((N, r))
+        elif self.augmented and inputs is None:
+            raise AttendInputError("inputs: known_inputs marks measured inputs: pass their values (N, r)")
         elif inputs is None:
             self.u = np.zeros((N, r))
         else:
@@ -113,6 +132,11 @@ class _Model:
                 raise AttendInputError(f"inputs: expected shape ({N}, {r})")
             require_finite(u, "inputs")
             self.u = u
+            if self.augmented:  # some measured, some unknown: the measured ones have no random walk
+                Qu = symmetric_matrix(input_variance, r, "input_variance", "variances").copy()
+                Qu[self.known, :] = 0.0
+                Qu[:, self.known] = 0.0
+                self.Qu = Qu
         self.Q = symmetric_matrix(process_covariance, n, "process_covariance", "variances")
         self.R = symmetric_matrix(measurement_covariance, m, "measurement_covariance", "variances")
         if np.linalg.eigvalsh(self.R).min() <= 0:
@@ -138,7 +162,11 @@ class _Model:
 
     def split(self, z, k):
         n = self.system.n_states
-        return (z[:n], z[n:]) if self.augmented else (z, self.u[k])
+        if not self.augmented:
+            return z, self.u[k]
+        if self.known.any():
+            return z[:n], np.where(self.known, self.u[k], z[n:])
+        return z[:n], z[n:]
 
     def transition(self, z, k):
         """z[k] = F(z[k-1]) with the input of sample k - 1."""
@@ -155,7 +183,9 @@ class _Model:
         N = means.shape[0]
         std = np.sqrt(np.clip(np.diagonal(covs, axis1=1, axis2=2), 0, None))
         if self.augmented:
-            inputs, input_std = means[:, n:], std[:, n:]
+            inputs, input_std = means[:, n:].copy(), std[:, n:].copy()
+            inputs[:, self.known] = self.u[:, self.known]
+            input_std[:, self.known] = 0.0
         else:
             inputs, input_std = self.u, np.zeros_like(self.u)
         return KalmanEstimate(np.arange(N) * self.dt, means[:, :n], inputs, std[:, :n], input_std,
@@ -212,6 +242,7 @@ def _rts(mf, Pf, mp, Pp, cross):
     return ms, Ps
 
 
+@with_single_blas_thread
 def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance,
                     measurement_covariance, input_variance=None, input_mean=None, initial_mean=None,
                     initial_covariance=None, smooth: bool | int = True, substeps: int = 10) -> KalmanEstimate:
@@ -264,19 +295,21 @@ def _sigma_points(mean, cov, alpha, beta, kappa):
     return points, wm, wc
 
 
+@with_single_blas_thread
 def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance,
                      measurement_covariance, input_variance=None, input_mean=None, initial_mean=None,
                      initial_covariance=None, smooth: bool | int = True, substeps: int = 10, alpha: float = 1.0,
-                     beta: float = 2.0, kappa: float = 0.0) -> KalmanEstimate:
+                     beta: float = 2.0, kappa: float = 0.0, known_inputs=None) -> KalmanEstimate:
     """Unscented Kalman filter (``smooth=False``), filter + unscented RTS smoother (``True``,
     Sarkka 2008) or fixed-lag smoother (``smooth=L`` samples).
 
     Arguments as :func:`extended_kalman`; alpha, beta, kappa: the sigma-point spread
     (lambda = alpha^2 (d + kappa) - d; the defaults put the 2d points at +-sqrt(d) std with equal
-    weights and none on the mean).
+    weights and none on the mean). known_inputs: with ``input_variance``, a mask (r,) of the inputs
+    that are measured (their values from ``inputs``, no random walk); the others are estimated.
     """
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
-                   measurement_covariance, initial_mean, initial_covariance, substeps)
+                   measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs)
     means, covs, ll = _unscented(model.transition, model.observation, model.y, model.m0, model.P0, model.Qz,
                                  model.R, smooth, (alpha, beta, kappa), "unscented_kalman")
     return model.result(means, covs, ll)
@@ -311,10 +344,11 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name):
     return means, covs, ll
 
 
+@with_single_blas_thread
 def coloured_unscented_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, *, kernel_width: float,
                                 process_std, measurement_std, input_prior_std=None, input_prior_mean=None,
                                 initial_mean=None, initial_std=None, ar_order: int = 3, substeps: int = 4,
-                                smooth: bool = True) -> KalmanEstimate:
+                                smooth: bool = True, input_kernel_width: float | None = None) -> KalmanEstimate:
     """Unscented RTS smoother on the state augmented with AR(ar_order) models of the coloured
     noises (the same finite noise model as :func:`particle_smoother`): a Gaussian approximation of
     the posterior under the coloured-noise model, the strong reference beside the particle one.
@@ -322,7 +356,8 @@ def coloured_unscented_smoother(system: NonlinearSystem, dt: float, outputs, inp
     State [x; w~ (q values per state, newest first); v~ (unknown inputs); z~]: x[k] integrates
     f(x, v[k-1]) + sigma_w w~[k-1] over dt; each AR block advances by its Yule-Walker
     coefficients plus an innovation; y[k] = g(x[k], v[k]) + sigma_z z~[k] (+ white noise of
-    variance 1e-6 sigma_z^2 for numerical stability). Arguments as :func:`particle_smoother`.
+    variance 1e-6 sigma_z^2 for numerical stability). Arguments as :func:`particle_smoother`;
+    input_kernel_width: the unknown inputs' own smoothness s_v [s] (default kernel_width).
     """
     if not isinstance(system, NonlinearSystem):
         raise AttendInputError("system: expected an attend NonlinearSystem")
@@ -336,6 +371,9 @@ def coloured_unscented_smoother(system: NonlinearSystem, dt: float, outputs, inp
     q = max(int(ar_order), 1)
     rho = autocorrelation(np.arange(q + 1) * dt, s)
     a, innovation = _yule_walker(rho, q)
+    s_v = s if input_kernel_width is None else positive_scalar(input_kernel_width, "input_kernel_width", "s")
+    rho_v = autocorrelation(np.arange(q + 1) * dt, s_v)
+    a_v, innovation_v = _yule_walker(rho_v, q)
     sw = np.broadcast_to(np.asarray(process_std, dtype=float), (n,)).copy()
     sz = np.broadcast_to(np.asarray(measurement_std, dtype=float), (m,)).copy()
     rv = r if unknown else 0
@@ -348,12 +386,19 @@ def coloured_unscented_smoother(system: NonlinearSystem, dt: float, outputs, inp
     P0 = np.zeros((size, size))
     m0[:n] = 0.0 if initial_mean is None else np.asarray(initial_mean, dtype=float).reshape(n)
     P0[:n, :n] = np.diag(np.broadcast_to(np.asarray(0.0 if initial_std is None else initial_std, dtype=float), (n,)) ** 2)
-    stationary = np.array([[rho[abs(i - j)] for j in range(q)] for i in range(q)])
+    # per channel (w: n, v: rv, z: m) its AR coefficients, innovation variance and autocorrelation
+    is_input = np.zeros(channels, dtype=bool)
+    is_input[n: n + rv] = True
+    coefficients = np.where(is_input[None, :], a_v[:, None], a[:, None])  # (q, channels)
+    innovations = np.where(is_input, innovation_v, innovation)
     # AR block layout: index n + lag * channels + channel (lag 0 = newest)
-    block = np.kron(stationary, np.eye(channels))
+    block = np.zeros((q * channels, q * channels))
+    for c in range(channels):
+        r_c = rho_v if is_input[c] else rho
+        block[c::channels, c::channels] = [[r_c[abs(i - j)] for j in range(q)] for i in range(q)]
     P0[n:, n:] = block
     Qz = np.zeros((size, size))
-    Qz[n: n + channels, n: n + channels] = innovation * np.eye(channels)
+    Qz[n: n + channels, n: n + channels] = np.diag(innovations)
 
     def noise(z):
         return z[n: n + channels]
@@ -365,7 +410,7 @@ def coloured_unscented_smoother(system: NonlinearSystem, dt: float, outputs, inp
         v = eta[k - 1] + sv * newest[n: n + rv] if unknown else u_known[k - 1]
         x_new = _rk4(system, x, v, dt, substeps, w=w)
         history = z[n:].reshape(q, channels)
-        advanced = a @ history
+        advanced = np.sum(coefficients * history, axis=0)
         return np.concatenate([x_new, advanced, history[:-1].ravel()])
 
     def observation(z, k):
@@ -412,10 +457,12 @@ def _yule_walker(rho: np.ndarray, q: int):
     return a, float(max(1.0 - a @ rho[1: q + 1], 1e-12))
 
 
+@with_single_blas_thread
 def particle_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, *, kernel_width: float,
                       process_std, measurement_std, input_prior_std=None, input_prior_mean=None,
                       initial_mean=None, initial_std=None, n_particles: int = 2000, ar_order: int = 3,
-                      lag: int = 20, substeps: int = 4, seed=0) -> ParticleEstimate:
+                      lag: int = 20, substeps: int = 4, seed=0,
+                      input_kernel_width: float | None = None) -> ParticleEstimate:
     """Bootstrap particle filter + fixed-lag ancestry smoother under AR(q) coloured noise.
 
     The generative model is :func:`attend.perception.nonlinear.simulate_nonlinear`'s: w, z (and,
@@ -428,6 +475,7 @@ def particle_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, 
     inputs. initial_mean / initial_std: the Gaussian of x[0]. The system's f and g must accept
     (n, n_particles) columns (NonlinearSystem(vectorized=True) or functions written with x[0],
     x[1], ... and np.array([...]) on arrays). O(N n_particles) model evaluations: slow, a reference.
+    input_kernel_width: the unknown inputs' own smoothness s_v [s] (default kernel_width).
     """
     if not isinstance(system, NonlinearSystem):
         raise AttendInputError("system: expected an attend NonlinearSystem")
@@ -443,6 +491,9 @@ def particle_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, 
     q = int(ar_order)
     rho = autocorrelation(np.arange(q + 1) * dt, s)
     coefficients = [_yule_walker(rho, j) for j in range(q + 1)]
+    s_v = s if input_kernel_width is None else positive_scalar(input_kernel_width, "input_kernel_width", "s")
+    rho_v = autocorrelation(np.arange(q + 1) * dt, s_v)
+    coefficients_v = [_yule_walker(rho_v, j) for j in range(q + 1)]
     sw = np.broadcast_to(np.asarray(process_std, dtype=float), (n,)).copy()
     sz = np.broadcast_to(np.asarray(measurement_std, dtype=float), (m,)).copy()
     sv = np.broadcast_to(np.asarray(input_prior_std if unknown else 0.0, dtype=float), (r,)).copy()
@@ -457,10 +508,10 @@ def particle_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, 
     v_hist = np.zeros((q, r, P))
     z_hist = np.zeros((q, m, P))  # residuals (sensor noise) of each particle's path, newest first
 
-    def draw(history, k_available):
+    def draw(history, k_available, table=coefficients):
         """Next unit-variance AR sample given the history (newest first) of k_available values."""
         j = min(k_available, q)
-        a, variance = coefficients[j]
+        a, variance = table[j]
         mean = np.tensordot(a, history[:j], axes=(0, 0)) if j else 0.0
         return mean + np.sqrt(variance) * rng.standard_normal(history.shape[1:])
 
@@ -471,7 +522,7 @@ def particle_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, 
 
     x = m0[:, None] + s0[:, None] * rng.standard_normal((n, P))
     w_now = draw(w_hist, 0)
-    v_now = draw(v_hist, 0)
+    v_now = draw(v_hist, 0, coefficients_v)
     states = np.empty((N, n, P))
     inputs_p = np.empty((N, r, P))
     weights = np.empty((N, P))
@@ -485,7 +536,7 @@ def particle_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, 
             push(w_hist, w_now)
             push(v_hist, v_now)
             w_now = draw(w_hist, k)
-            v_now = draw(v_hist, k)
+            v_now = draw(v_hist, k, coefficients_v)
         u_now = (eta[k][:, None] + sv[:, None] * v_now) if unknown else u_known[k][:, None] * np.ones((1, P))
         residual = (y[k][:, None] - np.asarray(system._call(system.g, x, u_now), dtype=float)) / sz[:, None]
         j = min(k, q)

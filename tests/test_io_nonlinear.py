@@ -1,0 +1,285 @@
+"""Nonlinear model files: [model] python = "model.py" with f and g, through `attend estimate`."""
+
+import numpy as np
+import pytest
+
+from attend import io
+from attend._validation import AttendInputError
+from attend.cli import main
+
+PENDULUM_PY = '''
+import numpy as np
+
+parameters = {"gravity_over_length": 9.81, "damping": 0.3}
+
+
+def f(x, v, parameters):
+    return np.array([x[1], -parameters["gravity_over_length"] * np.sin(x[0]) - parameters["damping"] * x[1] + v[0]])
+
+
+def g(x, v, parameters):
+    return np.array([np.sin(x[0]), np.cos(x[0])])
+'''
+
+PENDULUM_TOML = '''
+[model]
+python = "model.py"
+n_states = 2
+n_inputs = 1
+n_outputs = 2
+states = ["theta", "omega"]
+
+[outputs]
+columns = ["sin", "cos"]
+
+[[inputs]]
+name = "push"
+prior_mean = 0.0
+prior_precision = 0.135
+
+[observer]
+kernel_width = 0.1
+input_kernel_width = 0.7
+sensor_precision = 400.0
+process_precision = [400.0, 4.0]
+'''
+
+LORENZ_PY = '''
+import numpy as np
+
+
+def f(x, v):
+    return np.array([10.0 * (x[1] - x[0]), x[0] * (28.0 - x[2]) - x[1], x[0] * x[1] - 8.0 / 3.0 * x[2]])
+
+
+def g(x, v):
+    return x
+'''
+
+LORENZ_TOML = '''
+[model]
+python = "lorenz.py"
+n_states = 3
+n_inputs = 0
+n_outputs = 3
+
+[outputs]
+columns = ["y1", "y2", "y3"]
+
+[observer]
+kernel_width = 0.02
+sensor_precision = 1.0
+process_precision = 0.0025
+'''
+
+
+def _pendulum_files(tmp_path, model=PENDULUM_TOML, code=PENDULUM_PY, samples=200):
+    from attend.experiments.pendulum import pendulum_system, true_input
+    from attend.perception.nonlinear import simulate_nonlinear
+
+    (tmp_path / "model.py").write_text(code)
+    (tmp_path / "model.toml").write_text(model)
+    t = np.arange(samples) * 0.05
+    log = simulate_nonlinear(pendulum_system(), true_input(t + 3.0), 0.05, kernel_width=0.1,
+                             process_std=[0.05, 0.5], measurement_std=0.05, initial_state=[0.5, 0.0], seed=3)
+    np.savetxt(tmp_path / "log.csv", np.column_stack([t, log.outputs]), delimiter=",", header="t,sin,cos",
+               comments="", fmt="%.10g")
+    return tmp_path / "model.toml", tmp_path / "log.csv", log
+
+
+def _lorenz_files(tmp_path, model=LORENZ_TOML, code=LORENZ_PY, samples=120):
+    from attend.experiments.lorenz import lorenz_system
+    from attend.perception.nonlinear import simulate_nonlinear
+
+    (tmp_path / "lorenz.py").write_text(code)
+    (tmp_path / "lorenz.toml").write_text(model)
+    log = simulate_nonlinear(lorenz_system(), samples, 0.01, kernel_width=0.02, process_std=20.0,
+                             measurement_std=1.0, initial_state=[1.0, 1.0, 24.0], seed=0)
+    t = np.arange(samples) * 0.01
+    np.savetxt(tmp_path / "log.csv", np.column_stack([t, log.outputs]), delimiter=",", header="t,y1,y2,y3",
+               comments="", fmt="%.10g")
+    return tmp_path / "lorenz.toml", tmp_path / "log.csv", log
+
+
+@pytest.mark.parametrize("method", ["ukf", "dem"])
+def test_pendulum_from_files_estimates_states_and_the_push(tmp_path, method):
+    model_path, log_path, truth = _pendulum_files(tmp_path, PENDULUM_TOML.replace(
+        "[observer]", f'[observer]\nmethod = "{method}"'))
+    model = io.read_model(model_path)
+    assert model.nonlinear and model.method == method
+    log = io.read_log(log_path)
+    estimator, estimate = io.estimate_from_files(model, log)
+    inner = slice(10, -10)
+    theta_error = estimate.states[inner, 0] - truth.states[inner, 0]
+    assert np.sqrt(np.mean(theta_error**2)) < 0.05  # rad; the sensor noise is 0.05 per component
+    input_error = estimate.inputs[inner, 0] - truth.inputs[inner, 0]
+    assert np.sqrt(np.mean(input_error**2)) < 0.6 * np.sqrt(np.mean(truth.inputs[inner, 0] ** 2))
+    out = io.write_estimates(tmp_path / "out.csv", log, model.system, estimate)
+    header = out.read_text().splitlines()[0].split(",")
+    assert header == ["t", "theta", "omega", "push", "theta_std", "omega_std", "push_std"]
+
+
+def test_the_default_for_nonlinear_models_is_the_unscented_smoother(tmp_path, capsys):
+    model_path, log_path, _ = _lorenz_files(tmp_path)
+    out = tmp_path / "est.csv"
+    assert main(["estimate", str(model_path), str(log_path), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "method ukf (unscented Kalman smoother, the default for nonlinear models" in text
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert out.read_text().splitlines()[0] == "t,x1,x2,x3,x1_std,x2_std,x3_std"  # no inputs: x1..xn only
+    assert table.shape == (120, 7) and np.all(np.isfinite(table))
+
+
+def test_lorenz_without_inputs_by_dem_beats_the_raw_data(tmp_path, capsys):
+    model_path, log_path, truth = _lorenz_files(tmp_path, LORENZ_TOML + 'method = "dem"\nembedding_order = 6\n')
+    out = tmp_path / "est.csv"
+    assert main(["estimate", str(model_path), str(log_path), "--out", str(out)]) == 0
+    assert "method dem (nonlinear DEM" in capsys.readouterr().out
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    inner = slice(10, -10)
+    error = np.mean((table[inner, 1:4] - truth.states[inner]) ** 2)
+    raw = np.mean((truth.outputs[inner] - truth.states[inner]) ** 2)
+    assert error < raw
+
+
+def test_parameters_from_the_model_file_override_the_python_file(tmp_path):
+    model_path, _, _ = _pendulum_files(tmp_path, PENDULUM_TOML.replace(
+        'states = ["theta", "omega"]', 'states = ["theta", "omega"]\nparameters = { damping = 2.0 }'))
+    system = io.read_model(model_path).system
+    np.testing.assert_allclose(system.flow([0.0, 1.0], [0.0]), [1.0, -2.0])
+    code = PENDULUM_PY.replace('parameters = {"gravity_over_length": 9.81, "damping": 0.3}', "")
+    model_path, _, _ = _pendulum_files(tmp_path, PENDULUM_TOML.replace(
+        'states = ["theta", "omega"]', 'parameters = { gravity_over_length = 1.0, damping = 0.5 }'), code)
+    system = io.read_model(model_path).system
+    np.testing.assert_allclose(system.flow([np.pi / 2, 1.0], [0.25]), [1.0, -1.0 - 0.5 + 0.25])
+    assert system.state_names == ("x1", "x2")
+
+
+def test_measured_and_unknown_inputs_together(tmp_path):
+    code = '''
+import numpy as np
+
+def f(x, v):
+    return np.array([x[1], -9.81 * np.sin(x[0]) - 0.3 * x[1] + v[0] + v[1]])
+
+def g(x, v):
+    return np.array([np.sin(x[0]), np.cos(x[0])])
+'''
+    model = PENDULUM_TOML.replace("n_inputs = 1", "n_inputs = 2") + (
+        '\n[[inputs]]\nname = "motor"\ncolumn = "sin"\noperating_point = 0.5\n').replace("[observer]", "")
+    model = model.replace("\nkernel_width = 0.1", "\n[observer]\nkernel_width = 0.1")
+    model = model.replace("[observer]\nkernel_width = 0.1\ninput_kernel_width",
+                          "kernel_width = 0.1\ninput_kernel_width")
+    model_path, log_path, _ = _pendulum_files(tmp_path, model, code, samples=60)
+    parsed = io.read_model(model_path)
+    log = io.read_log(log_path)
+    for method in ("ukf", "dem"):
+        parsed = io.ModelFile(**{**parsed.__dict__, "method": method})
+        _, estimate = io.estimate_from_files(parsed, log)
+        if method == "ukf":  # the measured input is the column minus its operating point, std 0
+            np.testing.assert_allclose(estimate.inputs[:, 1], log.columns["sin"] - 0.5)
+            assert np.all(estimate.input_std[:, 1] == 0)
+        assert np.all(np.isfinite(estimate.inputs[:, 0]))
+
+
+def _error(tmp_path, capsys, model=PENDULUM_TOML, code=PENDULUM_PY):
+    model_path, log_path, _ = _pendulum_files(tmp_path, model, code, samples=40)
+    status = main(["estimate", str(model_path), str(log_path), "--out", str(tmp_path / "e.csv")])
+    err = capsys.readouterr().err
+    assert status == 2, err
+    assert err.startswith("attend: error: ") and "internal error" not in err and len(err.strip().splitlines()) == 1
+    return err
+
+
+@pytest.mark.parametrize("edit_model, edit_code, message", [
+    (lambda m: m.replace('python = "model.py"', 'python = "missing.py"'), None,
+     "[model] python: " ),
+    (lambda m: m.replace('python = "model.py"', 'python = "."'), None, "is not a file"),
+    (None, lambda c: c.replace("def g(", "def h("), "defines no function g"),
+    (None, lambda c: c.replace("def f(", "def ff(").replace("f = 1", ""), "defines no function f"),
+    (None, lambda c: c + "\nf = 3\n", "f is a int; expected a function f(x, v)"),
+    (None, lambda c: c.replace("return np.array([np.sin(x[0]), np.cos(x[0])])", "return np.sin(x[0])"),
+     "g(x, v) returned shape (); expected 2 values (y, one per output: [model] n_outputs = 2)"),
+    (None, lambda c: c.replace("+ v[0]])", "+ v[0], 0.0])"),
+     "f(x, v) returned shape (3,); expected 2 values (dx/dt, one per state: [model] n_states = 2)"),
+    (None, lambda c: c.replace("def f(x, v, parameters):", "def f(x, v, parameters):\n    return None"),
+     "f(x, v) returned NoneType"),
+    (None, lambda c: c.replace('"damping": 0.3', '"damping": float("nan")'), "f(x, v) returned non-finite values"),
+    (None, lambda c: c.replace('parameters["damping"]', 'parameters["dampin"]'),
+     "f(x, v) failed (line 8): KeyError: 'dampin'"),
+    (None, lambda c: c.replace("np.cos(x[0])])", "1 / float(x[0] - x[0])])"),
+     "g(x, v) failed (line 12): ZeroDivisionError"),
+    (None, lambda c: c + "\nraise RuntimeError('no licence')\n", "the model's code failed when loaded (line 14): "
+     "RuntimeError: no licence"),
+    (None, lambda c: c + "\ndef broken(:\n", "not valid Python"),
+    (None, lambda c: c.replace("def f(x, v, parameters):", "def f(x):"), "f(x): expected f(x, v) or f(x, v, parameters)"),
+    (None, lambda c: c.replace('parameters = {"gravity_over_length": 9.81, "damping": 0.3}', ""),
+     "f and g take a third argument (the parameters) but neither the file nor the model file gives them"),
+    (None, lambda c: c.replace('parameters = {"gravity_over_length": 9.81, "damping": 0.3}', "parameters = 3"),
+     "parameters is a int; expected a dict"),
+    (lambda m: m.replace("n_states = 2", "n_states = 2\nA = [[1.0]]"), None, "has both python"),
+    (lambda m: m.replace("n_states = 2\n", ""), None, "[model] needs n_states"),
+    (lambda m: m.replace("n_inputs = 1", "n_inputs = 1.5"), None, "[model] n_inputs: expected an integer"),
+    (lambda m: m.replace("n_inputs = 1", "n_inputs = 2"), None, "n_inputs = 2 but the file has 1 [[inputs]] table"),
+    (lambda m: m.replace('columns = ["sin", "cos"]', 'columns = ["sin"]'), None,
+     "expected 2 column names (one per output of g: [model] n_outputs)"),
+    (lambda m: m.replace("[observer]", '[observer]\nmethod = "kalman"'), None,
+     "expected \"ukf\" or \"dem\" for a nonlinear model"),
+    (lambda m: m.replace("[observer]", "[observer]\nprocess_kernel_width = 0.1"), None,
+     "nonlinear models take one kernel_width"),
+    (lambda m: m.replace("kernel_width = 0.1\n", ""), None, "[observer] needs kernel_width"),
+    (lambda m: m.replace("input_kernel_width = 0.7", "input_kernel_width = 0"), None,
+     "input_kernel_width: expected a number > 0"),
+    (lambda m: m.replace("n_states = 2", "n_states = 2\nparameters = 3"), None, "[model] parameters: expected a table"),
+    (lambda m: m.replace("process_precision = [400.0, 4.0]", "process_precision = [400.0, 0.0]"), None,
+     "method \"ukf\" needs a positive definite precision"),
+])
+def test_nonlinear_model_errors_name_the_file_and_field(tmp_path, capsys, edit_model, edit_code, message):
+    model = edit_model(PENDULUM_TOML) if edit_model else PENDULUM_TOML
+    code = edit_code(PENDULUM_PY) if edit_code else PENDULUM_PY
+    err = _error(tmp_path, capsys, model, code)
+    assert message in err, err
+
+
+def test_errors_in_the_users_code_say_so(tmp_path, capsys):
+    code = PENDULUM_PY.replace('parameters["damping"]', 'parameters["dampin"]')
+    err = _error(tmp_path, capsys, code=code)
+    assert str(tmp_path / "model.py") in err and "this is an error in the model's code" in err
+
+
+def test_identify_refuses_a_nonlinear_model(tmp_path, capsys):
+    model_path, log_path, _ = _pendulum_files(tmp_path, samples=40)
+    assert main(["identify", str(model_path), str(log_path), "--out", str(tmp_path / "l.toml")]) == 2
+    assert "identify needs a linear model" in capsys.readouterr().err
+
+
+def test_linear_models_refuse_the_nonlinear_keys(tmp_path):
+    linear = """
+[model]
+A = [[0.0, 1.0], [-1.0, -0.5]]
+B = [[0.0], [1.0]]
+C = [[1.0, 0.0]]
+n_states = 2
+
+[outputs]
+columns = ["y"]
+
+[[inputs]]
+name = "u"
+column = "u"
+
+[observer]
+kernel_width = 0.1
+sensor_precision = 1.0
+process_precision = 1.0
+"""
+    path = tmp_path / "linear.toml"
+    path.write_text(linear)
+    with pytest.raises(AttendInputError, match="n_states: only for nonlinear models"):
+        io.read_model(path)
+    path.write_text(linear.replace("n_states = 2\n", "").replace("[observer]", '[observer]\nmethod = "ukf"'))
+    with pytest.raises(AttendInputError, match="nonlinear models"):
+        io.read_model(path)
+    path.write_text(linear.replace("n_states = 2\n", "").replace("A = [[0.0, 1.0], [-1.0, -0.5]]\n", ""))
+    with pytest.raises(AttendInputError, match=r"needs A .* or python"):
+        io.read_model(path)

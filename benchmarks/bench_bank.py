@@ -17,8 +17,8 @@ of ``attend estimate``) and filter (``.filter``, causal); the DEM observer with 
 (embedding_order="auto"; an AttendInputError is counted as "refused"); white-noise RTS smoother and
 Kalman filter with the true per-sample variances (Q = dt^2 sigma_w^2 I, R = sigma_z^2 I; known
 inputs) and the augmented random-walk RTS / KF (unknown inputs; its input increment variance is the
-best of a 5-point grid per case, chosen with the true states and inputs: an oracle tuning that
-favours the baseline). The limits: ``exact_posterior`` (smoother) and its ``causal_states``.
+best of INPUT_GRID = 1e-3 .. 1e3 x sigma_u^2 (dt / s_u)^2 per case and estimator, chosen with the
+true states and inputs: an oracle tuning that favours the baseline). The limits: ``exact_posterior`` (smoother) and its ``causal_states``.
 
 Metrics: SSE over all samples and states (inputs), as a ratio to the exact posterior's SSE on the
 same log; calibration: fraction of |error| < 2 std over the interior samples (10 % trimmed at each
@@ -52,7 +52,7 @@ BANK_SEED = 12  # issue 12
 WIDTH_STEPS = (0.0, 0.5, 1.0, 2.0, 5.0, 10.0)  # s / dt (0: white noise)
 INPUT_KINDS = ("known-sines", "known-pulses", "unknown-gp", "unknown-pulses")
 MAX_STATE_SAMPLES = 2400  # N n: the exact posterior costs O((N n)^3)
-INPUT_GRID = (1e-2, 1e-1, 1.0, 1e1, 1e2)  # augmented RW: multiples of sigma_u^2 (dt / s_u)^2
+INPUT_GRID = (1e-3, 1e-2, 1e-1, 1.0, 1e1, 1e2, 1e3)  # augmented RW: multiples of sigma_u^2 (dt / s_u)^2
 FAIL_RATIO = 10.0
 TRIM = 0.1  # calibration: interior samples
 

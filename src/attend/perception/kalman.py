@@ -342,7 +342,7 @@ class KalmanEstimator:
         mean0, cov0 = self._initial(y)
         if "steady_predicted" not in model:
             model["steady_predicted"] = _steady_predicted_covariance(T, model["Q"], H)
-        schedule = _gain_schedule(T, model["Q"], H, cov0, N, model["steady_predicted"])
+        schedule = _gain_schedule(T, model["Q"], H, cov0, N, model["steady_predicted"], model["slices"].values())
         drive = np.zeros((N, model["dim"]))
         drive[:, model["slices"]["x"]] = u @ model["Bd"].T  # b[k] = Bd u[k] enters x[k+1]
         predicted, innovations = _predicted_means(schedule, T, H, y, drive, mean0)
@@ -463,27 +463,42 @@ def _steady_predicted_covariance(T, Q, H) -> np.ndarray | None:
 
 
 class _Plateau:
-    """Detects a recursion that has stopped converging: its distance to the limit is below 1e-3
-    and has not halved in ``window`` steps (rounding noise; going on would not get closer)."""
+    """Detects a recursion that has stopped converging: its relative distance to the limit is
+    below 1e-4 and has not fallen by 10 % in ``window`` steps (rounding noise: going on would
+    not get closer). A slow but steady convergence (halving time < ~1300 steps) is not a plateau."""
 
-    def __init__(self, window: int = 25):
+    def __init__(self, window: int = 200):
         self.window, self.best, self.since = window, np.inf, 0
 
     def reached(self, distance: float) -> bool:
-        if distance < 0.5 * self.best:
+        if distance < 0.9 * self.best:
             self.best, self.since = distance, 0
         else:
             self.since += 1
-        return self.best < 1e-3 and self.since >= self.window
+        return self.best < 1e-4 and self.since >= self.window
 
 
-def _gain_stream(T, Q, H, P0, steady_predicted=None, patience: int = 3):
+def _blockwise_distance(K, steady_gain, blocks) -> float:
+    """max over row blocks (plant, each noise model) of max|K_b - K_b,steady| / max|K_b,steady|:
+    each block on its own scale, so the small plant gains are not judged against the noise gains."""
+    floor = 1e-12 * max(np.max(np.abs(steady_gain)), 1e-300)
+    worst = 0.0
+    for block in blocks:
+        reference = steady_gain[block]
+        if reference.size:
+            worst = max(worst, np.max(np.abs(K[block] - reference)) / max(np.max(np.abs(reference)), floor))
+    return worst
+
+
+def _gain_stream(T, Q, H, P0, steady_predicted=None, blocks=None, patience: int = 3):
     """Yield (K[k], H' inv(S[k]), P_p[k], steady) for k = 0, 1, ...
 
-    The covariance recursion runs until its gain is within STEADY_TOLERANCE (relative) of the
-    steady gain of the Riccati equation for ``patience`` samples; from then on the Riccati
-    solution itself is yielded with steady = True (every later sample uses it).
+    The covariance recursion runs until its gain is within STEADY_TOLERANCE of the steady gain
+    of the Riccati equation, block by block (``blocks``: row slices; default the whole gain), for
+    ``patience`` samples, or until the distance sits at the rounding floor (_Plateau); from then
+    on the Riccati solution itself is yielded with steady = True (every later sample uses it).
     """
+    blocks = [slice(None)] if blocks is None else list(blocks)
     tolerance = STEADY_TOLERANCE
     steady = None
     if steady_predicted is not None:
@@ -511,7 +526,7 @@ def _gain_stream(T, Q, H, P0, steady_predicted=None, patience: int = 3):
         weight = cho_solve(factor, H).T  # H' inv(S)
         K = P @ weight
         if steady is not None and tolerance >= 0:
-            distance = np.max(np.abs(K - steady[0])) / max(np.max(np.abs(steady[0])), 1e-300)
+            distance = _blockwise_distance(K, steady[0], blocks)
             calm = calm + 1 if distance <= tolerance else 0
             if plateau.reached(distance):
                 calm = patience
@@ -521,10 +536,11 @@ def _gain_stream(T, Q, H, P0, steady_predicted=None, patience: int = 3):
         yield K, weight, P, False
 
 
-def _gain_schedule(T, Q, H, P0, n_samples: int, steady_predicted=None) -> _GainSchedule:
+def _gain_schedule(T, Q, H, P0, n_samples: int, steady_predicted=None, blocks=None) -> _GainSchedule:
     """The first samples of :func:`_gain_stream`: up to the first steady one, or the whole log."""
     gains, weights, predicted = [], [], []
-    for k, (K, weight, P, steady) in zip(range(n_samples), _gain_stream(T, Q, H, P0, steady_predicted)):
+    stream = _gain_stream(T, Q, H, P0, steady_predicted, blocks)
+    for k, (K, weight, P, steady) in zip(range(n_samples), stream):
         gains.append(K)
         weights.append(weight)
         predicted.append(P)
@@ -620,20 +636,19 @@ def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int) -> np
     calm = 0
     previous_change = np.inf
     plateau = _Plateau()
-    while k >= s:  # steady gains: Lam converges geometrically going backwards
+    while k >= s:  # steady gains: Lam, and the reported variances, converge geometrically backwards
         A = closed(k)
-        new = schedule.innovation_weights[-1] @ H + A.T @ T.T @ Lam @ T @ A
-        new = 0.5 * (new + new.T)
-        change = np.max(np.abs(new - Lam))
+        Lam = schedule.innovation_weights[-1] @ H + A.T @ T.T @ Lam @ T @ A
+        Lam = 0.5 * (Lam + Lam.T)
+        out[k] = variance(k, Lam)
+        scale = np.maximum(np.abs(out[k]), 1e-300)
+        change = float(np.max(np.abs(out[k] - out[k + 1]) / scale))  # relative, per reported variance
         rate = min(change / previous_change, 0.999999) if previous_change > 0 else 0.0
         previous_change = change
         remaining = change * rate / (1 - rate)  # distance to the limit of a geometric sequence
-        scale = max(np.max(np.abs(new)), 1e-300)
-        calm = calm + 1 if remaining <= tolerance * scale else 0
-        if plateau.reached(change / scale):
+        calm = calm + 1 if remaining <= tolerance and change <= tolerance else 0
+        if plateau.reached(change):
             calm = 3
-        Lam = new
-        out[k] = variance(k, Lam)
         k -= 1
         if calm >= 3:
             out[s: k + 1] = out[k + 1]
@@ -682,7 +697,7 @@ class OnlineKalman:
                 if "steady_predicted" not in model:
                     model["steady_predicted"] = _steady_predicted_covariance(T, model["Q"], H)
                 mean, P0 = est._initial(y[None, :])
-                self._stream = _gain_stream(T, model["Q"], H, P0, model["steady_predicted"])
+                self._stream = _gain_stream(T, model["Q"], H, P0, model["steady_predicted"], model["slices"].values())
             else:
                 mean = T @ self._mean + model["Bd_augmented"] @ self._previous_input
             K, _, P, self._steady = next(self._stream)

@@ -297,7 +297,7 @@ def dem(case: Case) -> Result:
             process_precision=case.process_std**-2,
             input_prior_precision=None if case.known else case.input_prior_std**-2,
             known_inputs=case.known, process_kernel_width=case.process_width,
-            sensor_kernel_width=case.sensor_width,
+            sensor_kernel_width=case.sensor_width, input_kernel_width=None if case.known else case.input_width,
             initial_state=None if case.initial_std else np.zeros(case.system.n_states))
         est = observer.estimate(case.outputs, case.inputs if case.known else case.input_prior_mean)
     except AttendInputError as error:

@@ -247,6 +247,7 @@ class ModelFile:
                 prior, self.embedding_order, self.input_order, known_inputs=all_known,
                 precision_convention=self.precision_convention,
                 process_kernel_width=self.process_kernel_width, sensor_kernel_width=self.sensor_kernel_width,
+                input_kernel_width=self.input_kernel_width,
                 initial_state=None if self.initial_state is None else np.array(self.initial_state),
             )
         except AttendInputError as error:

@@ -1,6 +1,8 @@
 """DEM observer: the flow and precision against the free energy written out independently,
 batch = online, invariance to the time unit, accuracy, and bad input."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -383,3 +385,36 @@ def test_online_step_rejects_text():
         online.step("abc")
     with pytest.raises(AttendInputError, match="step: output: expected numbers, got '1.0'"):
         online.step(["1.0", 0.0, 0.0, 0.0])
+
+
+def test_a_dem_estimate_worse_than_the_prior_is_named_in_a_warning():
+    """When DEM's own error analysis puts a variable's error above its spread without data, the
+    estimate is worse than the prior mean: a ModelWarning names it (and points to the Kalman
+    smoother); fine settings stay silent (test_no_stability_warning_on_a_fine_observer)."""
+    from attend.systems import simulate as sim
+
+    found = []
+    for seed in range(20):
+        system, rng = _random_stable_system(seed)
+        dt = 0.05
+        s = rng.uniform(0.5, 5.0) * dt
+        observer = DEMObserver(system, dt, s, 1 / 0.05**2, 1 / 0.1**2, 1.0)
+        log = sim(system, np.zeros((2000, system.n_inputs)), dt, kernel_width=s, process_std=0.1,
+                  measurement_std=0.05, seed=seed)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                estimate = observer.estimate(log.outputs)
+            except AttendInputError:
+                continue
+        messages = [str(w.message) for w in caught if "worse than the model's prior mean" in str(w.message)]
+        if not messages:
+            continue
+        named = [name for name in system.state_names if f"{name} (error std" in messages[0]]
+        spread = np.std(log.states[200:-200], axis=0)
+        for name in named:  # the named states really are estimated worse than their spread
+            i = system.state_names.index(name)
+            error = np.sqrt(np.mean((estimate.states[200:-200, i] - log.states[200:-200, i]) ** 2))
+            found.append(error / spread[i])
+    assert found, "no case of the bank triggered the warning"
+    assert np.median(found) > 0.8

@@ -165,8 +165,8 @@ class DEMObserver:
     samples fake large derivatives whose effect decays slowly through the imprecise high orders)
     or "clamp" repeats the end samples (SPM).
     process_kernel_width: s_w [s] of the process noise w: W = kron(S_p(s_w), Pi_w); the input
-    prior Vv = kron(S_d(s_w), P_v) uses it too (an unknown input enters the motion like process
-    noise, so its smoothness is modelled alike); sensor_kernel_width: s_z [s] of the sensor noise
+    prior Vv = kron(S_d(s_u), P_v) uses input_kernel_width s_u [s], by default s_w (an unknown
+    input enters the motion like process noise); sensor_kernel_width: s_z [s] of the sensor noise
     z: Vy = kron(S_p(s_z), Pi_z). Both default to kernel_width. A width of 0 (white noise) has no
     derivatives and is refused: use method="kalman" for white noise.
     initial_state: order-0 states (n,) the flow starts from (default: the static MAP of the
@@ -191,6 +191,7 @@ class DEMObserver:
     sensor_kernel_width: float | None = None
     initial_state: np.ndarray | None = None
     allow_unstable: bool = False
+    input_kernel_width: float | None = None
     _matrices: dict = field(default_factory=dict, repr=False)
     _cache: dict = field(default_factory=dict, repr=False)
 
@@ -208,6 +209,8 @@ class DEMObserver:
         for name in ("process_kernel_width", "sensor_kernel_width"):
             value = getattr(self, name)
             set_(self, name, self.kernel_width if value is None else _width(value, name))
+        set_(self, "input_kernel_width", self.process_kernel_width if self.input_kernel_width is None
+             else _width(self.input_kernel_width, "input_kernel_width"))
         set_(self, "input_order", order(self.input_order, "input_order"))
         set_(self, "sensor_precision", precision_matrix(self.sensor_precision, system.n_outputs, "sensor_precision"))
         set_(self, "process_precision", precision_matrix(self.process_precision, system.n_states, "process_precision"))
@@ -292,7 +295,7 @@ class DEMObserver:
         widths = {self.process_kernel_width, self.sensor_kernel_width}
         values = [smoothness_condition(p + 1, s, self.dt) for s in widths]
         if not self.known_inputs:
-            values.append(smoothness_condition(d + 1, self.process_kernel_width, self.dt))
+            values.append(smoothness_condition(d + 1, self.input_kernel_width, self.dt))
         return float(max(values))
 
     def _readout(self, p: int) -> tuple[np.ndarray, np.ndarray]:
@@ -306,7 +309,7 @@ class DEMObserver:
         n, r, d = self.system.n_states, self.system.n_inputs, self.input_order
         scales = np.kron(derivative_scales(p + 1, self.process_kernel_width), np.ones(n))
         if not self.known_inputs:
-            scales = np.concatenate([scales, np.kron(derivative_scales(d + 1, self.process_kernel_width), np.ones(r))])
+            scales = np.concatenate([scales, np.kron(derivative_scales(d + 1, self.input_kernel_width), np.ones(r))])
         rows_x, rows_v = self._readout(p)
         size = matrices["transition"].shape[0]
         readout = np.eye(size)[np.concatenate([rows_x, rows_v])]
@@ -345,6 +348,8 @@ class DEMObserver:
         S_p, S_d = block_precisions(p, d, self.process_kernel_width, self.precision_convention)
         S_pz = S_p if self.sensor_kernel_width == self.process_kernel_width else \
             block_precisions(p, d, self.sensor_kernel_width, self.precision_convention)[0]
+        if self.input_kernel_width != self.process_kernel_width:
+            S_d = block_precisions(p, d, self.input_kernel_width, self.precision_convention)[1]
         Ct = np.kron(np.eye(p + 1), C)
         At = np.kron(np.eye(p + 1), A)
         Bt = np.kron(np.eye(p + 1, d + 1), B)
@@ -570,6 +575,7 @@ class DEMObserver:
         state_std = analysis.state_std
         if self.known_inputs and np.all(np.isfinite(state_std)) and n_samples >= 10:
             state_std = np.sqrt(state_std**2 + self._known_input_error(signals, segment))
+        self._warn_if_worse_than_the_prior(state_std, analysis.input_std)
         state_std = np.broadcast_to(state_std, (n_samples, n))
         input_std = np.broadcast_to(analysis.input_std, (n_samples, r))
         return DEMEstimate(np.arange(n_samples) * self.dt, states, inputs_out, state_std, input_std, generalized)
@@ -705,7 +711,7 @@ class DEMObserver:
                     process_precision=self.process_precision, sensor_precision=self.sensor_precision,
                     input_prior_precision=self.input_prior_precision,
                     process_width=self.process_kernel_width, sensor_width=self.sensor_kernel_width,
-                    known_inputs=self.known_inputs,
+                    input_width=self.input_kernel_width, known_inputs=self.known_inputs,
                 )
             errors = np.concatenate([error_x, error_v if not self.known_inputs else []])
             priors = np.concatenate([prior_x, prior_v if not self.known_inputs else []])
@@ -716,6 +722,7 @@ class DEMObserver:
                 uninformed = ~np.isfinite(errors) | (errors > UNOBSERVABLE_RATIO * priors) | structural
             unobservable = tuple(name for name, bad in zip(names, uninformed) if bad)
             std = np.where(uninformed, np.nan, np.sqrt(np.where(uninformed, 0.0, errors)))
+            self._cache["prior_std"] = np.sqrt(priors)
             state_std = std[:n]
             input_std = std[n:] if not self.known_inputs else np.zeros(r)
         result = DEMAnalysis(
@@ -726,6 +733,25 @@ class DEMObserver:
         )
         self._cache["analysis"] = result
         return result
+
+    def _warn_if_worse_than_the_prior(self, state_std: np.ndarray, input_std: np.ndarray) -> None:
+        """ModelWarning naming the states / inputs whose DEM error std exceeds their own spread under
+        the model without data (the estimate is then worse than the prior mean: it happens when the
+        process noise is small, because DEM keeps no memory of the evidence beyond one window)."""
+        prior = self._cache.get("prior_std")
+        if prior is None:
+            return
+        names = list(self.system.state_names) + ([] if self.known_inputs else list(self.system.input_names))
+        std = np.concatenate([state_std, [] if self.known_inputs else input_std])
+        with np.errstate(invalid="ignore"):
+            worse = np.isfinite(std) & np.isfinite(prior) & (std > prior)
+        if worse.any():
+            listed = ", ".join(f"{name} (error std {e:.3g}, spread {s:.3g})"
+                               for name, e, s, bad in zip(names, std, prior, worse) if bad)
+            warnings.warn(f"{listed}: the DEM estimate is worse than the model's prior mean (its error exceeds "
+                          "the spread of the variable without data); the coloured-noise Kalman smoother "
+                          "(method=\"kalman\", attend estimate's default) keeps the evidence of the whole log",
+                          ModelWarning, stacklevel=3)
 
     def online(self) -> "OnlineDEM":
         """A fixed-memory observer fed one sample at a time (see :class:`OnlineDEM`)."""

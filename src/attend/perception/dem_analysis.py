@@ -189,7 +189,7 @@ def start_influence(transition: np.ndarray, readout: np.ndarray, scales: np.ndar
 
 def steady_state_error_variance(transition, window_gain, offsets, rows_x, rows_v, *, A, B, C, dt,
                                 process_precision, sensor_precision, input_prior_precision,
-                                process_width, sensor_width, known_inputs, chunk: int = 256):
+                                process_width, sensor_width, known_inputs, input_width=None, chunk: int = 256):
     """Steady-state error variances of the order-0 states and inputs of a DEM filter, and the
     prior (stationary) variances of the same quantities, under the model of the module docstring.
 
@@ -210,7 +210,8 @@ def steady_state_error_variance(transition, window_gain, offsets, rows_x, rows_v
         infinite = np.full(n, np.inf)
         return infinite, np.full(r, 0.0 if known_inputs else np.inf), infinite, np.full(r, 0.0 if known_inputs else np.inf)
     on_circle = np.abs(np.angle(plant_poles[np.abs(np.abs(plant_poles) - 1) < 1e-9]))
-    widths = [process_width, sensor_width]
+    input_width = process_width if input_width is None else input_width
+    widths = [process_width, sensor_width] + ([] if known_inputs else [input_width])
     grid = frequency_grid(np.concatenate([np.linalg.eigvals(transition), plant_poles]), dt, widths)
     for angle in on_circle:
         grid = grid[np.abs(grid - angle) > 1e-9]
@@ -246,7 +247,7 @@ def steady_state_error_variance(transition, window_gain, offsets, rows_x, rows_v
         uv = power(v_through_y @ Pw, Uw) * Sw[:, None]
         upx = power(Pw, Uw) * Sw[:, None]
         if not known_inputs:
-            Su = process_spectrum(omegas, dt, process_width)
+            Su = process_spectrum(omegas, dt, input_width)
             PB = P @ Bd
             ex_u = through_y @ PB
             ev_u = v_through_y @ PB - identity_v

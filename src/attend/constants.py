@@ -14,5 +14,6 @@ import math
 KNOWN_PRIOR_PRECISION = math.exp(15.0)
 
 #: Prior precision of inputs that are measured (known) but kept among the DEM observer's unknowns:
-#: exp(32) ~ 7.9e13 (the quadrotor flights of Bos et al. 2022 and ``attend estimate``'s model files)
+#: exp(32) ~ 7.9e13 (the quadrotor flights of Bos et al. 2022 and ``attend estimate``'s model files;
+#: also the precision of the known C entries in the Entropy 2021 identification setting)
 KNOWN_INPUT_PRECISION = math.exp(32.0)

@@ -85,7 +85,7 @@ from attend._validation import (
 from attend.perception.dem import DEMEstimate, DEMObserver
 from attend.systems import LinearSystem
 
-KNOWN_INPUT_PRECISION = math.exp(32)
+from attend.constants import KNOWN_INPUT_PRECISION  # noqa: E402 (named once there)
 
 _SECTIONS = {
     "model": {"A", "B", "C", "states", "dt"},

@@ -11,7 +11,9 @@ from attend.perception import learning as L
 from attend.perception.learning import free_energy as FE
 from attend.perception.learning import path as PP
 from attend.perception.learning import problem as PR
-from attend.systems import identification_system, mass_spring_damper, simulate
+from attend.constants import KNOWN_INPUT_PRECISION, KNOWN_PRIOR_PRECISION
+from attend.problems import identification_system, mass_spring_damper
+from attend.systems import simulate
 
 DT = 0.1
 FREE_MSD = np.array([False, False, True, True, False, True, False, False])  # theta3, theta4, theta6
@@ -157,7 +159,7 @@ def test_batch_equals_single_runs():
     system, log0 = _msd_log(seed=5, n=200)
     _, log1 = _msd_log(seed=6, n=200)
     theta = L.parameter_vector(system)
-    P = np.where(FREE_MSD, 1.0, np.exp(15))
+    P = np.where(FREE_MSD, 1.0, KNOWN_PRIOR_PRECISION)
     eta = np.stack([theta + 0.5 * FREE_MSD, theta - 0.4 * FREE_MSD])
     kw = dict(n_states=2, kernel_width=0.5, prior_precision=P[None], max_iterations=8, embedding_order=4)
     batch = L.learn_batch(np.stack([log0.outputs, log1.outputs]), np.stack([log0.inputs, log1.inputs]), DT,
@@ -179,7 +181,7 @@ def test_identification_system_learns_a_and_b():
     start = theta.copy()
     start[free] = np.random.default_rng(1).uniform(-2, 2, 6)
     result = L.identify(L.system_from_parameters(start, system), log.outputs, log.inputs, DT, kernel_width=0.5,
-                        free=free, prior_precision=np.where(free, np.exp(6), np.exp(32)),
+                        free=free, prior_precision=np.where(free, np.exp(6), KNOWN_INPUT_PRECISION),
                         noise_prior_precision=np.exp(3), max_iterations=20)
     assert np.abs(result.parameters[free] - theta[free]).max() < 0.1
     assert abs(result.log_precision[0] - 8.0) < 0.5
@@ -291,7 +293,8 @@ def test_path_mode_free_energy_rises_and_recovers_the_damping():
     """Path mode on the mass-spring-damper (8 seeds, random starts in [-2, 2]): F never decreases,
     lambda_z is learned, and the median relative error of theta3, theta4, theta6 is <= 6 %, the
     damping theta4 at most half of sample mode's (measured: 5 % vs 12.5 %)."""
-    from attend.experiments.fig4 import msd_logs, random_priors
+    from attend.problems import msd_logs
+    from attend.problems import msd_random_priors as random_priors
 
     theta = L.parameter_vector(mass_spring_damper())
     seeds = np.arange(8)
@@ -358,7 +361,7 @@ def test_path_mode_warns_above_order_six():
     system, log = _msd_log(seed=0, n=100)
     with pytest.warns(L.LearningWarning, match="ill-conditioned"):
         L.learn_batch(log.outputs[None], log.inputs[None], DT, n_states=2, kernel_width=0.5,
-                      prior_mean=L.parameter_vector(system)[None], prior_precision=np.where(FREE_MSD, 1.0, np.exp(15))[None],
+                      prior_mean=L.parameter_vector(system)[None], prior_precision=np.where(FREE_MSD, 1.0, KNOWN_PRIOR_PRECISION)[None],
                       embedding_order=8, max_iterations=1, states="path")
 
 
@@ -400,7 +403,7 @@ def test_readme_learning_section_converges_on_real_flights(flight):
 def test_top_order_option_is_validated_and_reported():
     system, log = _msd_log(seed=0, n=120)
     kw = dict(n_states=2, kernel_width=0.5, prior_mean=L.parameter_vector(system)[None],
-              prior_precision=np.where(FREE_MSD, 1.0, np.exp(15))[None], max_iterations=3)
+              prior_precision=np.where(FREE_MSD, 1.0, KNOWN_PRIOR_PRECISION)[None], max_iterations=3)
     with pytest.raises(AttendInputError, match="top_order"):
         L.learn_batch(log.outputs[None], log.inputs[None], DT, top_order="zero", **kw)
     truncate = L.learn_batch(log.outputs[None], log.inputs[None], DT, top_order="truncate", **kw)

@@ -30,7 +30,8 @@ from attend.perception.baselines import (
     simulation_covariances,
 )
 from attend.perception.dem import DEMObserver
-from attend.systems import mass_spring_damper, simulate
+from attend.problems import mass_spring_damper
+from attend.systems import simulate
 
 SETTINGS = dict(
     dt=0.1, duration=32.0, kernel_width=0.5, noise_log_precision=8.0, input_prior_mean=0.0,

@@ -61,13 +61,15 @@ from typing import NamedTuple
 import numpy as np
 
 from attend._validation import AttendInputError
+from attend.constants import KNOWN_INPUT_PRECISION
 from attend.experiments._result import ExperimentResult
 from attend.generalized import embedding_weights
 from attend.io import Log, read_log
 from attend.perception.baselines import kalman_filter
 from attend.perception.dem import DEMObserver
 from attend.perception.recurrence import linear_recurrence
-from attend.systems import LinearSystem, ModelWarning, quadrotor_roll
+from attend.problems import quadrotor_roll
+from attend.systems import LinearSystem, ModelWarning
 
 __all__ = [
     "PUBLISHED",
@@ -104,8 +106,6 @@ SENSOR_VARIANCE = 8.1214e-9
 KERNEL_WIDTH = 0.006
 EMBEDDING_ORDER = 6
 INPUT_ORDER = 2
-#: Prior precision of the known (measured) inputs, kept as unknowns of the DEM flow.
-KNOWN_INPUT_PRECISION = math.exp(32.0)
 #: With wind, slices whose SSE reaches this are left out of a method's mean.
 DIVERGENCE_THRESHOLD = 100.0
 #: Input-estimation run: 1-based samples 400..1600 inclusive.

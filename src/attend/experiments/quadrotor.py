@@ -593,15 +593,14 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, data_dir=None) 
 def plot(result: ExperimentResult, out_dir) -> list[str]:
     """Figures (PNG in out_dir): per-slice SSE bars (DEM vs KF), SSE vs p, an example slice,
     and the motor-1 estimates. Returns the file names."""
-    from attend import plotting  # noqa: F401  (selects the Agg backend)
-    import matplotlib.pyplot as plt
+    from attend.plotting import figure
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     data = result.data
     files = []
 
-    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    fig, axes = figure((9, 6), 2, 1, sharex=True)
     for axis, condition, title in zip(axes, ("wind", "no_wind"), ("with wind", "without wind")):
         index = np.arange(len(data[condition]["DEM"]))
         axis.bar(index - 0.2, data[condition]["DEM"], 0.4, label="DEM")
@@ -615,7 +614,7 @@ def plot(result: ExperimentResult, out_dir) -> list[str]:
     fig.tight_layout()
     files.append(_save(fig, out / "quadrotor_sse_per_slice.png"))
 
-    fig, axis = plt.subplots(figsize=(6, 4))
+    fig, axis = figure((6, 4))
     orders = np.arange(EMBEDDING_ORDER + 1)
     reproduced = [result.metric(f"dem_sse_wind_p{p}").value for p in orders]
     axis.semilogy(orders, reproduced, "o-", label="reproduced, wind")
@@ -629,7 +628,7 @@ def plot(result: ExperimentResult, out_dir) -> list[str]:
     files.append(_save(fig, out / "quadrotor_sse_vs_p.png"))
 
     example = data["wind"]["example"]
-    fig, axis = plt.subplots(figsize=(9, 4))
+    fig, axis = figure((9, 4))
     axis.plot(example["time"], example["measured"], "k", lw=1.5, label="measured")
     axis.plot(example["time"], example["dem"], lw=1.0, label="DEM (published protocol)")
     axis.plot(example["time"], example["kf"], lw=1.0, label="KF (authors')")
@@ -642,7 +641,7 @@ def plot(result: ExperimentResult, out_dir) -> list[str]:
     files.append(_save(fig, out / "quadrotor_example_slice.png"))
 
     traces = data["inputs"]["traces"]
-    fig, axes = plt.subplots(len(traces), 1, figsize=(9, 2.2 * len(traces)), sharex=True)
+    fig, axes = figure((9, 2.2 * len(traces)), len(traces), 1, sharex=True)
     for axis, trace, value in zip(axes, traces, data["inputs"]["sse"]):
         axis.plot(trace["time"], trace["measured"], "k", lw=1.0, label="measured (scaled)")
         axis.plot(trace["time"], trace["dem"], lw=1.0, label="DEM estimate")
@@ -656,8 +655,5 @@ def plot(result: ExperimentResult, out_dir) -> list[str]:
 
 
 def _save(fig, path: Path) -> str:
-    import matplotlib.pyplot as plt
-
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path.name

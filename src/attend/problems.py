@@ -26,7 +26,6 @@ from attend.systems import LinearSystem, simulate
 __all__ = [
     "MSD_FREE",
     "MSD_PUBLISHED_THETA",
-    "PRESETS",
     "convolution_model",
     "identification_system",
     "mass_spring_damper",
@@ -38,7 +37,8 @@ __all__ = [
 
 
 def mass_spring_damper(mass: float = 1.4, stiffness: float = 0.8, damping: float = 0.4) -> LinearSystem:
-    """The paper's mass-spring-damper (eq. 2): m [kg], k [N/m], b [N s/m]; states x [m], dx/dt [m/s].
+    """The paper's mass-spring-damper (eq. 2): mass m [kg], stiffness k [N/m], damping b [N s/m];
+    states x [m], dx/dt [m/s].
 
     A = [[0, 1], [-k/m, -b/m]], B = [0; 1/m], C = [1, 0].
     """

@@ -192,7 +192,8 @@ def simulate(
     scalars or per channel). ``process_kernel_width`` / ``sensor_kernel_width`` [s] set the widths
     of w and z separately (0: white noise); each defaults to ``kernel_width``.
     ``system`` may also be a python-control StateSpace (converted with
-    :func:`attend.interop.from_statespace`).
+    :func:`attend.interop.from_statespace`). inputs: (N, r) u at every sample; initial_state: x[0]
+    (default 0); seed: an int or a numpy Generator (the noises are reproducible).
     """
     system = as_linear_system(system)
     dt = positive_scalar(dt, "dt", "s")

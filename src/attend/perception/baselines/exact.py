@@ -35,7 +35,7 @@ class ExactPosterior(NamedTuple):
     causal_inputs: np.ndarray | None = None
 
 def coloured_noise_correlation(n_samples: int, dt: float, kernel_width: float) -> np.ndarray:
-    """(N, N) correlation matrix of the samples of attend.noise.coloured_noise.
+    """(N, N) correlation matrix of n_samples = N samples of attend.noise.coloured_noise.
 
     The noise is white noise convolved with the unit-energy kernel h = gaussian_kernel(dt, s), so
     Corr(e[i], e[j]) = sum_l h[l] h[l + |i - j|] (the kernel's discrete self-correlation,
@@ -95,6 +95,7 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
     (scalar, (r,) or (N, r)) and input_prior_std (scalar or (r,)) [input unit]; kernel_width s [s];
     process_std, measurement_std: per-sample standard deviations as passed to simulate();
     initial_mean m0 (default 0) and initial_std s0 (default 0: x[0] known, as simulate() starts).
+    return_covariance=True also returns the joint posterior covariance (``covariance``).
     causal=True also returns ``causal_states`` / ``causal_inputs``: E[x[k] | y[0..k]] for every k,
     the best causal estimate under the model, read from the same Cholesky factor (the innovations
     of y in time order).

@@ -92,7 +92,8 @@ def _lag(lag) -> int:
 def simulation_covariances(system: LinearSystem, dt: float, process_std, measurement_std
                            ) -> tuple[np.ndarray, np.ndarray]:
     """(Q, R) of the white-noise model matching simulate(): Q = dt^2 diag(process_std^2)
-    [state unit^2], R = diag(measurement_std^2) [output unit^2] (simulate adds dt w to x)."""
+    [state unit^2], R = diag(measurement_std^2) [output unit^2] (simulate adds dt w to x).
+    system: the LinearSystem simulated; dt [s]; process_std, measurement_std: as passed to simulate()."""
     system = _system(system)
     dt = positive_scalar(dt, "dt", "s")
     sw = _std_vector(process_std, system.n_states, "process_std")
@@ -213,7 +214,10 @@ def kalman_filter(system, dt, outputs, inputs=None, *, process_covariance, measu
 
 def rts_smoother(system, dt, outputs, inputs=None, *, process_covariance, measurement_covariance,
                  initial_mean=None, initial_covariance=None) -> KalmanEstimate:
-    """Rauch-Tung-Striebel smoother: x[k] | y[0..N-1] (same model and arguments as kalman_filter).
+    """Rauch-Tung-Striebel smoother: x[k] | y[0..N-1] (same model as kalman_filter).
+
+    system, dt [s], outputs (N, m), inputs (N, r) or None, process_covariance Q,
+    measurement_covariance R, initial_mean m0 and initial_covariance P0: as :func:`kalman_filter`.
 
     Backward pass: J_k = P_k|k Ad' inv(P_k+1|k), m_k|N = m_k|k + J_k (m_k+1|N - m_k+1|k),
     P_k|N = P_k|k + J_k (P_k+1|N - P_k+1|k) J_k'.
@@ -226,7 +230,8 @@ def kalman_filter_ignoring_input(system, dt, outputs, *, process_covariance, mea
                                  initial_mean=None, initial_covariance=None, lag: int = 0) -> KalmanEstimate:
     """The Kalman filter with the unknown input set to zero (u = 0), as the ACC 2020 paper compares.
 
-    Same arguments as :func:`kalman_filter` without ``inputs``.
+    system, dt [s], outputs (N, m), process_covariance Q, measurement_covariance R, initial_mean
+    m0, initial_covariance P0 and lag: as :func:`kalman_filter` (there is no ``inputs``).
     """
     return _kalman(system, dt, outputs, None, process_covariance, measurement_covariance,
                    initial_mean, initial_covariance, "filter", lag)
@@ -237,7 +242,9 @@ def steady_state_kalman_filter(system, dt, outputs, inputs=None, *, process_cova
     """Constant-gain Kalman filter: P solves the discrete algebraic Riccati equation
     P = Ad P Ad' - Ad P C' inv(C P C' + R) C P Ad' + Q (prediction covariance),
     K = P C' inv(C P C' + R); x[k|k] = x[k|k-1] + K (y[k] - C x[k|k-1]),
-    x[k+1|k] = Ad x[k|k] + Bd u[k]. State std from (I - K C) P. Arguments as kalman_filter.
+    x[k+1|k] = Ad x[k|k] + Bd u[k]. State std from (I - K C) P. system, dt [s], outputs (N, m),
+    inputs (N, r) or None, process_covariance Q, measurement_covariance R and initial_mean m0:
+    as :func:`kalman_filter`.
     """
     system = _system(system)
     dt = positive_scalar(dt, "dt", "s")
@@ -279,7 +286,9 @@ def augmented_kalman_filter(system, dt, outputs, *, process_covariance, measurem
 
     input_variance: random-walk increment variance per sample [input unit^2] (scalar, vector or
     matrix); initial_input, initial_input_std: prior of u[0] [input unit]; smooth: RTS over the
-    whole log instead of filtering; other arguments as kalman_filter. u[k] first acts on x[k+1],
+    whole log instead of filtering; system, dt [s], outputs (N, m), process_covariance Q,
+    measurement_covariance R, initial_mean, initial_covariance (of x[0]) and lag: as
+    :func:`kalman_filter`. u[k] first acts on x[k+1],
     so the filtered input estimate lags one sample (use lag >= 1 or smooth to remove it).
     """
     system = _system(system)

@@ -25,7 +25,8 @@ def n4sid_baseline(outputs, inputs, dt: float, n_states: int, block_rows: int = 
 
     The discrete (Ad, Bd, C) of rank ``n_states`` are converted with the inverse zero-order hold;
     the feed-through D is dropped. The state basis is arbitrary: compare with
-    :func:`transfer_function_error` or :func:`eigenvalue_error`.
+    :func:`transfer_function_error` or :func:`eigenvalue_error`. outputs (N, m), inputs (N, r)
+    sampled at dt [s]; n_states: the model order; block_rows: the block rows of the Hankel matrices.
     """
     try:
         import pandas as pd
@@ -48,7 +49,8 @@ def em_baseline(outputs, inputs, dt: float, system_prior: LinearSystem, n_iter: 
     """EM for a linear-Gaussian state-space model (pykalman) with C known and the measured input
     appended to the state: z = [x; u], z[k+1] = [[Ad, Bd], [0, I]] z[k] + noise, [y; u] = blkdiag(C, I) z.
     EM learns the transition (hence Ad, Bd) and the noise covariances, starting from the prior
-    model; the result is converted with the inverse zero-order hold."""
+    model; the result is converted with the inverse zero-order hold. outputs (N, m), inputs (N, r)
+    sampled at dt [s]; system_prior: the starting model (its C is kept); n_iter: EM iterations."""
     from pykalman import KalmanFilter
 
     n, r = system_prior.n_states, system_prior.n_inputs
@@ -80,6 +82,7 @@ def transfer_function_error(estimate: LinearSystem, truth: LinearSystem, frequen
     """||G_est - G_true|| / ||G_true|| over a frequency grid [rad/s], G(jw) = C (jw I - A)^-1 B.
 
     Invariant to the state basis, so models from different parameterisations compare directly.
+    estimate, truth: the models compared; frequencies: the grid (default 60 points, 0.01 to 31.6).
     """
     w = np.logspace(-2, 1.5, 60) if frequencies is None else np.asarray(frequencies, dtype=float)
 
@@ -92,7 +95,8 @@ def transfer_function_error(estimate: LinearSystem, truth: LinearSystem, frequen
 
 
 def eigenvalue_error(estimate: LinearSystem, truth: LinearSystem) -> float:
-    """Largest |lambda_est - lambda_true| over the best matching of the eigenvalues of A [1/s]."""
+    """Largest |lambda_est - lambda_true| over the best matching of the eigenvalues of A [1/s]
+    (estimate, truth: the two models; inf when their orders differ)."""
     from itertools import permutations
 
     a, b = np.linalg.eigvals(estimate.A), np.linalg.eigvals(truth.A)

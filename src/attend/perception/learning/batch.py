@@ -98,6 +98,10 @@ def learn_batch(
     (2,) or (R, 2), for [lambda_z, lambda_w] (P_lambda = inf holds lambda fixed at eta_lambda);
     tolerance: a run has converged when one whole D-E-M iteration raises F by less than this
     [nats]. ``states``: "sample" (the paper's eq. 8) or "path" (package docstring, "Path mode").
+    n_states n; kernel_width s [s]; embedding_order p; input_order (default p); integration_time
+    L of the E-step; noise_integration_time and noise_iterations of the M-step; trim_edges,
+    precision_convention, progress: as :func:`identify`; overrelax, newton, top_order, scaled: the
+    options (3), (4), the top-order treatment and (1) of the package docstring.
     No Python loop over runs: every step is batched linear algebra over the leading axis.
     Inputs are not validated here (see :func:`identify`).
     """

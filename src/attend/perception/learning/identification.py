@@ -35,7 +35,8 @@ class IdentificationResult:
     and their posterior precision Pi_lambda; free_energy F per iteration (row 0 = start);
     parameter_history, precision_history (diagonal of Pi_theta), log_precision_history per
     iteration; steps_accepted {"D", "E", "M"}; converged, iterations, message; states x(t)
-    (N, n) at the final estimate; prior_system: the model the learning started from.
+    (N, n) at the final estimate; prior_system: the model the learning started from;
+    log_precision_precision: Pi_lambda (2,); settings: the options the learning ran with.
     """
 
     parameter_names: tuple[str, ...]
@@ -133,7 +134,9 @@ def identify(
     noise_prior_mean eta_lambda and noise_prior_precision P_lambda for [lambda_z, lambda_w]
     (scalar or pair; inf holds lambda fixed). embedding_order p; input_order (default p);
     integration_time L of the E-step; learning stops when an iteration raises F by < tolerance
-    or after max_iterations. ``states``: "sample" (default, the paper's eq. 8: free generalised
+    or after max_iterations. trim_edges: leave out the samples whose embedding window reaches
+    past the log; precision_convention: how S is normalised (:func:`attend.block_precisions`);
+    progress: show a progress bar. ``states``: "sample" (default, the paper's eq. 8: free generalised
     states at every sample) or "path" (one state trajectory, data counted once; see
     :func:`learn_batch`). ``top_order``: "marginal" (default in sample mode: the top-order motion
     error is integrated out, F stays bounded in lambda_w on fast-sampled logs) or "truncate" (the

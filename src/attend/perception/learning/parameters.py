@@ -12,7 +12,7 @@ from attend.systems import LinearSystem
 
 
 def parameter_names(system: LinearSystem) -> tuple[str, ...]:
-    """Names of theta = [vec(A); vec(B); vec(C)] (row-major, 1-based): 'A[2,1]', ..."""
+    """Names of theta = [vec(A); vec(B); vec(C)] of the system (row-major, 1-based): 'A[2,1]', ..."""
     names = []
     for label, matrix in (("A", system.A), ("B", system.B), ("C", system.C)):
         rows, cols = matrix.shape
@@ -21,7 +21,7 @@ def parameter_names(system: LinearSystem) -> tuple[str, ...]:
 
 
 def parameter_vector(system: LinearSystem) -> np.ndarray:
-    """theta = [vec(A); vec(B); vec(C)], row-major (the paper's theta_1 .. theta_8 for eq. 2)."""
+    """theta = [vec(A); vec(B); vec(C)] of the system, row-major (the paper's theta_1 .. theta_8 for eq. 2)."""
     return np.concatenate([system.A.ravel(), system.B.ravel(), system.C.ravel()])
 
 

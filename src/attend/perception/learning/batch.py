@@ -4,6 +4,7 @@ that share one model structure, as in the paper's algorithm (see the package doc
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
@@ -105,12 +106,59 @@ def learn_batch(
     No Python loop over runs: every step is batched linear algebra over the leading axis.
     Inputs are not validated here (see :func:`identify`).
     """
+    data, priors, theta0, P_schedule, constant_from = _setup(
+        outputs, inputs, dt, n_states, kernel_width, prior_mean, prior_precision, initial, noise_prior_mean,
+        noise_prior_precision, embedding_order, input_order, max_iterations, trim_edges, precision_convention,
+        states, top_order, scaled)
+    R, st = theta0.shape[0], data.st
+    L = np.full(R, float(integration_time))
+    beta = np.ones(R)
+    point = start(theta0, priors.eta_lambda.copy(), data, priors)
+    log = _Log(point, st.active, max_iterations)
+    for it in _iterations(max_iterations, progress, R):
+        live = ~(log.converged | log.stopped)
+        if not live.any():
+            break
+        P_now = P_schedule[:, it - 1]
+        if not np.array_equal(P_now, priors.P_theta):  # the schedule moved: F is re-evaluated
+            priors = replace(priors, P_theta=P_now.copy())
+            point = point._replace(ev=_evaluate(point.state, point.K_mean, priors, st))
+        before = point
+        point = log.take(d_step(point, live, data, priors), "D", it)
+        point = log.take(e_step(point, live & ~log.stopped, data, priors, L), "E", it)
+        point = log.take(m_step(point, live & ~log.stopped, data, priors, noise_integration_time,
+                                noise_iterations), "M", it)
+        if overrelax:
+            outcome, beta = overrelax_step(point, live & ~log.stopped, data, priors, before.state, beta)
+            point = log.take(outcome, "over-relaxed", it)
+        if newton:  # only once the sweeps creep (a sweep gained < NEWTON_CREEP |F| nats)
+            creeping = (point.ev.F - before.ev.F) < NEWTON_CREEP * np.abs(point.ev.F)
+            point = log.take(newton_step(point, live & ~log.stopped & creeping, data, priors), "over-relaxed", it)
+        log.end_iteration(it, live, point, before.ev.F, tolerance, constant_from[:, it - 1])
+    return log.result(point, -curvature_default(priors.fisher, priors.P_lambda), max_iterations)
+
+
+def _iterations(max_iterations: int, progress: bool, R: int):
+    """Iterations 1 .. max_iterations, with a progress bar when asked."""
+    iterator = range(1, max_iterations + 1)
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(iterator, desc=f"learning ({R} runs)", leave=False)
+    return iterator
+
+
+def _setup(outputs, inputs, dt, n_states, kernel_width, prior_mean, prior_precision, initial, noise_prior_mean,
+           noise_prior_precision, embedding_order, input_order, max_iterations, trim_edges, precision_convention,
+           states, top_order, scaled):
+    """The embedded logs and their structure, the priors of the first iteration, the starting theta,
+    P_theta per iteration and when each run's P_theta stops changing (see :func:`_prior_schedule`)."""
     if states not in ("sample", "path"):
         raise AttendInputError(f"states: expected 'sample' or 'path', got {states!r}")
     if states == "path" and embedding_order > 6:
         warnings.warn(f"states='path' with embedding_order = {embedding_order}: the path precision is "
                       "ill-conditioned above p = 6 (condition number ~dt^-2p); estimates lose accuracy",
-                      LearningWarning, stacklevel=2)
+                      LearningWarning, stacklevel=3)
     outputs = np.asarray(outputs, dtype=float)
     inputs = np.asarray(inputs, dtype=float)
     R = outputs.shape[0]
@@ -128,37 +176,7 @@ def learn_batch(
     P_lam = np.broadcast_to(np.asarray(noise_prior_precision, dtype=float), (R, 2)).copy()
     fisher = 0.5 * st.count * st.n_used * np.array([st.m * st.orders, st.n * st.w_orders], dtype=float)
     priors = _Priors(eta, P_schedule[:, 0].copy(), lam_eta, P_lam, fisher)
-    L = np.full(R, float(integration_time))
-    beta = np.ones(R)
-
-    point = start(theta0, lam_eta.copy(), data, priors)
-    log = _Log(point, active, max_iterations)
-    iterator = range(1, max_iterations + 1)
-    if progress:
-        from tqdm import tqdm
-
-        iterator = tqdm(iterator, desc=f"learning ({R} runs)", leave=False)
-    for it in iterator:
-        live = ~(log.converged | log.stopped)
-        if not live.any():
-            break
-        P_now = P_schedule[:, it - 1]
-        if not np.array_equal(P_now, priors.P_theta):  # the schedule moved: F is re-evaluated
-            priors = _Priors(eta, P_now.copy(), lam_eta, P_lam, fisher)
-            point = point._replace(ev=_evaluate(point.state, point.K_mean, priors, st))
-        before = point
-        point = log.take(d_step(point, live, data, priors), "D", it)
-        point = log.take(e_step(point, live & ~log.stopped, data, priors, L), "E", it)
-        point = log.take(m_step(point, live & ~log.stopped, data, priors, noise_integration_time,
-                                noise_iterations), "M", it)
-        if overrelax:
-            outcome, beta = overrelax_step(point, live & ~log.stopped, data, priors, before.state, beta)
-            point = log.take(outcome, "over-relaxed", it)
-        if newton:  # only once the sweeps creep (a sweep gained < NEWTON_CREEP |F| nats)
-            creeping = (point.ev.F - before.ev.F) < NEWTON_CREEP * np.abs(point.ev.F)
-            point = log.take(newton_step(point, live & ~log.stopped & creeping, data, priors), "over-relaxed", it)
-        log.end_iteration(it, live, point, before.ev.F, tolerance, constant_from[:, it - 1])
-    return log.result(point, -curvature_default(fisher, P_lam), max_iterations)
+    return data, priors, theta0, P_schedule, constant_from
 
 
 def _prior_schedule(prior_mean, prior_precision, R: int, max_iterations: int):

@@ -151,8 +151,7 @@ def identify(
     """
     if not isinstance(system_prior, LinearSystem):
         raise AttendInputError("system_prior: expected an attend.LinearSystem")
-    dt = positive_scalar(dt, "dt", "s")
-    kernel_width = positive_scalar(kernel_width, "kernel_width", "s")
+    dt, kernel_width = positive_scalar(dt, "dt", "s"), positive_scalar(kernel_width, "kernel_width", "s")
     p, d = _orders(embedding_order, input_order)
     y, u = _log(system_prior, outputs, inputs, max(p, d) + 1)
     free_mask, prec = _parameter_prior(system_prior, free, prior_precision, free_prior_precision,
@@ -169,15 +168,21 @@ def identify(
         precision_convention=precision_convention, states=states, progress=progress,
         overrelax=overrelax, newton=newton, top_order=top_order, scaled=scaled,
     )
-    message = _check_outcome(batch, system_prior, free_mask, prec, eta)
     settings = dict(dt=dt, kernel_width=kernel_width, embedding_order=p, input_order=d,
                     max_iterations=max_iterations, tolerance=tolerance,
                     integration_time=integration_time, trim_edges=trim_edges, state_model=states,
                     top_order=top_order or ("marginal" if states == "sample" else "truncate"),
                     overrelax=overrelax, newton=newton, scaled=scaled, noise_prior_mean=lam_eta.tolist(),
                     noise_prior_precision=lam_prec.tolist(), free_energy_trace=batch.free_energy_trace[0])
+    return _result(batch, system_prior, free_mask, prec, eta, settings)
+
+
+def _result(batch: BatchLearningResult, system: LinearSystem, free_mask: np.ndarray, prec: np.ndarray,
+            eta: np.ndarray, settings: dict) -> IdentificationResult:
+    """The IdentificationResult of the single run of ``batch`` (after :func:`_check_outcome`)."""
+    message = _check_outcome(batch, system, free_mask, prec, eta)
     return IdentificationResult(
-        parameter_names=parameter_names(system_prior),
+        parameter_names=parameter_names(system),
         parameters=batch.parameters[0],
         parameter_precision=batch.parameter_precision[0],
         prior_mean=eta,
@@ -194,7 +199,7 @@ def identify(
         iterations=int(batch.iterations[0]),
         message=message,
         states=batch.states[0],
-        prior_system=system_prior,
+        prior_system=system,
         settings=settings,
     )
 
@@ -304,7 +309,7 @@ def _check_outcome(batch: BatchLearningResult, system: LinearSystem, free_mask: 
     names = parameter_names(system)
     message = batch.messages[0]
     if message.startswith("stopped:"):
-        warnings.warn(message, LearningWarning, stacklevel=3)
+        warnings.warn(message, LearningWarning, stacklevel=4)
     # "known" entries (not free, finite prior precision) that the data moved many prior std away: on long,
     # precise logs exp(15) does not hold them, and moving them can reach a (C, A) with an unobservable
     # mode, where eq. 8's F grows without bound (the state entropy of that mode; package docstring)
@@ -321,14 +326,14 @@ def _check_outcome(batch: BatchLearningResult, system: LinearSystem, free_mask: 
                 f"to be learned")
         if not batch.converged[0]:
             message = f"{message}; {note}"
-        warnings.warn(note, IdentifiabilityWarning, stacklevel=3)
+        warnings.warn(note, IdentifiabilityWarning, stacklevel=4)
     learn = free_mask & np.isfinite(prec)
     H_info = np.diag(batch.parameter_precision[0]) - prec
     weak = learn & np.isfinite(H_info) & (H_info <= 1e-9 * np.maximum(1.0, prec))
     if weak.any():
         listed = ", ".join(n_ for n_, f in zip(names, weak) if f)
         warnings.warn(f"the log carries no information about {listed} (posterior precision equals the "
-                      "prior precision); their estimates are the prior", IdentifiabilityWarning, stacklevel=3)
+                      "prior precision); their estimates are the prior", IdentifiabilityWarning, stacklevel=4)
     return message
 
 

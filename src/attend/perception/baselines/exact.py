@@ -117,21 +117,55 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
     if not (np.isfinite(jitter) and jitter >= 0):
         raise AttendInputError(f"jitter: expected a finite number >= 0, got {jitter!r}")
     known = inputs is not None
+    u_mean, su = _input_prior(system, inputs, input_prior_mean, input_prior_std, N)
+    x_mean, x_cov, LB, input_cov, K = _state_prior(system, dt, N, m0, s0, sw, u_mean, su, s_w, s_u, known)
+    K_z = K if s_z == s_w else coloured_noise_correlation(N, dt, s_z)
+    chol, white, xy_cov, Cbig, q, log_likelihood = _condition_on_outputs(system, y, sz, x_mean, x_cov, K_z, jitter)
+    # latent z = [x; u] (u only when unknown)
     if known:
-        u_mean = _inputs(system, inputs, N)
-        su = np.zeros(r)
+        z_mean, zy_cov, z_var = x_mean, xy_cov, np.diag(x_cov)
     else:
-        if input_prior_mean is None or input_prior_std is None:
-            raise AttendInputError(
-                "input_prior_mean, input_prior_std: required when the inputs are unknown (inputs=None)"
-            )
-        u_mean = _inputs(system, input_prior_mean, N, "input_prior_mean")
-        su = _std_vector(input_prior_std, r, "input_prior_std")
+        uy_cov = input_cov @ LB.T @ Cbig.T  # Cov(u, y_q)
+        z_mean = np.concatenate([x_mean, u_mean.reshape(-1)])
+        zy_cov = np.vstack([xy_cov, uy_cov])
+        z_var = np.concatenate([np.diag(x_cov), np.diag(input_cov)])
+    G = solve_triangular(chol, zy_cov.T, lower=True)  # inv(chol) S_yz
+    post_mean = z_mean + G.T @ white
+    post_var = np.clip(z_var - np.sum(G**2, axis=0), 0, None)
+    covariance = _posterior_covariance(x_cov, LB, input_cov, G) if return_covariance else None
+    causal_states = causal_inputs = None
+    if causal:
+        causal_states, causal_inputs = _causal_means(G, white, z_mean, u_mean, q, n, known)
+    states = post_mean[: N * n].reshape(N, n)
+    state_std = np.sqrt(post_var[: N * n]).reshape(N, n)
+    if known:
+        est_inputs, input_std = u_mean, np.zeros((N, r))
+    else:
+        est_inputs = post_mean[N * n:].reshape(N, r)
+        input_std = np.sqrt(post_var[N * n:]).reshape(N, r)
+    return ExactPosterior(np.arange(N) * dt, states, est_inputs, state_std, input_std, covariance,
+                          float(log_likelihood), causal_states, causal_inputs)
 
+
+def _input_prior(system, inputs, input_prior_mean, input_prior_std, N):
+    """Mean (N, r) and std (r,) of the inputs: the given inputs (std 0) or their prior."""
+    r = system.n_inputs
+    if inputs is not None:
+        return _inputs(system, inputs, N), np.zeros(r)
+    if input_prior_mean is None or input_prior_std is None:
+        raise AttendInputError(
+            "input_prior_mean, input_prior_std: required when the inputs are unknown (inputs=None)"
+        )
+    return _inputs(system, input_prior_mean, N, "input_prior_mean"), _std_vector(input_prior_std, r, "input_prior_std")
+
+
+def _state_prior(system, dt, N, m0, s0, sw, u_mean, su, s_w, s_u, known):
+    """Prior mean and covariance of the stacked states x = Phi x[0] + L (Bd u + dt w), and with
+    unknown inputs L Bbig (x = ... + L Bbig u) and the inputs' prior covariance; K the process
+    noise's correlation."""
     Ad, Bd = system.discretize(dt)
     L, Phi = _transfer_matrix(Ad, N)
     K = coloured_noise_correlation(N, dt, s_w)
-    K_z = K if s_z == s_w else coloured_noise_correlation(N, dt, s_z)
     # prior of the stacked drive d[k] = Bd u[k] + dt w[k] and of the states
     drive_mean = (u_mean @ Bd.T).reshape(-1)
     drive_cov = np.kron(K, np.diag((dt * sw) ** 2))
@@ -144,6 +178,15 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
         drive_cov = drive_cov + Bbig @ input_cov @ Bbig.T
     x_mean = Phi @ m0 + L @ drive_mean
     x_cov = L @ drive_cov @ L.T + Phi @ np.diag(s0**2) @ Phi.T
+    LB = None if known else L @ Bbig
+    return x_mean, x_cov, LB, (None if known else input_cov), K
+
+
+def _condition_on_outputs(system, y, sz, x_mean, x_cov, K_z, jitter):
+    """Cholesky factor of Cov(y_q), whitened residual, Cov(x, y_q), the stacked output map, the
+    number q of channels kept and log p(y)."""
+    N, m = y.shape
+    n = system.n_states
     # Exact reduction to a sufficient statistic: the measurement noise has covariance
     # K kron diag(sz^2), so with the whitened channels diag(1/sz) y and the QR factor
     # diag(1/sz) C = Qc Rc, the rotated channels Qc' diag(1/sz) y beyond the first q = n are
@@ -176,44 +219,28 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
         noise = solve_triangular(chol_noise, rotated[:, q:], lower=True)
         log_likelihood += -0.5 * np.sum(noise**2) - (m - q) * np.sum(np.log(np.diag(chol_noise)))
         log_likelihood -= N * np.sum(np.log(sz))
-    # latent z = [x; u] (u only when unknown)
-    if known:
-        z_mean, zy_cov, z_var = x_mean, xy_cov, np.diag(x_cov)
+    return chol, white, xy_cov, Cbig, q, log_likelihood
+
+
+def _posterior_covariance(x_cov, LB, input_cov, G):
+    """Posterior covariance of z = [x; u] (u only when unknown: LB is None when known)."""
+    if LB is None:
+        z_cov = x_cov
     else:
-        LB = L @ Bbig
-        uy_cov = input_cov @ LB.T @ Cbig.T  # Cov(u, y_q)
-        z_mean = np.concatenate([x_mean, u_mean.reshape(-1)])
-        zy_cov = np.vstack([xy_cov, uy_cov])
-        z_var = np.concatenate([np.diag(x_cov), np.diag(input_cov)])
-    G = solve_triangular(chol, zy_cov.T, lower=True)  # inv(chol) S_yz
-    post_mean = z_mean + G.T @ white
-    post_var = np.clip(z_var - np.sum(G**2, axis=0), 0, None)
-    covariance = None
-    if return_covariance:
-        if known:
-            z_cov = x_cov
-        else:
-            xu_cov = LB @ input_cov  # Cov(x, u)
-            z_cov = np.block([[x_cov, xu_cov], [xu_cov.T, input_cov]])
-        covariance = z_cov - G.T @ G
-        covariance = 0.5 * (covariance + covariance.T)
-    causal_states = causal_inputs = None
-    if causal:  # E[z at k | y[0..k]]: only the innovations of samples <= k
-        contributions = (G * white[:, None]).reshape(N, q, -1).sum(axis=1)  # (time of y, latent)
-        latent_time = np.concatenate([np.repeat(np.arange(N), n), [] if known else np.repeat(np.arange(N), r)])
-        mask = np.arange(N)[:, None] <= latent_time[None, :].astype(int)
-        causal_mean = z_mean + np.sum(contributions * mask, axis=0)
-        causal_states = causal_mean[: N * n].reshape(N, n)
-        causal_inputs = u_mean if known else causal_mean[N * n:].reshape(N, r)
-    states = post_mean[: N * n].reshape(N, n)
-    state_std = np.sqrt(post_var[: N * n]).reshape(N, n)
-    if known:
-        est_inputs, input_std = u_mean, np.zeros((N, r))
-    else:
-        est_inputs = post_mean[N * n:].reshape(N, r)
-        input_std = np.sqrt(post_var[N * n:]).reshape(N, r)
-    return ExactPosterior(np.arange(N) * dt, states, est_inputs, state_std, input_std, covariance,
-                          float(log_likelihood), causal_states, causal_inputs)
+        xu_cov = LB @ input_cov  # Cov(x, u)
+        z_cov = np.block([[x_cov, xu_cov], [xu_cov.T, input_cov]])
+    covariance = z_cov - G.T @ G
+    return 0.5 * (covariance + covariance.T)
+
+
+def _causal_means(G, white, z_mean, u_mean, q, n, known):
+    """E[z at k | y[0..k]]: only the innovations of samples <= k. Returns (states, inputs)."""
+    N, r = u_mean.shape
+    contributions = (G * white[:, None]).reshape(N, q, -1).sum(axis=1)  # (time of y, latent)
+    latent_time = np.concatenate([np.repeat(np.arange(N), n), [] if known else np.repeat(np.arange(N), r)])
+    mask = np.arange(N)[:, None] <= latent_time[None, :].astype(int)
+    causal_mean = z_mean + np.sum(contributions * mask, axis=0)
+    return causal_mean[: N * n].reshape(N, n), (u_mean if known else causal_mean[N * n:].reshape(N, r))
 
 
 def _noise_widths(kernel_width, process_kernel_width, sensor_kernel_width, input_kernel_width):

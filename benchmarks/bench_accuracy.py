@@ -24,7 +24,8 @@ import numpy as np  # noqa: E402
 from attend.perception import baselines as bl  # noqa: E402
 from attend.perception.dem import DEMObserver  # noqa: E402
 from attend.perception.kalman import KalmanEstimator  # noqa: E402
-from attend.systems import convolution_model, simulate  # noqa: E402
+from attend.problems import convolution_model  # noqa: E402
+from attend.systems import simulate  # noqa: E402
 
 DT = 0.1
 N_SAMPLES = 320

@@ -26,10 +26,13 @@ import warnings  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from attend.constants import KNOWN_INPUT_PRECISION  # noqa: E402
 from attend.experiments import fig4, fig5  # noqa: E402
-from attend.experiments.fig4 import FREE, msd_logs, random_priors  # noqa: E402
+from attend.problems import MSD_FREE as FREE  # noqa: E402
+from attend.problems import identification_system, mass_spring_damper, msd_logs  # noqa: E402
+from attend.problems import msd_random_priors as random_priors  # noqa: E402
 from attend.perception import learning as L  # noqa: E402
-from attend.systems import identification_system, mass_spring_damper, simulate  # noqa: E402
+from attend.systems import simulate  # noqa: E402
 
 DT, S = 0.1, 0.5
 
@@ -118,7 +121,7 @@ def main():
         eta.append(e)
     for states, log_prior in (("sample", 6.0), ("path", 6.0), ("path", 2.0)):
         res = L.learn_batch(np.array(Y), np.array(U), DT, n_states=2, kernel_width=S, prior_mean=np.array(eta),
-                            prior_precision=np.where(free, np.exp(log_prior), np.exp(32))[None],
+                            prior_precision=np.where(free, np.exp(log_prior), KNOWN_INPUT_PRECISION)[None],
                             noise_prior_precision=np.exp(3), max_iterations=20, states=states,
                             **L.PAPER_LEARNER)
         worst = np.abs(res.parameters[:, free] - theta[free]).max(axis=1)

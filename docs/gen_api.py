@@ -7,7 +7,7 @@ tests/test_docs.py runs :func:`render` and compares it with docs/api.md, so the 
 drift from the code: after changing a public signature or docstring, rerun this script.
 
 Documented: every name in ``attend.__all__`` and the public functions and classes of
-attend.perception.learning, attend.perception.baselines, attend.io and attend.interop (their
+attend.problems, attend.perception.learning, attend.perception.baselines, attend.io and attend.interop (their
 ``__all__`` where they define one, else every public function/class defined in the module).
 """
 
@@ -26,12 +26,16 @@ MODULES = [
     ("attend", "attend: the top-level API",
      "`import attend` gives the systems, simulation, noise, generalised coordinates and the DEM "
      "observer. Times are in seconds throughout (`dt`, `kernel_width`, continuous-time `A` in 1/s)."),
+    ("attend.problems", "attend.problems: the paper's reference problems",
+     "The systems of the paper (also at the top level) and the mass-spring-damper identification "
+     "bank that the experiments, benchmarks and tests share."),
     ("attend.perception.learning", "attend.perception.learning: parameters and noise precisions",
      "System identification by alternating D (states), E (parameters) and M (noise precisions) "
      "steps; subspace and EM baselines; basis-invariant model errors. See "
      "[Getting started](getting-started.md#identify-the-parameters-of-your-robot)."),
     ("attend.perception.baselines", "attend.perception.baselines: Kalman filters and the exact posterior",
-     "Baselines on the same data as DEM. Arrays are time-major; dt in seconds."),
+     "Baselines on the same data as DEM (Kalman filters and smoothers, the exact posterior) and on "
+     "the same logs as `identify` (N4SID, EM, basis-invariant model errors). Arrays are time-major; dt in seconds."),
     ("attend.io", "attend.io: model files, logs and estimate files",
      "The TOML model file and CSV log that `attend estimate` reads, and the CSV it writes. "
      "Format: [Getting started](getting-started.md#the-model-file)."),

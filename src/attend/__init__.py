@@ -10,30 +10,33 @@ Public API (everything else is private):
   ``attend estimate``), :class:`StateEstimate`, :class:`DEMObserver`, :class:`DEMEstimate`
 - nonlinear models: :class:`NonlinearSystem` (f, g), :class:`NonlinearDEM`, :func:`simulate_nonlinear`
 - learning: :func:`identify`, :class:`IdentificationResult`
+- nonlinear perception: :class:`NonlinearDEM` for a :class:`NonlinearSystem`
+- action (UAV search, :mod:`attend.action`): :func:`make_field` / :class:`SearchField`,
+  :class:`OccupancyMap` (precision map), :func:`make_planner`, :func:`run_search` (one mission)
+- rhythm (:mod:`attend.rhythm`): :class:`PrecisionOscillator`, :class:`OscillatorScheduler`,
+  :class:`PrecisionDrivenScheduler`, :func:`drive`, :class:`ActiveVisionAgent`
 - errors: :class:`AttendInputError`, :class:`ModelWarning`
+
+The presets also live in :mod:`attend.problems` with the paper's reference problems; named
+precisions in :mod:`attend.constants`.
 """
 
 from attend._validation import AttendInputError
+from attend.action import OccupancyMap, SearchField, make_field, make_planner, run_search
 from attend.generalized import block_precisions, embed, embedding_weights, shift_operator, smoothness_precision
 from attend.noise import coloured_noise
 from attend.perception.dem import DEMEstimate, DEMObserver, OnlineDEM
 from attend.perception.kalman import KalmanEstimator, OnlineKalman, StateEstimate
 from attend.perception.learning import IdentificationResult, identify
 from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem, simulate_nonlinear
-from attend.systems import (
-    LinearSystem,
-    ModelWarning,
-    Trajectory,
-    convolution_model,
-    identification_system,
-    mass_spring_damper,
-    quadrotor_roll,
-    simulate,
-)
+from attend.problems import convolution_model, identification_system, mass_spring_damper, quadrotor_roll
+from attend.rhythm import ActiveVisionAgent, OscillatorScheduler, PrecisionDrivenScheduler, PrecisionOscillator, drive
+from attend.systems import LinearSystem, ModelWarning, Trajectory, simulate
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "ActiveVisionAgent",
     "AttendInputError",
     "DEMEstimate",
     "DEMObserver",
@@ -43,19 +46,28 @@ __all__ = [
     "ModelWarning",
     "NonlinearDEM",
     "NonlinearSystem",
+    "OccupancyMap",
     "OnlineDEM",
     "OnlineKalman",
+    "OscillatorScheduler",
+    "PrecisionDrivenScheduler",
+    "PrecisionOscillator",
+    "SearchField",
     "StateEstimate",
     "Trajectory",
     "block_precisions",
     "coloured_noise",
     "convolution_model",
+    "drive",
     "embed",
     "embedding_weights",
     "identification_system",
     "identify",
+    "make_field",
+    "make_planner",
     "mass_spring_damper",
     "quadrotor_roll",
+    "run_search",
     "shift_operator",
     "simulate",
     "simulate_nonlinear",

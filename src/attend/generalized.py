@@ -23,7 +23,8 @@ from attend._validation import AttendInputError, order, positive_scalar
 
 
 def shift_operator(n_orders: int, dimension: int) -> np.ndarray:
-    """D = kron(U, I_dimension), U the (n_orders x n_orders) upper shift: D x~ = [x'; x''; ...; 0]."""
+    """D = kron(U, I_dimension), U the (n_orders x n_orders) upper shift: D x~ = [x'; x''; ...; 0]
+    (dimension: the size of each order, e.g. the number of states)."""
     upper_shift = np.eye(n_orders, k=1)
     return np.kron(upper_shift, np.eye(dimension))
 
@@ -98,7 +99,8 @@ def smoothness_precision(n_orders: int, kernel_width: float) -> np.ndarray:
 def block_precisions(
     embedding_order: int, input_order: int, kernel_width: float, convention: str = "size"
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Temporal precisions (S_p, S_d) for states/outputs (p + 1 orders) and inputs (d + 1 orders).
+    """Temporal precisions (S_p, S_d) for states/outputs (p + 1 orders) and inputs (d + 1 orders),
+    p = embedding_order, d = input_order, for noise of kernel_width s [s].
 
     convention "size": each inverts V at the size used (SPM).
     convention "max": invert V at max(p, d) + 1 orders, then take the top-left blocks (Meera's
@@ -148,7 +150,7 @@ def embed(series, n_orders: int, dt: float, *, edges: str = "clamp", shift: int 
     ``shift`` = -1 centres row t on sample t - 1 (the convention of the authors' quadrotor code).
 
     Edges (windows reaching past the log): "clamp" repeats the end samples (SPM);
-    "order0" keeps the sample value and sets the derivatives to zero (Meera).
+    "order0" keeps the sample value and sets the derivatives to zero (Meera); set by ``edges``.
     """
     y = np.asarray(series, dtype=float)
     if y.ndim == 1:

@@ -98,7 +98,7 @@ from attend.perception.dem import DEMEstimate, DEMObserver
 from attend.perception.nonlinear import NonlinearSystem
 from attend.systems import LinearSystem
 
-KNOWN_INPUT_PRECISION = math.exp(32)
+from attend.constants import KNOWN_INPUT_PRECISION  # noqa: E402 (named once there)
 #: Nonlinear DEM's default prior precision of measured inputs beside unknown ones (exp(32) overflows
 #: the linear algebra of its flow; 1e8 pins them to the measurement to ~1e-8 on the pendulum).
 NONLINEAR_KNOWN_INPUT_PRECISION = 1e8

@@ -44,7 +44,8 @@ def coloured_noise(
 ) -> np.ndarray:
     """(n_samples, n_channels) of white noise convolved with the Gaussian kernel (kernel_width 0: white).
 
-    ``std`` is the standard deviation per sample: a scalar or one value per channel.
+    ``std`` is the standard deviation per sample: a scalar or one value per channel; dt [s] the
+    sample spacing; seed: an int or a numpy Generator (reproducible draws).
     The white noise is drawn with margins of the kernel's half-length on both sides, so every
     returned sample is a full convolution (no edge transients).
     """

@@ -1,11 +1,12 @@
-"""Linear time-invariant systems, their zero-order-hold discretisation, presets and simulation.
+"""Linear time-invariant systems, their zero-order-hold discretisation and simulation.
 
 Continuous-time model (paper eq. 1)::
 
     dx/dt = A x + B u + w        y = C x + z
 
 x in R^n (states), u in R^r (inputs, "causes" v), y in R^m (outputs); w and z are coloured
-noises (see :mod:`attend.noise`). Time is in seconds everywhere.
+noises (see :mod:`attend.noise`). Time is in seconds everywhere. The paper's systems (presets)
+are in :mod:`attend.problems`.
 """
 
 from __future__ import annotations
@@ -156,66 +157,6 @@ def observability_rank(A: np.ndarray, C: np.ndarray) -> int:
     return int(np.linalg.matrix_rank(matrix, tol=1e-9 * np.sqrt(n)))
 
 
-# --- presets -------------------------------------------------------------------------------
-
-def mass_spring_damper(mass: float = 1.4, stiffness: float = 0.8, damping: float = 0.4) -> LinearSystem:
-    """The paper's mass-spring-damper (eq. 2): m [kg], k [N/m], b [N s/m]; states x [m], dx/dt [m/s].
-
-    A = [[0, 1], [-k/m, -b/m]], B = [0; 1/m], C = [1, 0].
-    """
-    m = positive_scalar(mass, "mass", "kg")
-    return LinearSystem(
-        A=[[0.0, 1.0], [-stiffness / m, -damping / m]],
-        B=[[0.0], [1.0 / m]],
-        C=[[1.0, 0.0]],
-        state_names=("position", "velocity"),
-        input_names=("force",),
-        output_names=("position",),
-    )
-
-
-def convolution_model() -> LinearSystem:
-    """The ACC 2020 observer benchmark: 2 states, 1 input, 4 outputs (spec §7)."""
-    return LinearSystem(
-        A=[[-0.25, 1.0], [-0.5, -0.25]],
-        B=[[1.0], [0.0]],
-        C=[[0.125, 0.1633], [0.125, 0.0676], [0.125, -0.0676], [0.125, -0.1633]],
-    )
-
-
-def identification_system() -> LinearSystem:
-    """The Entropy 2021 identification benchmark: 2 states, 1 input, 4 outputs (spec §7)."""
-    return LinearSystem(
-        A=[[0.0484, 0.7535], [-0.7617, -0.2187]],
-        B=[[0.3604], [0.0776]],
-        C=[[0.2265, -0.4786], [0.4066, -0.2641], [0.3871, 0.3817], [-0.1630, -0.9290]],
-    )
-
-
-def quadrotor_roll() -> LinearSystem:
-    """Roll axis of the quadrotor of the real-flight benchmark (Bos et al. 2022).
-
-    States phi [rad], phi_dot [rad/s]; inputs the four motor commands (raw units); output phi.
-    """
-    gain = 0.374838
-    return LinearSystem(
-        A=[[0.0, 1.0], [0.0, 0.0]],
-        B=[[0.0, 0.0, 0.0, 0.0], [gain, -gain, -gain, gain]],
-        C=[[1.0, 0.0]],
-        state_names=("phi", "phi_dot"),
-        input_names=("motor_1", "motor_2", "motor_3", "motor_4"),
-        output_names=("phi",),
-    )
-
-
-PRESETS = {
-    "mass-spring-damper": mass_spring_damper,
-    "convolution": convolution_model,
-    "identification": identification_system,
-    "quadrotor-roll": quadrotor_roll,
-}
-
-
 # --- simulation ----------------------------------------------------------------------------
 
 class Trajectory(NamedTuple):
@@ -251,7 +192,8 @@ def simulate(
     scalars or per channel). ``process_kernel_width`` / ``sensor_kernel_width`` [s] set the widths
     of w and z separately (0: white noise); each defaults to ``kernel_width``.
     ``system`` may also be a python-control StateSpace (converted with
-    :func:`attend.interop.from_statespace`).
+    :func:`attend.interop.from_statespace`). inputs: (N, r) u at every sample; initial_state: x[0]
+    (default 0); seed: an int or a numpy Generator (the noises are reproducible).
     """
     system = as_linear_system(system)
     dt = positive_scalar(dt, "dt", "s")
@@ -276,3 +218,16 @@ def simulate(
         x[k] = Ad @ x[k - 1] + drive[k - 1]
     y = x @ system.C.T + z
     return Trajectory(np.arange(n_samples) * dt, x, u, y, w, z)
+
+
+_MOVED_TO_PROBLEMS = ("mass_spring_damper", "convolution_model", "identification_system", "quadrotor_roll", "PRESETS")
+
+
+def __getattr__(name: str):
+    """The presets moved to :mod:`attend.problems`; ``from attend.systems import mass_spring_damper``
+    keeps working (imported on first use: attend.problems builds on this module)."""
+    if name in _MOVED_TO_PROBLEMS:
+        from attend import problems
+
+        return getattr(problems, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

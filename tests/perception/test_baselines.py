@@ -8,7 +8,8 @@ from pykalman import KalmanFilter
 from attend._validation import AttendInputError
 from attend.noise import autocorrelation, coloured_noise
 from attend.perception import baselines as bl
-from attend.systems import LinearSystem, convolution_model, simulate
+from attend.problems import convolution_model
+from attend.systems import LinearSystem, simulate
 
 DT = 0.1
 SEEDS = 60

@@ -10,7 +10,8 @@ from attend._validation import AttendInputError
 from attend.generalized import embed
 from attend.perception.dem import DEMObserver
 from attend.perception.recurrence import _sequential, linear_recurrence
-from attend.systems import ModelWarning, convolution_model, mass_spring_damper, simulate
+from attend.problems import convolution_model, mass_spring_damper
+from attend.systems import ModelWarning, simulate
 
 
 def _observer(**overrides):
@@ -341,7 +342,7 @@ def test_reported_std_is_calibrated_on_simulated_data(known_inputs):
 
 def test_unobservable_state_gets_nan_std_and_a_warning():
     """The roll model (double integrator) with sensor precision 0: phi drifts; never std 0."""
-    from attend.systems import quadrotor_roll
+    from attend.problems import quadrotor_roll
 
     with pytest.raises(AttendInputError, match="unstable"):  # the flow has modes exactly at 1
         DEMObserver(quadrotor_roll(), 1 / 120, 0.006, [0.0], [5.5e5, 247.0], known_inputs=True, embedding_order=2)

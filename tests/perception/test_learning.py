@@ -8,7 +8,12 @@ import pytest
 
 from attend._validation import AttendInputError
 from attend.perception import learning as L
-from attend.systems import identification_system, mass_spring_damper, simulate
+from attend.perception.learning import free_energy as FE
+from attend.perception.learning import path as PP
+from attend.perception.learning import problem as PR
+from attend.constants import KNOWN_INPUT_PRECISION, KNOWN_PRIOR_PRECISION
+from attend.problems import identification_system, mass_spring_damper
+from attend.systems import simulate
 
 DT = 0.1
 FREE_MSD = np.array([False, False, True, True, False, True, False, False])  # theta3, theta4, theta6
@@ -26,17 +31,17 @@ def _problem(seed=0, p=4, lam=(6.0, 5.0), states="sample"):
     system, log = _msd_log(seed, n=120)
     theta_true = L.parameter_vector(system)
     P_theta = np.where(FREE_MSD, 0.5, 40.0)
-    st, Y, U = L._prepare(log.outputs[None], log.inputs[None], DT, 0.5, p, p, np.isfinite(P_theta), 2, True, "size",
+    st, Y, U = PR._prepare(log.outputs[None], log.inputs[None], DT, 0.5, p, p, np.isfinite(P_theta), 2, True, "size",
                           states)
     rng = np.random.default_rng(seed)
     eta = theta_true + 0.3 * rng.standard_normal(8) * FREE_MSD
     theta = theta_true + 0.2 * rng.standard_normal(8)
     lam = np.array([lam])
-    priors = L._Priors(eta[None], P_theta[None], np.array([[1.0, 2.0]]), np.array([[1.0, 3.0]]),
+    priors = PR._Priors(eta[None], P_theta[None], np.array([[1.0, 2.0]]), np.array([[1.0, 3.0]]),
                        0.5 * st.n_used * st.orders * np.array([st.m, st.n], dtype=float))
-    mu = L._d_step(theta[None], lam, Y, U, st)
-    K_mean = L._mean_moments(mu, Y, U, st)
-    Sigma_X = L._observer(theta[None], lam, st)[1]
+    mu = FE._d_step(theta[None], lam, Y, U, st)
+    K_mean = FE._mean_moments(mu, Y, U, st)
+    Sigma_X = PR._observer(theta[None], lam, st)[1]
     return st, Y, U, priors, mu, K_mean, Sigma_X, theta, lam
 
 
@@ -48,14 +53,14 @@ def _sqrt_psd(M):
 
 def _F_fixed_q(st, priors, mu, K_mean, Sigma_X, theta, lam):
     """Free energy with q(X) = (mu, Sigma_X) held fixed."""
-    return L._evaluate(L._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X).F[0]
+    return FE._evaluate(PR._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X).F[0]
 
 
 @pytest.mark.parametrize("states", ["sample", "path"])
 def test_e_step_gradient_and_hessian_match_finite_differences(states):
     st, Y, U, priors, mu, K_mean, Sigma_X, theta, lam = _problem(states=states)
-    ev = L._evaluate(L._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X)
-    target, J = L._e_step_target(L._State(mu, theta[None], lam), ev.K, priors, st)
+    ev = FE._evaluate(PR._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X)
+    target, J = FE._e_step_target(PR._State(mu, theta[None], lam), ev.K, priors, st)
     # the E-step objective is the quadratic with curvature J and maximiser target (all entries active)
     gradient = J[0] @ (theta - target[0])
     f = lambda th: _F_fixed_q(st, priors, mu, K_mean, Sigma_X, th, lam)
@@ -73,8 +78,8 @@ def test_e_step_gradient_and_hessian_match_finite_differences(states):
 @pytest.mark.parametrize("states", ["sample", "path"])
 def test_m_step_gradient_matches_finite_differences(states):
     st, Y, U, priors, mu, K_mean, Sigma_X, theta, lam = _problem(seed=1, states=states)
-    ev = L._evaluate(L._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X)
-    grad = L._m_gradient(ev, L._State(mu, theta[None], lam), priors, st)[0]
+    ev = FE._evaluate(PR._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X)
+    grad = FE._m_gradient(ev, PR._State(mu, theta[None], lam), priors, st)[0]
     h = 1e-5
     fd = [(_F_fixed_q(st, priors, mu, K_mean, Sigma_X, theta, lam + h * e[None])
            - _F_fixed_q(st, priors, mu, K_mean, Sigma_X, theta, lam - h * e[None])) / (2 * h) for e in np.eye(2)]
@@ -85,7 +90,7 @@ def test_expected_energy_matches_dense_generalised_errors():
     """F's energy term equals sum_t e'Pi e at the means plus n_t tr(Pi_X Sigma_X), built densely."""
     st, Y, U, priors, mu, K_mean, Sigma_X, theta, lam = _problem(seed=2)
     P, n, m = st.orders, st.n, st.m
-    ev = L._evaluate(L._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X)
+    ev = FE._evaluate(PR._State(mu, theta[None], lam), K_mean, priors, st, Sigma_X=Sigma_X)
     A, B, C = theta[:4].reshape(2, 2), theta[4:6].reshape(2, 1), theta[6:].reshape(1, 2)
     Ct, At, Bt = np.kron(np.eye(P), C), np.kron(np.eye(P), A), np.kron(np.eye(P), B)
     Dx = np.kron(np.eye(P, k=1), np.eye(n)) / st.time_scale  # order k held as sigma^k d^k/dt^k
@@ -104,9 +109,9 @@ def test_expected_energy_matches_dense_generalised_errors():
 def test_e_step_with_known_states_and_flat_prior_is_least_squares():
     """Sigma_X = 0, flat prior: theta* is the weighted least-squares fit of the generalised errors."""
     st, Y, U, priors, mu, K_mean, Sigma_X, theta, lam = _problem(seed=3)
-    flat = L._Priors(priors.eta_theta, np.zeros((1, 8)), priors.eta_lambda, priors.P_lambda, priors.fisher)
+    flat = PR._Priors(priors.eta_theta, np.zeros((1, 8)), priors.eta_lambda, priors.P_lambda, priors.fisher)
     K = K_mean  # no state uncertainty
-    target, _ = L._e_step_target(L._State(mu, theta[None], lam), K, flat, st)
+    target, _ = FE._e_step_target(PR._State(mu, theta[None], lam), K, flat, st)
     P, n, m = st.orders, st.n, st.m
     rows, rhs = [], []
     wy = np.linalg.cholesky(np.kron(st.S, np.exp(lam[0, 0]) * np.eye(m))).T
@@ -154,7 +159,7 @@ def test_batch_equals_single_runs():
     system, log0 = _msd_log(seed=5, n=200)
     _, log1 = _msd_log(seed=6, n=200)
     theta = L.parameter_vector(system)
-    P = np.where(FREE_MSD, 1.0, np.exp(15))
+    P = np.where(FREE_MSD, 1.0, KNOWN_PRIOR_PRECISION)
     eta = np.stack([theta + 0.5 * FREE_MSD, theta - 0.4 * FREE_MSD])
     kw = dict(n_states=2, kernel_width=0.5, prior_precision=P[None], max_iterations=8, embedding_order=4)
     batch = L.learn_batch(np.stack([log0.outputs, log1.outputs]), np.stack([log0.inputs, log1.inputs]), DT,
@@ -176,7 +181,7 @@ def test_identification_system_learns_a_and_b():
     start = theta.copy()
     start[free] = np.random.default_rng(1).uniform(-2, 2, 6)
     result = L.identify(L.system_from_parameters(start, system), log.outputs, log.inputs, DT, kernel_width=0.5,
-                        free=free, prior_precision=np.where(free, np.exp(6), np.exp(32)),
+                        free=free, prior_precision=np.where(free, np.exp(6), KNOWN_INPUT_PRECISION),
                         noise_prior_precision=np.exp(3), max_iterations=20)
     assert np.abs(result.parameters[free] - theta[free]).max() < 0.1
     assert abs(result.log_precision[0] - 8.0) < 0.5
@@ -252,11 +257,11 @@ def test_path_posterior_matches_dense_gaussian(p):
     """Path mode: block-tridiagonal solve and selected inverse equal the dense Gaussian q(x)."""
     system, log = _msd_log(seed=3, n=60)
     theta = np.tile(L.parameter_vector(system), (2, 1))
-    st, Y, U = L._prepare(np.stack([log.outputs] * 2), np.stack([log.inputs] * 2), DT, 0.5, p, p,
+    st, Y, U = PR._prepare(np.stack([log.outputs] * 2), np.stack([log.inputs] * 2), DT, 0.5, p, p,
                           np.ones(8, bool), 2, True, "size", "path")
     lam = np.array([[0.0, 0.0], [1.0, -1.0]])
-    post = L._path_posterior(theta, lam, Y, U, st)
-    Pi_X, _, CtVy, MtWB = L._observer(theta, lam, st, want_inverse=False)
+    post = PP._path_posterior(theta, lam, Y, U, st)
+    Pi_X, _, CtVy, MtWB = PR._observer(theta, lam, st, want_inverse=False)
     P, n, T = p + 1, 2, Y.shape[1]
     G = np.kron(st.E, np.eye(n))  # embedding weights in the scaled coordinates
     used = np.flatnonzero(st.used)
@@ -288,7 +293,8 @@ def test_path_mode_free_energy_rises_and_recovers_the_damping():
     """Path mode on the mass-spring-damper (8 seeds, random starts in [-2, 2]): F never decreases,
     lambda_z is learned, and the median relative error of theta3, theta4, theta6 is <= 6 %, the
     damping theta4 at most half of sample mode's (measured: 5 % vs 12.5 %)."""
-    from attend.experiments.fig4 import msd_logs, random_priors
+    from attend.problems import msd_logs
+    from attend.problems import msd_random_priors as random_priors
 
     theta = L.parameter_vector(mass_spring_damper())
     seeds = np.arange(8)
@@ -318,12 +324,12 @@ def test_path_posterior_marks_only_the_failing_run():
     """A run whose Pi_path is not positive definite gets F = -inf; the other runs are unaffected."""
     system, log = _msd_log(seed=3, n=60)
     theta = np.tile(L.parameter_vector(system), (2, 1))
-    st, Y, U = L._prepare(np.stack([log.outputs] * 2), np.stack([log.inputs] * 2), DT, 0.5, 2, 2,
+    st, Y, U = PR._prepare(np.stack([log.outputs] * 2), np.stack([log.inputs] * 2), DT, 0.5, 2, 2,
                           np.ones(8, bool), 2, True, "size", "path")
     lam = np.array([[0.0, 0.0], [0.0, 0.0]])
-    alone = L._path_posterior(theta[:1], lam[:1], Y[:1], U[:1], st)
+    alone = PP._path_posterior(theta[:1], lam[:1], Y[:1], U[:1], st)
     theta[1, 6:] = np.nan  # C of run 1 unusable: its precision is not finite
-    both = L._path_posterior(theta, lam, Y, U, st)
+    both = PP._path_posterior(theta, lam, Y, U, st)
     assert both.entropy[1] == -np.inf and np.all(np.isnan(both.mean[1]))
     np.testing.assert_allclose(both.entropy[0], alone.entropy[0])
     np.testing.assert_allclose(both.mean[0], alone.mean[0])
@@ -332,11 +338,11 @@ def test_path_posterior_marks_only_the_failing_run():
 def test_path_posterior_isolates_a_run_that_is_not_positive_definite(monkeypatch):
     system, log = _msd_log(seed=3, n=60)
     theta = np.tile(L.parameter_vector(system), (2, 1))
-    st, Y, U = L._prepare(np.stack([log.outputs] * 2), np.stack([log.inputs] * 2), DT, 0.5, 2, 2,
+    st, Y, U = PR._prepare(np.stack([log.outputs] * 2), np.stack([log.inputs] * 2), DT, 0.5, 2, 2,
                           np.ones(8, bool), 2, True, "size", "path")
     lam = np.zeros((2, 2))
-    alone = L._path_posterior(theta[:1], lam[:1], Y[:1], U[:1], st)
-    observer = L._observer
+    alone = PP._path_posterior(theta[:1], lam[:1], Y[:1], U[:1], st)
+    observer = PR._observer
 
     def flipped(*args, **kwargs):
         Pi_X, Sigma, CtVy, MtWB = observer(*args, **kwargs)
@@ -344,8 +350,8 @@ def test_path_posterior_isolates_a_run_that_is_not_positive_definite(monkeypatch
         Pi_X[1] *= -1.0  # finite but negative definite: the batched Cholesky raises
         return Pi_X, Sigma, CtVy, MtWB
 
-    monkeypatch.setattr(L, "_observer", flipped)
-    both = L._path_posterior(theta, lam, Y, U, st)
+    monkeypatch.setattr(PP, "_observer", flipped)
+    both = PP._path_posterior(theta, lam, Y, U, st)
     assert both.entropy[1] == -np.inf
     np.testing.assert_allclose(both.entropy[0], alone.entropy[0])
     np.testing.assert_allclose(both.mean[0], alone.mean[0])
@@ -355,7 +361,7 @@ def test_path_mode_warns_above_order_six():
     system, log = _msd_log(seed=0, n=100)
     with pytest.warns(L.LearningWarning, match="ill-conditioned"):
         L.learn_batch(log.outputs[None], log.inputs[None], DT, n_states=2, kernel_width=0.5,
-                      prior_mean=L.parameter_vector(system)[None], prior_precision=np.where(FREE_MSD, 1.0, np.exp(15))[None],
+                      prior_mean=L.parameter_vector(system)[None], prior_precision=np.where(FREE_MSD, 1.0, KNOWN_PRIOR_PRECISION)[None],
                       embedding_order=8, max_iterations=1, states="path")
 
 
@@ -397,7 +403,7 @@ def test_readme_learning_section_converges_on_real_flights(flight):
 def test_top_order_option_is_validated_and_reported():
     system, log = _msd_log(seed=0, n=120)
     kw = dict(n_states=2, kernel_width=0.5, prior_mean=L.parameter_vector(system)[None],
-              prior_precision=np.where(FREE_MSD, 1.0, np.exp(15))[None], max_iterations=3)
+              prior_precision=np.where(FREE_MSD, 1.0, KNOWN_PRIOR_PRECISION)[None], max_iterations=3)
     with pytest.raises(AttendInputError, match="top_order"):
         L.learn_batch(log.outputs[None], log.inputs[None], DT, top_order="zero", **kw)
     truncate = L.learn_batch(log.outputs[None], log.inputs[None], DT, top_order="truncate", **kw)

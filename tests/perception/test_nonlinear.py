@@ -19,7 +19,8 @@ from attend.perception.nonlinear_baselines import (
     unscented_kalman,
     white_noise_covariances,
 )
-from attend.systems import convolution_model, mass_spring_damper, simulate
+from attend.problems import convolution_model, mass_spring_damper
+from attend.systems import simulate
 
 
 def lorenz(x, v):

@@ -140,17 +140,14 @@ def compare(name: str, cfg: dict, progress: bool) -> ExperimentResult:
 
 def plot(result: ExperimentResult, out_dir, state_labels, input_label=None) -> list[str]:
     """NAME.png: seed-0 states (truth, DEM, UKF, particle), input if estimated, SSE per method."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from attend.plotting import figure
 
     data = result.data
     example = data["example"]
     n = example["states"].shape[1]
     unknown = input_label is not None
     panels = n + (1 if unknown else 0) + 1
-    fig, axes = plt.subplots(1, panels, figsize=(4.2 * panels, 3.6))
+    fig, axes = figure((4.2 * panels, 3.6), 1, panels)
     time = example["time"]
     for i in range(n):
         ax = axes[i]
@@ -189,5 +186,4 @@ def plot(result: ExperimentResult, out_dir, state_labels, input_label=None) -> l
     path = Path(out_dir) / f"{result.experiment}.png"
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return [path.name]

@@ -30,7 +30,8 @@ from attend.perception.baselines import (
     simulation_covariances,
 )
 from attend.perception.dem import DEMObserver
-from attend.systems import mass_spring_damper, simulate
+from attend.problems import mass_spring_damper
+from attend.systems import simulate
 
 SETTINGS = dict(
     dt=0.1, duration=32.0, kernel_width=0.5, noise_log_precision=8.0, input_prior_mean=0.0,
@@ -101,14 +102,11 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, seeds: int | No
 
 def plot(result: ExperimentResult, out_dir) -> list[str]:
     """fig2.png: (a) diag of S per order, (b) input estimates p = 0 and 6, (c) SSE vs p."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from attend.plotting import figure
 
     cfg, data = result.settings, result.data
     orders = np.array(cfg["orders"])
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4))
+    fig, axes = figure((15, 4), 1, 3)
     diag = np.diag(smoothness_precision(len(orders), cfg["kernel_width"]))
     axes[0].semilogy(orders, diag, "o-")
     axes[0].set_xlabel("order of motion k")
@@ -137,5 +135,4 @@ def plot(result: ExperimentResult, out_dir) -> list[str]:
     path = Path(out_dir) / "fig2.png"
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return [path.name]

@@ -24,12 +24,12 @@ from pathlib import Path
 import numpy as np
 
 from attend.experiments._result import ExperimentResult
-from attend.experiments.fig4 import FREE, KNOWN_PRECISION, PUBLISHED_THETA, msd_logs, random_priors
+from attend.constants import KNOWN_PRIOR_PRECISION
 from attend.perception.learning import PAPER_LEARNER, learn_batch, parameter_vector
-from attend.systems import mass_spring_damper
+from attend.problems import MSD_FREE, MSD_PUBLISHED_THETA, mass_spring_damper, msd_logs, msd_random_priors
 
 SETTINGS = dict(dt=0.1, duration=32.0, kernel_width=0.5, noise_log_precision=8.0, embedding_order=6,
-                free_prior_precision=1.0, known_prior_precision=KNOWN_PRECISION,
+                free_prior_precision=1.0, known_prior_precision=KNOWN_PRIOR_PRECISION,
                 noise_prior_mean=[0.0, 0.0], noise_prior_precision=1.0)
 
 
@@ -40,8 +40,8 @@ def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentRe
     theta_true = parameter_vector(mass_spring_damper())
     std = np.exp(-cfg["noise_log_precision"] / 2)
     Y, U = msd_logs(seeds, std, std, cfg["dt"], cfg["duration"], cfg["kernel_width"])
-    eta = random_priors(seeds)
-    P = np.where(FREE, cfg["free_prior_precision"], KNOWN_PRECISION)[None].repeat(len(seeds), 0)
+    eta = msd_random_priors(seeds)
+    P = np.where(MSD_FREE, cfg["free_prior_precision"], KNOWN_PRIOR_PRECISION)[None].repeat(len(seeds), 0)
     result = learn_batch(Y, U, cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"], prior_mean=eta,
                          prior_precision=P, noise_prior_mean=cfg["noise_prior_mean"],
                          noise_prior_precision=cfg["noise_prior_precision"],
@@ -51,7 +51,7 @@ def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentRe
     positions = {"theta3": 2, "theta4": 3, "theta6": 5}
     for name, j in positions.items():
         out.add(f"{name}_seed0", result.parameters[0, j], "1/s^2" if name == "theta3" else
-                ("1/s" if name == "theta4" else "1/kg"), PUBLISHED_THETA[name])
+                ("1/s" if name == "theta4" else "1/kg"), MSD_PUBLISHED_THETA[name])
     for name, j in positions.items():
         rel = np.abs(result.parameters[:, j] - theta_true[j]) / abs(theta_true[j])
         out.add(f"{name}_median_relative_error", np.median(rel), "", None)
@@ -70,7 +70,7 @@ def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentRe
     out.add("lambda_w_seed0", result.log_precision[0, 1], "log(s^2/m^2)", None)
     out.add("posterior_precision_theta3_seed0", result.parameter_precision[0, 2, 2], "", None)
     out.add("posterior_precision_known_entry_A11_seed0", result.parameter_precision[0, 0, 0], "",
-            float(np.exp(15.0)))
+            KNOWN_PRIOR_PRECISION)
     out.add("free_energy_rise_seed0", result.free_energy[0, -1] - result.free_energy[0, 0], "nats", None)
     out.add("iterations_seed0", result.iterations[0], "", None)
     out.data.update(parameter_history=result.parameter_history[0], free_energy=result.free_energy[0],
@@ -92,8 +92,8 @@ def _plot(result, path, theta_true, cfg, out_dir: Path) -> Path:
     labels = ["theta1", "theta2", "theta3 = -k/m", "theta4 = -b/m", "theta5", "theta6 = 1/m", "theta7", "theta8"]
     prec = result.precision_history[0]
     for j in range(8):
-        style = "-" if FREE[j] else "--"
-        ax[0, 0].semilogy(it, prec[:, j], style, label=labels[j], lw=2 if FREE[j] else 1)
+        style = "-" if MSD_FREE[j] else "--"
+        ax[0, 0].semilogy(it, prec[:, j], style, label=labels[j], lw=2 if MSD_FREE[j] else 1)
     ax[0, 0].set_title("a) posterior parameter precision Pi_theta (diagonal)")
     ax[0, 0].set_xlabel("iteration")
     ax[0, 0].legend(fontsize=6, ncol=2)
@@ -111,7 +111,7 @@ def _plot(result, path, theta_true, cfg, out_dir: Path) -> Path:
     ax[0, 1].set_title("b) free energy F")
     ax[0, 1].set_xlabel("iteration")
     history = result.parameter_history[0]
-    for j in np.flatnonzero(FREE):
+    for j in np.flatnonzero(MSD_FREE):
         line, = ax[1, 1].plot(it, history[:, j], label=labels[j])
         ax[1, 1].plot(it_path, path.parameter_history[0, :, j], "--", color=line.get_color())
         ax[1, 1].axhline(theta_true[j], color=line.get_color(), ls=":")

@@ -14,7 +14,7 @@ Choice (the seed does not state it): the prior means are informed but imperfect,
 rather than a random guess. Other settings as in Fig. 4 (dt = 0.1 s, 32 s, s = 0.5 s, p = 6,
 30 iterations, noise precisions learned from lambda = 0 with P_lambda = 1).
 Quick: 8 seeds x 9 noise levels x 2 learners (144 runs, batched); full: 40 x 16 x 2; the runs
-are cut into sweep tasks (fig4.learn_msd_runs) that run here or on a Dask cluster
+are cut into sweep tasks (attend.experiments._msd_sweep.learn_msd_runs) that run here or on a Dask cluster
 (``run(cluster="tcp://host:8786")``, see attend.sweep) with the same numbers.
 """
 
@@ -24,11 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
+from attend.experiments._msd_sweep import RUNS_PER_TASK, gather_runs, learn_msd_runs, msd_tasks
 from attend.experiments._result import ExperimentResult
-from attend.experiments.fig4 import FREE, RUNS_PER_TASK, gather_runs, learn_msd_runs, msd_tasks
 from attend.perception.learning import parameter_vector
+from attend.problems import MSD_FREE, mass_spring_damper
 from attend.sweep import run_tasks
-from attend.systems import mass_spring_damper
 
 SETTINGS = dict(dt=0.1, duration=32.0, kernel_width=0.5, process_log_precision=8.0, embedding_order=6,
                 sensor_log_precision_range=[8.0, -2.0], over_exposed_prior_precision=1e-2,
@@ -60,14 +60,14 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, *, cluster=None
     sensor_std = np.concatenate([sensor_std, sensor_std])
     eta = np.tile(theta_true, (len(seeds), 1))
     for k in seeds:
-        noise = np.random.default_rng(2000 + int(k)).standard_normal(FREE.sum())
-        eta[k, FREE] = theta_true[FREE] * (1 + cfg["prior_relative_spread"] * noise)
+        noise = np.random.default_rng(2000 + int(k)).standard_normal(MSD_FREE.sum())
+        eta[k, MSD_FREE] = theta_true[MSD_FREE] * (1 + cfg["prior_relative_spread"] * noise)
     P_free = np.where(learner == 0, cfg["over_exposed_prior_precision"], cfg["biased_prior_precision"])
     process_std = np.exp(-cfg["process_log_precision"] / 2)
     tasks = msd_tasks(dict(cfg, process_std=process_std), sd, sensor_std, eta[sd], P_free, runs_per_task)
     runs = gather_runs(run_tasks(learn_msd_runs, tasks, cluster=cluster, progress=progress,
                                  desc=f"fig5 ({len(sd)} runs, {len(tasks)} tasks)"))
-    sse = np.sum((runs["parameters"][:, FREE] - theta_true[FREE]) ** 2, axis=1).reshape(2, n_levels, n_seeds)
+    sse = np.sum((runs["parameters"][:, MSD_FREE] - theta_true[MSD_FREE]) ** 2, axis=1).reshape(2, n_levels, n_seeds)
     median = np.median(sse, axis=2)
     lam_z = runs["log_precision"][:, 0].reshape(2, n_levels, n_seeds)
 

@@ -61,13 +61,15 @@ from typing import NamedTuple
 import numpy as np
 
 from attend._validation import AttendInputError
+from attend.constants import KNOWN_INPUT_PRECISION
 from attend.experiments._result import ExperimentResult
 from attend.generalized import embedding_weights
 from attend.io import Log, read_log
 from attend.perception.baselines import kalman_filter
 from attend.perception.dem import DEMObserver
 from attend.perception.recurrence import linear_recurrence
-from attend.systems import LinearSystem, ModelWarning, quadrotor_roll
+from attend.problems import quadrotor_roll
+from attend.systems import LinearSystem, ModelWarning
 
 __all__ = [
     "PUBLISHED",
@@ -104,8 +106,6 @@ SENSOR_VARIANCE = 8.1214e-9
 KERNEL_WIDTH = 0.006
 EMBEDDING_ORDER = 6
 INPUT_ORDER = 2
-#: Prior precision of the known (measured) inputs, kept as unknowns of the DEM flow.
-KNOWN_INPUT_PRECISION = math.exp(32.0)
 #: With wind, slices whose SSE reaches this are left out of a method's mean.
 DIVERGENCE_THRESHOLD = 100.0
 #: Input-estimation run: 1-based samples 400..1600 inclusive.
@@ -592,72 +592,8 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, data_dir=None) 
 
 def plot(result: ExperimentResult, out_dir) -> list[str]:
     """Figures (PNG in out_dir): per-slice SSE bars (DEM vs KF), SSE vs p, an example slice,
-    and the motor-1 estimates. Returns the file names."""
-    from attend import plotting  # noqa: F401  (selects the Agg backend)
-    import matplotlib.pyplot as plt
+    and the motor-1 estimates (:mod:`attend.experiments._quadrotor_plots`). Returns the file names."""
+    from attend.experiments._quadrotor_plots import figures
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    data = result.data
-    files = []
-
-    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
-    for axis, condition, title in zip(axes, ("wind", "no_wind"), ("with wind", "without wind")):
-        index = np.arange(len(data[condition]["DEM"]))
-        axis.bar(index - 0.2, data[condition]["DEM"], 0.4, label="DEM")
-        axis.bar(index + 0.2, data[condition]["KF"], 0.4, label="KF")
-        axis.set_ylabel(f"SSE phi_dot [{PHI_DOT_SSE_UNIT}]")
-        axis.set_title(title)
-    axes[0].legend()
-    axes[-1].set_xticks(np.arange(20))
-    axes[-1].set_xticklabels([f"{f[4:6]}/{s}" for f in WIND_FLIGHTS for s in range(5)], rotation=90, fontsize=7)
-    axes[-1].set_xlabel("flight / slice")
-    fig.tight_layout()
-    files.append(_save(fig, out / "quadrotor_sse_per_slice.png"))
-
-    fig, axis = plt.subplots(figsize=(6, 4))
-    orders = np.arange(EMBEDDING_ORDER + 1)
-    reproduced = [result.metric(f"dem_sse_wind_p{p}").value for p in orders]
-    axis.semilogy(orders, reproduced, "o-", label="reproduced, wind")
-    axis.semilogy(orders, PUBLISHED["dem_vs_p_wind"], "kx", ms=10, label="published, wind")
-    axis.semilogy(orders, [result.metric(f"dem_sse_no_wind_p{p}").value for p in orders], "s--",
-                  label="reproduced, no wind (not published)")
-    axis.set_xlabel("embedding order p")
-    axis.set_ylabel(f"mean SSE phi_dot [{PHI_DOT_SSE_UNIT}]")
-    axis.legend()
-    fig.tight_layout()
-    files.append(_save(fig, out / "quadrotor_sse_vs_p.png"))
-
-    example = data["wind"]["example"]
-    fig, axis = plt.subplots(figsize=(9, 4))
-    axis.plot(example["time"], example["measured"], "k", lw=1.5, label="measured")
-    axis.plot(example["time"], example["dem"], lw=1.0, label="DEM (published protocol)")
-    axis.plot(example["time"], example["kf"], lw=1.0, label="KF (authors')")
-    axis.plot(example["time"], example["dem_attend_default"], ":", lw=1.0, label="DEM (attend default)")
-    axis.set_xlabel("time in slice [s]")
-    axis.set_ylabel("phi_dot [rad/s]")
-    axis.set_title(f"{example['flight']}, slice {example['slice']} (with wind)")
-    axis.legend(fontsize=8)
-    fig.tight_layout()
-    files.append(_save(fig, out / "quadrotor_example_slice.png"))
-
-    traces = data["inputs"]["traces"]
-    fig, axes = plt.subplots(len(traces), 1, figsize=(9, 2.2 * len(traces)), sharex=True)
-    for axis, trace, value in zip(axes, traces, data["inputs"]["sse"]):
-        axis.plot(trace["time"], trace["measured"], "k", lw=1.0, label="measured (scaled)")
-        axis.plot(trace["time"], trace["dem"], lw=1.0, label="DEM estimate")
-        axis.set_ylabel("motor 1")
-        axis.set_title(f"{trace['flight']}: SSE {value:.2f}", fontsize=9)
-    axes[0].legend(fontsize=8)
-    axes[-1].set_xlabel("time from sample 400 [s]")
-    fig.tight_layout()
-    files.append(_save(fig, out / "quadrotor_motor1_estimate.png"))
-    return files
-
-
-def _save(fig, path: Path) -> str:
-    import matplotlib.pyplot as plt
-
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path.name
+    return figures(result, out_dir, published_vs_p=PUBLISHED["dem_vs_p_wind"], wind_flights=WIND_FLIGHTS,
+                   sse_unit=PHI_DOT_SSE_UNIT)

@@ -540,6 +540,7 @@ class DEMObserver:
         input prior eta (unknown inputs; default 0). The log is processed in segments of
         ``segment`` samples so memory stays O(segment) beyond the (N, n + r) results.
         Row k is the estimate at sample k (it uses samples up to k + delay).
+        keep_generalized: also return every generalised state X_t (memory O(N dim X)).
         initial_state: the full generalised start X0 (dim X,); default: order 0 from the first
         sample, higher orders at their prior mean (see :meth:`_start_state`; the constructor's
         ``initial_state`` sets its order-0 states).
@@ -804,8 +805,8 @@ class OnlineDEM:
         return states, inputs
 
     def step(self, output, input_value=None):
-        """Feed sample k (outputs (m,), input or input prior (r,)); return (states, inputs) of
-        sample k - delay, or None while the first window fills."""
+        """Feed sample k (output: the outputs (m,); input_value: the input or input prior (r,),
+        default 0); return (states, inputs) of sample k - delay, or None while the first window fills."""
         output = np.ravel(numeric_array(output, "step: output"))
         input_value = np.zeros(self._r) if input_value is None else np.ravel(numeric_array(input_value, "step: input_value"))
         sample = np.concatenate([output, input_value])

@@ -331,7 +331,8 @@ class KalmanEstimator:
         return self._run(outputs, inputs, smooth=True)
 
     def filter(self, outputs, inputs=None) -> StateEstimate:
-        """Causal estimates E[x[k] | y[0..k]] and their standard deviations (the Kalman filter)."""
+        """Causal estimates E[x[k] | y[0..k]] and their standard deviations (the Kalman filter);
+        outputs and inputs as :meth:`estimate`."""
         return self._run(outputs, inputs, smooth=False)
 
     def _run(self, outputs, inputs, smooth: bool) -> StateEstimate:
@@ -665,8 +666,8 @@ def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int) -> np
 class OnlineKalman:
     """The Kalman filter fed one sample at a time: ``step(y, u)`` returns (states, inputs,
     state_std, input_std) of the same sample (no delay), equal to :meth:`KalmanEstimator.filter`
-    sample by sample. Memory does not grow with the stream; once the gain is steady each step is
-    two small matrix-vector products."""
+    sample by sample (estimator: the KalmanEstimator whose model it runs). Memory does not grow
+    with the stream; once the gain is steady each step is two small matrix-vector products."""
 
     def __init__(self, estimator: KalmanEstimator):
         self.estimator = estimator
@@ -678,7 +679,8 @@ class OnlineKalman:
         self._steady = False
 
     def step(self, output, input_value=None):
-        """Feed sample k (outputs (m,), measured input or input prior (r,)); return its estimate."""
+        """Feed sample k (output: the outputs (m,); input_value: the measured input or input prior
+        (r,), default 0); return its estimate."""
         est, model = self.estimator, self._model
         m, r, n = est.system.n_outputs, est.system.n_inputs, est.system.n_states
         try:

@@ -1,0 +1,263 @@
+"""The exact Gaussian posterior under simulate()'s generative model (coloured w and z, optional
+Gaussian-process prior on the inputs): the minimum-mean-square-error limit no estimator can beat."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from scipy.linalg import solve_triangular
+
+from attend._validation import AttendInputError, positive_scalar, require_finite
+from attend.noise import autocorrelation, gaussian_kernel
+from attend.perception.baselines.filters import _inputs, _outputs, _std_vector, _system
+
+
+class ExactPosterior(NamedTuple):
+    """Exact Gaussian posterior given all outputs.
+
+    time (N,) [s]; states (N, n), inputs (N, r) posterior means (inputs are the given ones when
+    known); state_std, input_std their marginal standard deviations; covariance: the joint
+    posterior covariance of the stacked vector [x[0]; ...; x[N-1]; u[0]; ...; u[N-1]] (time-major
+    within each block; inputs only when unknown) when requested, else None; log_likelihood:
+    log p(y[0..N-1]) under the model; causal_states, causal_inputs: E[. at k | y[0..k]] (the best
+    causal estimates) when requested with causal=True, else None.
+    """
+
+    time: np.ndarray
+    states: np.ndarray
+    inputs: np.ndarray
+    state_std: np.ndarray
+    input_std: np.ndarray
+    covariance: np.ndarray | None
+    log_likelihood: float
+    causal_states: np.ndarray | None = None
+    causal_inputs: np.ndarray | None = None
+
+def coloured_noise_correlation(n_samples: int, dt: float, kernel_width: float) -> np.ndarray:
+    """(N, N) correlation matrix of n_samples = N samples of attend.noise.coloured_noise.
+
+    The noise is white noise convolved with the unit-energy kernel h = gaussian_kernel(dt, s), so
+    Corr(e[i], e[j]) = sum_l h[l] h[l + |i - j|] (the kernel's discrete self-correlation,
+    ~ rho(|i - j| dt) = exp(-((i-j) dt)^2 / (4 s^2)), zero beyond the kernel's length).
+    kernel_width 0 is white noise (the identity).
+    """
+    if kernel_width == 0:
+        return np.eye(n_samples)
+    h = gaussian_kernel(dt, kernel_width)
+    self_correlation = np.correlate(h, h, mode="full")[len(h) - 1:]  # lags 0, 1, ...
+    lags = np.abs(np.arange(n_samples)[:, None] - np.arange(n_samples)[None, :])
+    values = np.zeros(n_samples)
+    count = min(n_samples, len(self_correlation))
+    values[:count] = self_correlation[:count]
+    return values[lags]
+
+
+def _transfer_matrix(Ad: np.ndarray, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
+    """L (N n, N n) with block (k, j) = Ad^(k-1-j) for j < k (else 0), and Phi (N n, n) with
+    block k = Ad^k: stacked x = Phi x[0] + L [drive[0]; drive[1]; ...]."""
+    n = Ad.shape[0]
+    powers = np.empty((n_samples, n, n))
+    powers[0] = np.eye(n)
+    for k in range(1, n_samples):
+        powers[k] = Ad @ powers[k - 1]
+    k = np.arange(n_samples)[:, None]
+    j = np.arange(n_samples)[None, :]
+    index = np.clip(k - 1 - j, 0, None)
+    blocks = powers[index] * (k > j)[:, :, None, None]  # (N, N, n, n)
+    L = blocks.transpose(0, 2, 1, 3).reshape(n_samples * n, n_samples * n)
+    return L, powers.reshape(n_samples * n, n)
+
+
+def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, process_std, measurement_std,
+                    input_prior_mean=None, input_prior_std=None, initial_mean=None, initial_std=0.0,
+                    jitter: float = 1e-12, return_covariance: bool = False,
+                    process_kernel_width=None, sensor_kernel_width=None, input_kernel_width=None,
+                    causal: bool = False) -> ExactPosterior:
+    """Exact posterior of the states (and inputs) under simulate()'s generative model.
+
+        x[k] = Ad x[k-1] + Bd u[k-1] + dt w[k-1],   y[k] = C x[k] + z[k],   x[0] ~ N(m0, diag(s0^2))
+        Cov(w_c[i], w_c[j]) = process_std_c^2 K_ij,  Cov(z_c[i], z_c[j]) = measurement_std_c^2 K_ij
+        K = coloured_noise_correlation(N, dt, kernel_width)  (the simulator's exact covariance)
+        unknown inputs: u_c ~ GP(input_prior_mean, input_prior_std_c^2 rho(|t - t'|)),
+                        rho(tau) = exp(-tau^2 / (4 s^2))  (the smoothness DEM assumes)
+    process_kernel_width / sensor_kernel_width override kernel_width for w / z (0 = white noise);
+    input_kernel_width (default: the process width) is the s of the inputs' prior.
+
+    With stacked x = Phi x[0] + L (Bd u + dt w) (time-major), y = (I_N kron C) x + z is Gaussian;
+    conditioning gives mean = m_x + S_xy inv(S_yy) (y - m_y), cov = S_xx - S_xy inv(S_yy) S_yx,
+    with a Cholesky factor of S_yy + jitter * mean(diag S_yy) I (coloured noise makes S_yy
+    numerically singular at high frequencies; the jitter adds white noise of that tiny variance).
+    When m > n the outputs are first reduced, exactly, to the n whitened channels that span
+    range(C) (the others are pure noise independent of x and u).
+
+    system; dt [s]; outputs (N, m); inputs (N, r) known inputs, or None with input_prior_mean
+    (scalar, (r,) or (N, r)) and input_prior_std (scalar or (r,)) [input unit]; kernel_width s [s];
+    process_std, measurement_std: per-sample standard deviations as passed to simulate();
+    initial_mean m0 (default 0) and initial_std s0 (default 0: x[0] known, as simulate() starts).
+    return_covariance=True also returns the joint posterior covariance (``covariance``).
+    causal=True also returns ``causal_states`` / ``causal_inputs``: E[x[k] | y[0..k]] for every k,
+    the best causal estimate under the model, read from the same Cholesky factor (the innovations
+    of y in time order).
+    Cost O((N min(m, n))^3) time, O((N (n + m + r))^2) memory: for logs up to a few thousand samples.
+    """
+    system = _system(system)
+    dt = positive_scalar(dt, "dt", "s")
+    s_w, s_z, s_u = _noise_widths(kernel_width, process_kernel_width, sensor_kernel_width, input_kernel_width)
+    y = _outputs(system, outputs)
+    N = y.shape[0]
+    n, r, m = system.n_states, system.n_inputs, system.n_outputs
+    sw = _std_vector(process_std, n, "process_std")
+    sz = _std_vector(measurement_std, m, "measurement_std")
+    m0 = np.zeros(n) if initial_mean is None else np.asarray(initial_mean, dtype=float).reshape(-1)
+    if m0.shape != (n,):
+        raise AttendInputError(f"initial_mean: expected {n} numbers, got shape {np.shape(initial_mean)}")
+    require_finite(m0, "initial_mean")
+    s0 = _std_vector(initial_std, n, "initial_std")
+    if not (np.isfinite(jitter) and jitter >= 0):
+        raise AttendInputError(f"jitter: expected a finite number >= 0, got {jitter!r}")
+    known = inputs is not None
+    u_mean, su = _input_prior(system, inputs, input_prior_mean, input_prior_std, N)
+    x_mean, x_cov, LB, input_cov, K = _state_prior(system, dt, N, m0, s0, sw, u_mean, su, s_w, s_u, known)
+    K_z = K if s_z == s_w else coloured_noise_correlation(N, dt, s_z)
+    chol, white, xy_cov, Cbig, q, log_likelihood = _condition_on_outputs(system, y, sz, x_mean, x_cov, K_z, jitter)
+    # latent z = [x; u] (u only when unknown)
+    if known:
+        z_mean, zy_cov, z_var = x_mean, xy_cov, np.diag(x_cov)
+    else:
+        uy_cov = input_cov @ LB.T @ Cbig.T  # Cov(u, y_q)
+        z_mean = np.concatenate([x_mean, u_mean.reshape(-1)])
+        zy_cov = np.vstack([xy_cov, uy_cov])
+        z_var = np.concatenate([np.diag(x_cov), np.diag(input_cov)])
+    G = solve_triangular(chol, zy_cov.T, lower=True)  # inv(chol) S_yz
+    post_mean = z_mean + G.T @ white
+    post_var = np.clip(z_var - np.sum(G**2, axis=0), 0, None)
+    covariance = _posterior_covariance(x_cov, LB, input_cov, G) if return_covariance else None
+    causal_states = causal_inputs = None
+    if causal:
+        causal_states, causal_inputs = _causal_means(G, white, z_mean, u_mean, q, n, known)
+    states = post_mean[: N * n].reshape(N, n)
+    state_std = np.sqrt(post_var[: N * n]).reshape(N, n)
+    if known:
+        est_inputs, input_std = u_mean, np.zeros((N, r))
+    else:
+        est_inputs = post_mean[N * n:].reshape(N, r)
+        input_std = np.sqrt(post_var[N * n:]).reshape(N, r)
+    return ExactPosterior(np.arange(N) * dt, states, est_inputs, state_std, input_std, covariance,
+                          float(log_likelihood), causal_states, causal_inputs)
+
+
+def _input_prior(system, inputs, input_prior_mean, input_prior_std, N):
+    """Mean (N, r) and std (r,) of the inputs: the given inputs (std 0) or their prior."""
+    r = system.n_inputs
+    if inputs is not None:
+        return _inputs(system, inputs, N), np.zeros(r)
+    if input_prior_mean is None or input_prior_std is None:
+        raise AttendInputError(
+            "input_prior_mean, input_prior_std: required when the inputs are unknown (inputs=None)"
+        )
+    return _inputs(system, input_prior_mean, N, "input_prior_mean"), _std_vector(input_prior_std, r, "input_prior_std")
+
+
+def _state_prior(system, dt, N, m0, s0, sw, u_mean, su, s_w, s_u, known):
+    """Prior mean and covariance of the stacked states x = Phi x[0] + L (Bd u + dt w), and with
+    unknown inputs L Bbig (x = ... + L Bbig u) and the inputs' prior covariance; K the process
+    noise's correlation."""
+    Ad, Bd = system.discretize(dt)
+    L, Phi = _transfer_matrix(Ad, N)
+    K = coloured_noise_correlation(N, dt, s_w)
+    # prior of the stacked drive d[k] = Bd u[k] + dt w[k] and of the states
+    drive_mean = (u_mean @ Bd.T).reshape(-1)
+    drive_cov = np.kron(K, np.diag((dt * sw) ** 2))
+    if not known:
+        if s_u <= 0:
+            raise AttendInputError("input_kernel_width: expected a width > 0 [s] for the inputs' prior")
+        Ku = autocorrelation(dt * (np.arange(N)[:, None] - np.arange(N)[None, :]), s_u)
+        input_cov = np.kron(Ku, np.diag(su**2))  # (N r, N r)
+        Bbig = np.kron(np.eye(N), Bd)  # d = Bbig u + dt w
+        drive_cov = drive_cov + Bbig @ input_cov @ Bbig.T
+    x_mean = Phi @ m0 + L @ drive_mean
+    x_cov = L @ drive_cov @ L.T + Phi @ np.diag(s0**2) @ Phi.T
+    LB = None if known else L @ Bbig
+    return x_mean, x_cov, LB, (None if known else input_cov), K
+
+
+def _condition_on_outputs(system, y, sz, x_mean, x_cov, K_z, jitter):
+    """Cholesky factor of Cov(y_q), whitened residual, Cov(x, y_q), the stacked output map, the
+    number q of channels kept and log p(y)."""
+    N, m = y.shape
+    n = system.n_states
+    # Exact reduction to a sufficient statistic: the measurement noise has covariance
+    # K kron diag(sz^2), so with the whitened channels diag(1/sz) y and the QR factor
+    # diag(1/sz) C = Qc Rc, the rotated channels Qc' diag(1/sz) y beyond the first q = n are
+    # noise with covariance K kron I, independent of x, u and of the first q channels.
+    if m > n and np.all(sz > 0):
+        Qc = np.linalg.qr(system.C / sz[:, None], mode="complete")[0]
+        transform, q = Qc.T / sz[None, :], n  # (m, m)
+    else:
+        transform, q = np.eye(m), m
+    rotated = y @ transform.T
+    Cq = transform[:q] @ system.C
+    Cbig = np.kron(np.eye(N), Cq)
+    y_mean = Cbig @ x_mean
+    xy_cov = x_cov @ Cbig.T  # Cov(x, y_q)
+    channel_cov = (transform[:q] * sz**2) @ transform[:q].T
+    y_cov = Cbig @ xy_cov + np.kron(K_z, channel_cov)
+    y_cov = 0.5 * (y_cov + y_cov.T)
+    y_cov[np.diag_indices_from(y_cov)] += jitter * np.mean(np.diag(y_cov))
+    try:
+        chol = np.linalg.cholesky(y_cov)
+        chol_noise = np.linalg.cholesky(K_z + jitter * np.eye(N)) if q < m else None
+    except np.linalg.LinAlgError:
+        raise AttendInputError(
+            "jitter: the output covariance is not numerically positive definite; increase jitter"
+        ) from None
+    residual = rotated[:, :q].reshape(-1) - y_mean
+    white = solve_triangular(chol, residual, lower=True)
+    log_likelihood = -0.5 * (white @ white) - np.sum(np.log(np.diag(chol))) - 0.5 * N * m * np.log(2 * np.pi)
+    if q < m:  # the pure-noise channels and the Jacobian of the transform
+        noise = solve_triangular(chol_noise, rotated[:, q:], lower=True)
+        log_likelihood += -0.5 * np.sum(noise**2) - (m - q) * np.sum(np.log(np.diag(chol_noise)))
+        log_likelihood -= N * np.sum(np.log(sz))
+    return chol, white, xy_cov, Cbig, q, log_likelihood
+
+
+def _posterior_covariance(x_cov, LB, input_cov, G):
+    """Posterior covariance of z = [x; u] (u only when unknown: LB is None when known)."""
+    if LB is None:
+        z_cov = x_cov
+    else:
+        xu_cov = LB @ input_cov  # Cov(x, u)
+        z_cov = np.block([[x_cov, xu_cov], [xu_cov.T, input_cov]])
+    covariance = z_cov - G.T @ G
+    return 0.5 * (covariance + covariance.T)
+
+
+def _causal_means(G, white, z_mean, u_mean, q, n, known):
+    """E[z at k | y[0..k]]: only the innovations of samples <= k. Returns (states, inputs)."""
+    N, r = u_mean.shape
+    contributions = (G * white[:, None]).reshape(N, q, -1).sum(axis=1)  # (time of y, latent)
+    latent_time = np.concatenate([np.repeat(np.arange(N), n), [] if known else np.repeat(np.arange(N), r)])
+    mask = np.arange(N)[:, None] <= latent_time[None, :].astype(int)
+    causal_mean = z_mean + np.sum(contributions * mask, axis=0)
+    return causal_mean[: N * n].reshape(N, n), (u_mean if known else causal_mean[N * n:].reshape(N, r))
+
+
+def _noise_widths(kernel_width, process_kernel_width, sensor_kernel_width, input_kernel_width):
+    """(s_w, s_z, s_u) [s] from the shared width and the per-noise overrides (0 = white)."""
+    def width(value, field):
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            raise AttendInputError(f"{field}: expected a number >= 0 [s], got {value!r}") from None
+        if not np.isfinite(number) or number < 0:
+            raise AttendInputError(f"{field}: expected a finite number >= 0 [s], got {value!r}")
+        return number
+
+    widths = []
+    for value, field in ((process_kernel_width, "process_kernel_width"), (sensor_kernel_width, "sensor_kernel_width")):
+        if value is None and kernel_width is None:
+            raise AttendInputError(f"{field}: required (or kernel_width for both noises)")
+        widths.append(width(kernel_width if value is None else value, field))
+    s_u = widths[0] if input_kernel_width is None else width(input_kernel_width, "input_kernel_width")
+    return widths[0], widths[1], s_u

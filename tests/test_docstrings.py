@@ -1,0 +1,97 @@
+"""Every argument of every public function and class is documented in its docstring
+(python-control's convention): the argument's name appears, as a word, in the docstring of the
+function, or for a class in its class or ``__init__`` docstring; a public method's arguments in
+the method's docstring. Private arguments (leading underscore), ``self`` and ``*args``/``**kwargs``
+are exempt, as are the fields of NamedTuples (documented with the class).
+
+Covered: attend.perception and its public modules, and every name attend re-exports. Names from
+modules with other maintainers whose docstrings still have gaps are expected failures (listed in
+KNOWN_GAPS); remove a name there once its docstrings are complete.
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import re
+
+import pytest
+
+MODULES = [
+    "attend",
+    "attend.perception",
+    "attend.perception.learning",
+    "attend.perception.baselines",
+    "attend.perception.dem",
+    "attend.perception.kalman",
+    "attend.perception.nonlinear",
+    "attend.perception.nonlinear_baselines",
+]
+
+#: (module, name) whose docstrings miss arguments, in files maintained elsewhere (action, rhythm,
+#: nonlinear perception)
+KNOWN_GAPS = {
+    ("attend", "OccupancyMap"), ("attend", "SearchField"), ("attend", "make_field"),
+    ("attend", "make_planner"), ("attend", "PrecisionOscillator"), ("attend", "OscillatorScheduler"),
+    ("attend", "PrecisionDrivenScheduler"), ("attend", "ActiveVisionAgent"), ("attend", "NonlinearDEM"),
+    ("attend.perception", "NonlinearDEM"),
+    ("attend.perception.nonlinear", "NonlinearDEM"), ("attend.perception.nonlinear", "OnlineNonlinearDEM"),
+    ("attend.perception.nonlinear", "simulate_nonlinear"),
+    ("attend.perception.nonlinear_baselines", "white_noise_covariances"),
+    ("attend.perception.nonlinear_baselines", "extended_kalman"),
+    ("attend.perception.nonlinear_baselines", "unscented_kalman"),
+    ("attend.perception.nonlinear_baselines", "particle_smoother"),
+    ("attend.perception.nonlinear_baselines", "coloured_unscented_smoother"),
+}
+
+
+def public_names(module_name: str) -> list[str]:
+    """``__all__``, else the public functions and classes defined in the module."""
+    module = importlib.import_module(module_name)
+    if hasattr(module, "__all__"):
+        names = module.__all__
+    else:
+        names = [n for n, v in vars(module).items() if not n.startswith("_")
+                 and (inspect.isfunction(v) or inspect.isclass(v)) and v.__module__ == module_name]
+    return [n for n in names if inspect.isfunction(getattr(module, n)) or inspect.isclass(getattr(module, n))]
+
+
+def _targets(obj):
+    """(qualified name, signature, docstring) of the object and, for a class, its public methods."""
+    if inspect.isfunction(obj):
+        return [(obj.__qualname__, inspect.signature(obj), obj.__doc__ or "")]
+    if issubclass(obj, tuple) and hasattr(obj, "_fields"):  # NamedTuple: fields documented with the class
+        return []
+    init_doc = vars(obj)["__init__"].__doc__ or "" if "__init__" in vars(obj) else ""
+    try:
+        targets = [(obj.__qualname__, inspect.signature(obj), (obj.__doc__ or "") + "\n" + init_doc)]
+    except (TypeError, ValueError):
+        targets = []
+    for name, member in vars(obj).items():
+        if not name.startswith("_") and inspect.isfunction(member):
+            targets.append((f"{obj.__qualname__}.{name}", inspect.signature(member), member.__doc__ or ""))
+    return targets
+
+
+def undocumented(obj) -> list[str]:
+    missing = []
+    for qualname, signature, doc in _targets(obj):
+        for parameter in signature.parameters.values():
+            if parameter.name in ("self", "cls") or parameter.name.startswith("_") \
+                    or parameter.kind in (parameter.VAR_POSITIONAL, parameter.VAR_KEYWORD):
+                continue
+            if not re.search(rf"(?<![A-Za-z0-9_]){re.escape(parameter.name)}(?![A-Za-z0-9_])", doc):
+                missing.append(f"{qualname}({parameter.name})")
+    return missing
+
+
+CASES = [pytest.param(module, name, id=f"{module}.{name}",
+                      marks=[pytest.mark.xfail(reason="docstring gaps in a file maintained elsewhere")]
+                      if (module, name) in KNOWN_GAPS else [])
+         for module in MODULES for name in public_names(module)]
+
+
+@pytest.mark.parametrize("module, name", CASES)
+def test_every_argument_is_documented(module, name):
+    obj = getattr(importlib.import_module(module), name)
+    assert not undocumented(obj), f"{module}.{name}: arguments missing from the docstring: {undocumented(obj)}"

@@ -36,7 +36,6 @@ KNOWN_GAPS = {
     ("attend", "PrecisionDrivenScheduler"), ("attend", "ActiveVisionAgent"), ("attend", "NonlinearDEM"),
     ("attend.perception", "NonlinearDEM"),
     ("attend.perception.nonlinear", "NonlinearDEM"), ("attend.perception.nonlinear", "OnlineNonlinearDEM"),
-    ("attend.perception.nonlinear", "simulate_nonlinear"),
     ("attend.perception.nonlinear_baselines", "white_noise_covariances"),
     ("attend.perception.nonlinear_baselines", "extended_kalman"),
     ("attend.perception.nonlinear_baselines", "unscented_kalman"),

@@ -209,6 +209,8 @@ def simulate_nonlinear(system: NonlinearSystem, inputs, dt: float, *, kernel_wid
                        measurement_std=0.0, initial_state=None, seed=0, substeps: int = 10) -> Trajectory:
     """Simulate the generative process with coloured noise.
 
+    system: the NonlinearSystem (f, g); dt: sample time [s]; initial_state: x[0] (default 0);
+    seed: seed of the noise draws; substeps: RK4 sub-steps per sample.
     inputs: (N, r) input samples, or the number of samples N for an autonomous system (r = 0).
     x[k] = x[k-1] + integral over one sample of f(x, u[k-1]) + w[k-1] (RK4 with ``substeps``
     sub-steps, u and w held over the sample: the zero-order hold of the linear simulate()),

@@ -75,7 +75,8 @@ def input_random_walk_variance(prior_precision, kernel_width: float, dt: float) 
     """Per-sample variance of the random walk that matches a smooth input prior: the variance of
     the one-sample increments v(t + dt) - v(t) of a Gaussian-kernel process of variance 1/P_v and
     width s_v [s], 2 (1 - rho(dt)) / P_v with rho(dt) = exp(-dt^2 / (4 s_v^2)). The Kalman
-    baselines' random-walk input model then has the prior's local roughness."""
+    baselines' random-walk input model then has the prior's local roughness.
+    prior_precision: P_v (scalar or per input) [1/input unit^2]; kernel_width: s_v [s]; dt: sample time [s]."""
     dt = positive_scalar(dt, "dt", "s")
     s = positive_scalar(kernel_width, "kernel_width", "s")
     rho = float(autocorrelation(np.array([dt]), s)[0])

@@ -34,6 +34,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg import expm
 
+from attend._threads import with_single_blas_thread
 from attend._validation import (
     AttendInputError,
     as_matrix,
@@ -195,6 +196,7 @@ class DEMObserver:
     _matrices: dict = field(default_factory=dict, repr=False)
     _cache: dict = field(default_factory=dict, repr=False)
 
+    @with_single_blas_thread
     def __post_init__(self):
         system = as_linear_system(self.system)
         set_ = object.__setattr__
@@ -532,6 +534,7 @@ class DEMObserver:
     def _centre_samples(self, signals: np.ndarray, rows: np.ndarray) -> np.ndarray:
         return signals[np.clip(rows + self.window_offset, 0, signals.shape[0] - 1)]
 
+    @with_single_blas_thread
     def estimate(self, outputs, inputs=None, *, keep_generalized: bool = False,
                  initial_state=None, segment: int = 1 << 14) -> DEMEstimate:
         """Batch estimation over a whole log.
@@ -684,6 +687,7 @@ class DEMObserver:
         with np.errstate(invalid="ignore"):
             return ~np.isfinite(with_data) | (with_data >= 0.999 * no_data)
 
+    @with_single_blas_thread
     def analysis(self) -> DEMAnalysis:
         """Stability, start transient, conditioning and steady-state error std of this observer
         (see :class:`DEMAnalysis`). Computed once (a frequency integral on a few thousand

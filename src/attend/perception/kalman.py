@@ -31,6 +31,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
+from attend._threads import single_blas_thread, with_single_blas_thread
 from attend._validation import AttendInputError, as_matrix, positive_scalar, precision_matrix, require_finite
 from attend.noise import (
     NoiseStateSpace,
@@ -129,6 +130,7 @@ class KalmanEstimator:
     initial_state_std: np.ndarray | float | None = None
     _model: dict = field(default_factory=dict, repr=False)
 
+    @with_single_blas_thread
     def __post_init__(self):
         system = self.system
         if not isinstance(system, LinearSystem):
@@ -335,6 +337,7 @@ class KalmanEstimator:
         outputs and inputs as :meth:`estimate`."""
         return self._run(outputs, inputs, smooth=False)
 
+    @with_single_blas_thread
     def _run(self, outputs, inputs, smooth: bool) -> StateEstimate:
         y, u = self._signals(outputs, inputs)
         N = y.shape[0]
@@ -491,6 +494,22 @@ def _blockwise_distance(K, steady_gain, blocks) -> float:
     return worst
 
 
+def _innovation_weight(H, P) -> np.ndarray:
+    """H' inv(H P H'), with a Cholesky factor; rounding can leave S = H P H' a hair short of
+    positive definite after a diffuse start collapses (variances falling by 1e10 in one update),
+    so a white variance of 1e-12 .. 1e-8 of its mean diagonal is added before giving up."""
+    S = H @ P @ H.T
+    S = 0.5 * (S + S.T)
+    scale = max(float(np.mean(np.abs(np.diag(S)))), 1e-300)
+    for jitter in (0.0, 1e-12, 1e-10, 1e-8):
+        try:
+            return cho_solve(cho_factor(S + jitter * scale * np.eye(len(S)), lower=True), H).T
+        except np.linalg.LinAlgError:
+            continue
+    raise AttendInputError("sensor_precision: the predicted outputs' covariance is singular; check "
+                           "sensor_precision and C")
+
+
 def _gain_stream(T, Q, H, P0, steady_predicted=None, blocks=None, patience: int = 3):
     """Yield (K[k], H' inv(S[k]), P_p[k], steady) for k = 0, 1, ...
 
@@ -519,12 +538,7 @@ def _gain_stream(T, Q, H, P0, steady_predicted=None, blocks=None, patience: int 
             A = identity - K @ H
             P = T @ (A @ P @ A.T) @ T.T + Q  # Joseph form of the update, then predict
             P = 0.5 * (P + P.T)
-        try:
-            factor = cho_factor(H @ P @ H.T, lower=True)
-        except np.linalg.LinAlgError:
-            raise AttendInputError("sensor_precision: the predicted outputs' covariance is singular; "
-                                   "check sensor_precision and C") from None
-        weight = cho_solve(factor, H).T  # H' inv(S)
+        weight = _innovation_weight(H, P)  # H' inv(S)
         K = P @ weight
         if steady is not None and tolerance >= 0:
             distance = _blockwise_distance(K, steady[0], blocks)
@@ -678,6 +692,27 @@ class OnlineKalman:
         self._stream = None
         self._steady = False
 
+    def _covariance_step(self, y: np.ndarray) -> np.ndarray:
+        """One step of the time-varying filter (until the gain is steady); returns the filtered mean."""
+        est, model = self.estimator, self._model
+        T, H = model["T"], model["H"]
+        if self._count == 0:
+            if "steady_predicted" not in model:
+                model["steady_predicted"] = _steady_predicted_covariance(T, model["Q"], H)
+            mean, P0 = est._initial(y[None, :])
+            self._stream = _gain_stream(T, model["Q"], H, P0, model["steady_predicted"], model["slices"].values())
+        else:
+            mean = T @ self._mean + model["Bd_augmented"] @ self._previous_input
+        K, _, P, self._steady = next(self._stream)
+        A = np.eye(model["dim"]) - K @ H
+        self._gain = K
+        variances = np.einsum("ij,jl,il->i", model["output_map"], A @ P @ A.T, model["output_map"])
+        self._std = np.sqrt(np.clip(variances, 0, None))
+        if self._steady:
+            self._closed = A @ T
+            self._drive_gain = A @ model["Bd_augmented"]
+        return mean + K @ (y - H @ mean)
+
     def step(self, output, input_value=None):
         """Feed sample k (output: the outputs (m,); input_value: the measured input or input prior
         (r,), default 0); return its estimate."""
@@ -691,26 +726,11 @@ class OnlineKalman:
         if y.shape != (m,) or u.shape != (r,):
             raise AttendInputError(f"step: expected {m} outputs and {r} inputs, got {y.shape[0]} and {u.shape[0]}")
         require_finite(np.concatenate([y, u]), "step sample")
-        T, H = model["T"], model["H"]
         if self._steady:  # a_f[k] = (I - K H)(T a_f[k-1] + b[k-1]) + K y[k]: precomputed products
             mean = self._closed @ self._mean + self._drive_gain @ self._previous_input + self._gain @ y
         else:
-            if self._count == 0:
-                if "steady_predicted" not in model:
-                    model["steady_predicted"] = _steady_predicted_covariance(T, model["Q"], H)
-                mean, P0 = est._initial(y[None, :])
-                self._stream = _gain_stream(T, model["Q"], H, P0, model["steady_predicted"], model["slices"].values())
-            else:
-                mean = T @ self._mean + model["Bd_augmented"] @ self._previous_input
-            K, _, P, self._steady = next(self._stream)
-            A = np.eye(model["dim"]) - K @ H
-            self._gain = K
-            variances = np.einsum("ij,jl,il->i", model["output_map"], A @ P @ A.T, model["output_map"])
-            self._std = np.sqrt(np.clip(variances, 0, None))
-            mean = mean + K @ (y - H @ mean)
-            if self._steady:
-                self._closed = A @ T
-                self._drive_gain = A @ model["Bd_augmented"]
+            with single_blas_thread():
+                mean = self._covariance_step(y)
         self._mean = mean
         self._previous_input = u
         self._count += 1

@@ -16,12 +16,12 @@ BEFORE = {"segment": (3.8260735477179955, 143.13071830419565),
           "oscillator": (3.948210851626857, 146.42316081419557)}
 
 
-def _episode(policy, seed=1, detector=None, latency=None, cma=6):
+def _episode(policy, seed=1, detector=None, latency=None, cma=6, mode="hover"):
     field = make_field(seed)
     setup = PlanningSetup(field, Camera(), detector or Detector(), FlightModel(), lookahead_waypoints=5,
                           cma_evaluations=cma)
     planner = make_planner("precision_gain", setup, seed)
-    kwargs = {} if latency is None else dict(planning_latency_s=latency)
+    kwargs = {} if latency is None else dict(planning_latency_s=latency, latency_mode=mode)
     return run_scheduled_episode(field, planner, make_schedule(policy), 150.0, seed, diagonal=True, **kwargs)
 
 
@@ -99,3 +99,19 @@ def test_bad_switch_costs_name_the_field():
         Detector(motion_blur_per_turn_rate=float("nan"))
     with pytest.raises(ActionInputError, match="planning_latency_s"):
         _episode("segment", latency=-1.0, cma=0)
+
+
+def test_latency_flown_on_the_old_plan():
+    hover = _episode("fixed_10s", seed=0, latency=4.0, cma=0)
+    flying = _episode("fixed_10s", seed=0, latency=4.0, cma=0, mode="fly")
+    flown = lambda log: float(np.sum(np.linalg.norm(np.diff(np.asarray(log.waypoints_m), axis=0), axis=1)))
+    assert flying.hover_s < hover.hover_s  # only at take-off (no old plan yet) or when a plan ran out
+    assert flying.hover_s >= 4.0
+    assert flown(flying) > flown(hover)
+    assert flying.times_s[-1] <= 150.0 and len(flying.times_s) == len(hover.times_s)
+    # a schedule that flies every plan to its end has no old plan to fly: the same as hovering
+    a = _episode("continuous", seed=0, latency=4.0, cma=0)
+    b = _episode("continuous", seed=0, latency=4.0, cma=0, mode="fly")
+    assert np.array_equal(a.series("rse"), b.series("rse")) and a.hover_s == b.hover_s
+    with pytest.raises(ActionInputError, match="latency_mode"):
+        _episode("segment", latency=1.0, cma=0, mode="drift")

@@ -6,10 +6,12 @@ episode bit for bit):
 
 - motion blur: a :class:`attend.action.Detector` with blur coefficients degrades every image by
   the UAV's speed when it is taken (rest-to-rest segments: sharp at waypoints and in hover);
-- ``planning_latency_s`` L: every (re)plan takes L seconds of on-board computing, during which
-  the UAV hovers where it stopped; the images due meanwhile are taken there (sharp) and the hover
-  time counts against the flight budget (the battery). The plan is made from the belief at the
-  start of the hover.
+- ``planning_latency_s`` L: every (re)plan takes L seconds of on-board computing, which count
+  against the flight budget (the battery). ``latency_mode`` "hover": the UAV hovers where it
+  stopped; the images due meanwhile are taken there (sharp). "fly": it keeps flying the rest of
+  the old plan for L s (imaging, no decisions) and then starts the new plan from where it is;
+  when no old plan is left (at take-off, or a plan flown to its end) it hovers. Either way the
+  plan is made from the belief at the start of the latency.
 """
 
 from __future__ import annotations
@@ -138,6 +140,7 @@ def run_episode(
     keep_maps: bool = True,
     on_image=None,
     planning_latency_s: float = 0.0,
+    latency_mode: str = "hover",
 ) -> EpisodeLog:
     """Fly one mission of ``budget_s`` s with ``planner``; detector randomness from ``seed``.
 
@@ -145,7 +148,8 @@ def run_episode(
     charge_planning_time: the UAV hovers while planning and that time counts against the budget;
     inject_false_detection_images: image numbers (0 = first) that get one false 2 x 3-cell blob;
     on_image: called with the mission time [s] of every image (e.g. to show progress);
-    planning_latency_s: seconds of hover per (re)plan, counted against the budget.
+    planning_latency_s: seconds of on-board planning per (re)plan, counted against the budget,
+    spent hovering (latency_mode "hover") or flying the old plan ("fly").
     """
     if not (np.isfinite(budget_s) and budget_s > 0):
         raise ActionInputError(f"budget_s: expected a flight budget > 0 s, got {budget_s!r}")
@@ -153,21 +157,25 @@ def run_episode(
     return fly_mission(field, planner, camera, detector, flight, log, ReplanPolicy(), diagonal=diagonal,
                        charge_planning_time=charge_planning_time,
                        inject_false_detection_images=inject_false_detection_images, keep_maps=keep_maps,
-                       on_image=on_image, planning_latency_s=planning_latency_s)
+                       on_image=on_image, planning_latency_s=planning_latency_s, latency_mode=latency_mode)
 
 
 def fly_mission(field, planner: Planner, camera, detector, flight, log: EpisodeLog, policy: ReplanPolicy,
                 diagonal: bool = False, charge_planning_time: bool = False,
                 inject_false_detection_images: Sequence[int] = (), keep_maps: bool = True,
-                on_image=None, planning_latency_s: float = 0.0) -> EpisodeLog:
+                on_image=None, planning_latency_s: float = 0.0, latency_mode: str = "hover") -> EpisodeLog:
     """The flight loop behind every episode: plan, fly the plan taking and fusing images (every
     metric logged at each), replan when ``policy`` says so or the plan is flown, until
     ``log.budget_s`` is spent. Detector noise and planner seed from ``log.seed``; ``log`` (an
     empty :class:`EpisodeLog` or subclass) is filled and returned, including the mission time of
     every replan (``replan_times_s``) and the wall time of the policy's decisions per plan.
     ``on_image``, if given, is called with the mission time [s] of every image.
-    ``planning_latency_s``: seconds of hover per (re)plan, charged against the budget (module
-    docstring); ``detector`` blur coefficients degrade images by the speed at which they are taken."""
+    ``planning_latency_s``: seconds of on-board planning per (re)plan, charged against the budget;
+    ``latency_mode`` "hover" (wait where the UAV stopped) or "fly" (keep flying the rest of the old
+    plan, if any, while the new one is computed; module docstring); ``detector`` blur
+    coefficients degrade images by the speed at which they are taken."""
+    if latency_mode not in ("hover", "fly"):
+        raise ActionInputError(f"latency_mode: expected 'hover' or 'fly', got {latency_mode!r}")
     latency = float(planning_latency_s)
     if not (np.isfinite(latency) and latency >= 0):
         raise ActionInputError(f"planning_latency_s: expected a latency >= 0 s, got {planning_latency_s!r}")
@@ -207,18 +215,67 @@ def fly_mission(field, planner: Planner, camera, detector, flight, log: EpisodeL
         if on_image is not None:
             on_image(image.time_s)
 
+    deciding = 0.0
+
+    def fly(path: np.ndarray, limit: int | None, stop: float, decide: bool) -> tuple[bool, np.ndarray]:
+        """Fly the first ``limit`` waypoints of ``path`` (all if None) until mission time ``stop``,
+        imaging and fusing; with ``decide`` the policy may cut after each image. Returns whether
+        it cut and the rest of ``path`` not reached."""
+        nonlocal pose, elapsed, time_to_next_image, deciding
+        count = len(path) if limit is None else min(limit, len(path))
+        for j in range(count):
+            goal = path[j]
+            if stop - elapsed <= 1e-9:
+                return False, path[j:]
+            start = pose
+            travel = float(flight.segment_duration(np.linalg.norm(goal - start)))
+            poses, times, valid, duration, next_after, speeds = flight.segment_images(
+                start, goal, time_to_next_image, stop - elapsed, with_speeds=True)
+            flown, next_image, cut = float(duration[0]), float(next_after[0]), False
+            for image_pose, image_time, speed in zip(poses[0][valid[0]], times[0][valid[0]], speeds[0][valid[0]]):
+                take(image_pose, elapsed + image_time, float(speed))
+                if not decide or (j == 0 and image_time <= 1e-9):
+                    continue  # taken where the plan starts, before any flight: no decision yet
+                rest = path[j + 1:] if image_time >= travel - 1e-9 else path[j:]
+                tic = time.perf_counter()
+                cut = policy.after_image(PlanContext(planner, belief, np.asarray(image_pose, float), rest,
+                                                     elapsed + image_time, flight.image_period_s,
+                                                     budget_s - elapsed - image_time))
+                deciding += time.perf_counter() - tic
+                if cut:
+                    flown, next_image = float(image_time), flight.image_period_s
+                    break
+            arrived = flown >= travel - 1e-9
+            pose = np.asarray(goal, float) if arrived else flight_position(flight, start, goal, flown)
+            log.waypoints_m.append(pose.copy())
+            elapsed += flown
+            time_to_next_image = next_image
+            if cut or elapsed >= stop - 1e-9:
+                return cut, path[j + 1:] if arrived else path[j:]
+        return False, path[count:]
+
+    leftover = np.zeros((0, 3))
     while elapsed < budget_s - 1e-9:
+        # latency flown on the old plan: plan now (belief and time of now) from where the UAV will be
+        fly_old = latency > 0 and latency_mode == "fly" and len(leftover) > 0
+        if fly_old:
+            planning_belief, planning_time = belief.copy(), elapsed
+            fly(leftover, None, min(budget_s, elapsed + latency), decide=False)
+            if elapsed >= budget_s - 1e-9:
+                break
+        else:
+            planning_belief, planning_time = belief, elapsed
         tic = time.perf_counter()
-        plan = np.atleast_2d(planner.plan(belief, pose, budget_s - elapsed, time_to_next_image)).reshape(-1, 3)
+        plan = np.atleast_2d(planner.plan(planning_belief, pose, budget_s - elapsed, time_to_next_image)).reshape(-1, 3)
         planning = time.perf_counter() - tic
         log.planner_times_s.append(planning)
-        log.replan_times_s.append(elapsed)
+        log.replan_times_s.append(planning_time)
         if charge_planning_time:
             elapsed += planning
             time_to_next_image = max(time_to_next_image - planning, 0.0)
             if elapsed >= budget_s:
                 break
-        if latency > 0:  # hover while the on-board computer plans; the camera keeps shooting (sharp)
+        if latency > 0 and not fly_old:  # hover while the on-board computer plans; the camera keeps shooting (sharp)
             hover = min(latency, budget_s - elapsed)
             while time_to_next_image < hover - 1e-9:
                 take(pose.copy(), elapsed + time_to_next_image)
@@ -234,35 +291,7 @@ def fly_mission(field, planner: Planner, camera, detector, flight, log: EpisodeL
         policy.start_plan(PlanContext(planner, belief, pose, plan, elapsed, time_to_next_image, budget_s - elapsed))
         deciding = time.perf_counter() - tic
         deadline = policy.deadline(elapsed, elapsed + time_to_next_image)
-        stop = min(budget_s, deadline)
-        count = policy.waypoints_per_plan(planner)
-        for j, goal in enumerate(plan if count is None else plan[:count]):
-            if stop - elapsed <= 1e-9:
-                break
-            start = pose
-            travel = float(flight.segment_duration(np.linalg.norm(goal - start)))
-            poses, times, valid, duration, next_after, speeds = flight.segment_images(
-                start, goal, time_to_next_image, stop - elapsed, with_speeds=True)
-            flown, next_image, cut = float(duration[0]), float(next_after[0]), False
-            for image_pose, image_time, speed in zip(poses[0][valid[0]], times[0][valid[0]], speeds[0][valid[0]]):
-                take(image_pose, elapsed + image_time, float(speed))
-                if j == 0 and image_time <= 1e-9:
-                    continue  # taken where the plan starts, before any flight: no decision yet
-                rest = plan[j + 1:] if image_time >= travel - 1e-9 else plan[j:]
-                tic = time.perf_counter()
-                cut = policy.after_image(PlanContext(planner, belief, np.asarray(image_pose, float), rest,
-                                                     elapsed + image_time, flight.image_period_s,
-                                                     budget_s - elapsed - image_time))
-                deciding += time.perf_counter() - tic
-                if cut:
-                    flown, next_image = float(image_time), flight.image_period_s
-                    break
-            pose = np.asarray(goal, float) if flown >= travel - 1e-9 else flight_position(flight, start, goal, flown)
-            log.waypoints_m.append(pose.copy())
-            elapsed += flown
-            time_to_next_image = next_image
-            if cut or elapsed >= stop - 1e-9:
-                break
+        _, leftover = fly(plan, policy.waypoints_per_plan(planner), min(budget_s, deadline), decide=True)
         log.decision_times_s.append(deciding)
     return log
 

@@ -321,7 +321,7 @@ class ScheduledEpisodeLog(EpisodeLog):
 
 def run_scheduled_episode(field, planner: Planner, schedule: ReplanSchedule, budget_s: float = 150.0, seed: int = 0,
                           diagonal: bool = False, keep_maps: bool = False,
-                          planning_latency_s: float = 0.0) -> ScheduledEpisodeLog:
+                          planning_latency_s: float = 0.0, latency_mode: str = "hover") -> ScheduledEpisodeLog:
     """Fly one mission of ``budget_s`` s [flight time]: plan, fly the plan taking and fusing
     images, replan when ``schedule`` says so (or the plan is used up), until the budget is spent.
 
@@ -329,8 +329,8 @@ def run_scheduled_episode(field, planner: Planner, schedule: ReplanSchedule, bud
     (its ``setup`` gives the camera, detector and flight models); seed: detector noise and
     planner seed; diagonal: per-cell (diagonal) map covariance; keep_maps: log the map after
     each image. Planning wall time is not charged against the budget (it is logged); a fixed
-    ``planning_latency_s`` per plan is (the UAV hovers meanwhile, see
-    :func:`attend.action.episode.fly_mission`); motion blur comes with the planner's detector.
+    ``planning_latency_s`` per plan is (the UAV hovers meanwhile, or with ``latency_mode`` "fly"
+    keeps flying the old plan, see :func:`attend.action.episode.fly_mission`); motion blur comes with the planner's detector.
     The schedule is consulted after every image except one taken where a plan starts (before
     it has flown)."""
     if not isinstance(schedule, ReplanSchedule):
@@ -341,6 +341,6 @@ def run_scheduled_episode(field, planner: Planner, schedule: ReplanSchedule, bud
     setup = planner.setup
     log = ScheduledEpisodeLog(planner.name, seed, float(budget_s), len(field.people), schedule=schedule.name)
     fly_mission(field, planner, setup.camera, setup.detector, setup.flight, log, schedule, diagonal=diagonal,
-                keep_maps=keep_maps, planning_latency_s=planning_latency_s)
+                keep_maps=keep_maps, planning_latency_s=planning_latency_s, latency_mode=latency_mode)
     log.decisions = list(getattr(schedule, "decisions", []))
     return log

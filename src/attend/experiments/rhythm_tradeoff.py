@@ -315,11 +315,13 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, cluster=None, t
         scores.setdefault(key, []).append(out["objective"])
     chosen: dict[tuple[int, str], dict] = {}
     evaluated: dict[tuple[int, str], int] = {}
+    tuning_means: dict[tuple[int, str], list[float]] = {}
     for point in grid:
         for family, params_list in _families(point["domain"], per_family).items():
             means = [float(np.mean(scores[(point["index"], family, repr(p))])) for p in params_list]
             chosen[(point["index"], family)] = params_list[int(np.argmin(means))]
             evaluated[(point["index"], family)] = len(params_list)
+            tuning_means[(point["index"], family)] = means
 
     # 2. trials: the tuned setting of each family on the untouched trial seeds
     tasks = [_task(point, family, chosen[(point["index"], family)], seed, cfg)
@@ -338,7 +340,8 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, cluster=None, t
         label = (f"ipp blur {point['blur']:g} s/m latency {point['latency_s']:g} s" if point["domain"] == "ipp"
                  else f"vision saccade {point['saccade_cost_s'] * 1e3:g} ms")
         row = dict(point, label=label, winner=winner, tuned={f: chosen[(point["index"], f)] for f in families},
-                   evaluated={f: evaluated[(point["index"], f)] for f in families}, mean=means,
+                   evaluated={f: evaluated[(point["index"], f)] for f in families},
+                   tuning_mean={f: tuning_means[(point["index"], f)] for f in families}, mean=means,
                    versus_fixed={}, versus_winner={}, summary={})
         for f in families:
             row["versus_fixed"][f] = paired_interval(objective[f] - objective["fixed"], cfg["confidence"])

@@ -407,6 +407,7 @@ def _append_table(path: Path, table: list[dict]) -> None:
 # Figure
 
 
+SHORT = {"oscillator": "osc", "precision": "prec", "precision_no_prior": "prec, no prior", "continuous": "cont"}
 COLOURS = {"fixed": "tab:gray", "oscillator": "tab:red", "precision": "tab:purple", "precision_no_prior": "tab:blue",
            "continuous": "tab:green"}
 
@@ -438,7 +439,8 @@ def plot(result: ExperimentResult, out_dir) -> list[Path]:
             lines = [f"winner: {row['winner']}"]
             for f in RHYTHMIC + ("precision_no_prior",):
                 mean, low, high = row["versus_fixed"][f]
-                lines.append(f"{f[:13]} - fixed: {mean:+.2f} [{low:+.2f}, {high:+.2f}]")
+                star = "*" if low > 0 or high < 0 else ""
+                lines.append(f"{SHORT[f]}: {mean:+.2f} [{low:+.2f}, {high:+.2f}]{star}")
             ax.text(x, y, "\n".join(lines), ha="center", va="center", fontsize=7)
         ax.set_xlim(-0.5, len(latencies) - 0.5)
         ax.set_ylim(-0.5, len(blurs) - 0.5)
@@ -447,7 +449,7 @@ def plot(result: ExperimentResult, out_dir) -> list[Path]:
         ax.set_xlabel("planning latency [s] (hover per plan)")
         ax.set_ylabel("motion blur b [s/m]  (precision x 1/(1 + b v))")
         ax.set_title(f"UAV search: winner by final RSE ({result.settings['trials']} trial seeds);\n"
-                     "rhythmic minus tuned fixed budget, mean [95 % CI]", fontsize=9)
+                     "family minus tuned fixed budget, mean [95 % CI] (*: excludes 0)", fontsize=9)
         ax.legend(handles=[Patch(color=c, alpha=0.35, label=f) for f, c in COLOURS.items()], fontsize=7, loc="upper right",
                   bbox_to_anchor=(1.0, -0.12), ncol=3)
     for ax, rows, unit, title in ((axes[1], ipp, "final RSE", "UAV search"),
@@ -463,10 +465,12 @@ def plot(result: ExperimentResult, out_dir) -> list[Path]:
             ax.errorbar(x + offset, stats[:, 0], yerr=[stats[:, 0] - stats[:, 1], stats[:, 2] - stats[:, 0]], fmt="o",
                         color=COLOURS[f], label=f, capsize=3)
         ax.axhline(0, color="k", lw=0.8)
-        ax.set_xticks(x, [row["label"].replace("ipp ", "").replace("vision ", "").replace(" latency", "\nlatency")
-                          for row in rows], fontsize=7)
+        ticks = [f"b {row['blur']:g}\nL {row['latency_s']:g}" if row["domain"] == "ipp"
+                 else f"{row['saccade_cost_s'] * 1e3:g} ms" for row in rows]
+        ax.set_xticks(x, ticks, fontsize=7)
+        ax.set_xlabel("blur b [s/m], latency L [s]" if rows[0]["domain"] == "ipp" else "saccade duration")
         ax.set_ylabel(f"{unit}: family minus tuned fixed")
-        ax.set_title(f"{title}: paired difference to the tuned fixed schedule (< 0: better), 95 % CI", fontsize=9)
+        ax.set_title(f"{title}: family minus tuned fixed (< 0: better), 95 % CI", fontsize=9)
         ax.legend(fontsize=7)
     path = out / "rhythm-tradeoff.png"
     fig.savefig(path, dpi=110)

@@ -10,6 +10,7 @@ import pytest
 
 from attend import AttendInputError
 from attend.experiments import rhythm_tradeoff as rt
+from attend.experiments._result import ExperimentResult
 
 TINY = dict(progress=False, trials=2, tuning_seeds=2, settings_per_family=1, points=[0, 2])
 
@@ -80,6 +81,8 @@ def test_quick_run_contract(tmp_path):
     ipp = rows[0]["summary"]["fixed"]
     assert {"final_rse", "final_trace", "time_to_find_all_median_s", "false_alarm_cells"} <= set(ipp)
     assert result.metric("trial seeds").value == rt.SETTINGS["quick_trials"]
+    # the map survives the report cache (JSON -> result -> JSON)
+    assert ExperimentResult.from_json_dict(data).to_json_dict()["map"] == rows
 
 
 # ---- a real Dask cluster ----------------------------------------------------------------------

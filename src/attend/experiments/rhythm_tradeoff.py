@@ -363,10 +363,10 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, cluster=None, t
     result.settings["tuning_seed_list"] = tune
     result.settings["trial_seed_list"] = trial
     result.data = dict(table=table)
+    result.tables["map"] = [{k: v for k, v in row.items() if k != "index"} for row in table]
     if out_dir is not None:
         result.figures.extend(str(p) for p in plot(result, out_dir))
-        path = result.write(out_dir)
-        _append_table(path, table)
+        result.write(out_dir)
     return result
 
 
@@ -390,17 +390,6 @@ def _summary(domain: str, runs: list[dict]) -> dict:
 
 def _params_text(params: dict) -> str:
     return "(" + ", ".join(f"{k}={v}" for k, v in params.items()) + ")" if params else "()"
-
-
-def _append_table(path: Path, table: list[dict]) -> None:
-    """Add the per-setting map (winner, tuned parameters, paired differences) to the JSON."""
-    import json
-
-    from attend.experiments._result import _jsonable
-
-    data = json.loads(path.read_text())
-    data["map"] = _jsonable([{k: v for k, v in row.items() if k != "index"} for row in table])
-    path.write_text(json.dumps(data, indent=2) + "\n")
 
 
 # ----------------------------------------------------------------------------------------------

@@ -95,7 +95,7 @@ def _build_parser() -> argparse.ArgumentParser:
                            help="paper-size settings (more seeds and trials; slower). Default: quick settings")
     reproduce.add_argument("--no-progress", action="store_true", help="hide progress bars")
     reproduce.add_argument("--cluster", metavar="ADDRESS", default=None,
-                           help="run the sweeps (fig4, fig5) on a running Dask cluster, e.g. tcp://host:8786 "
+                           help="run the sweeps (fig4, fig5, rhythm-ipp, rhythm-tradeoff) on a running Dask cluster, e.g. tcp://host:8786 "
                            "(needs: pip install 'attend[distributed]'); same numbers as a local run. Default: run here")
     reproduce.add_argument("--force", action="store_true",
                            help="rerun even when OUT/NAME.json holds a result for the same code and mode (cache)")

@@ -174,3 +174,16 @@ def test_coarse_trace_reduction():
     assert coarse_trace_reduction(belief, d, 2) == pytest.approx(exact, rel=0.5)  # an approximation, same scale
     with pytest.raises(AttendInputError, match="block_cells"):
         coarse_trace_reduction(belief, d, 3)
+
+
+def test_precision_rule_discounts_a_fresh_plan_by_the_switch_cost():
+    oscillator = PrecisionOscillator(frequency=0.05)
+    free, costly = PrecisionDrivenSchedule(oscillator, 0.0), PrecisionDrivenSchedule(oscillator, 0.0, switch_cost_s=5.0)
+    belief = OccupancyMap.prior(Grid(10, 3.0), diagonal=True)
+    for schedule in (free, costly):
+        schedule.plan_rate, schedule.plan_trace, schedule.plan_duration = 2.0, 2 * belief.trace(), 15.0
+    assert free.fresh_rate(belief) == pytest.approx(1.0)  # the last rate, scaled by the uncertainty left
+    assert costly.fresh_rate(belief) == pytest.approx(15.0 / 20.0)  # D / (D + c)
+    with pytest.raises(AttendInputError, match="switch_cost_s"):
+        PrecisionDrivenSchedule(oscillator, switch_cost_s=-1.0)
+    assert make_schedule("continuous").waypoints_per_plan(None) is None

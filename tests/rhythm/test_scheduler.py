@@ -127,3 +127,38 @@ def test_drive_until_stops_early():
 def test_bad_input_names_the_field(make, field):
     with pytest.raises(AttendInputError, match=field):
         make()
+
+
+def test_decision_time_delays_the_precision_driven_move():
+    from attend.rhythm.oscillator import PrecisionOscillator
+    from attend.rhythm.scheduler import ACT, PrecisionDrivenScheduler
+
+    class Falling:  # staying pays less every step; moving pays a constant
+        def __init__(self):
+            self.steps = 0
+
+        def expected_gain_of_staying(self, g, dt):
+            return 10.0 - self.steps
+
+        def expected_gain_of_moving(self, g, dt):
+            return 50.0
+
+        def perceive(self, g, dt):
+            self.steps += 1
+
+        def act(self, g, dt, onset):
+            self.steps = 0
+
+    def first_move(decision_time):
+        scheduler = PrecisionDrivenScheduler(PrecisionOscillator(4.0), 0.0125, 0.05, 0.0, 0.1, 1.0,
+                                             horizon_steps=10, decision_time=decision_time)
+        task = Falling()
+        for step in scheduler.steps(task, 60):
+            if step.mode == ACT:
+                return step.index
+            task.perceive(step.precision_gain, step.duration)
+
+    # staying (10 - k) drops below 50 / 10 = 5 at k = 6 perceived steps; then 0, 2, 4 more steps
+    assert first_move(0.0) == 6
+    assert first_move(0.025) == 8
+    assert first_move(0.05) == 10

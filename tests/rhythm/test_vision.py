@@ -166,3 +166,20 @@ def test_bad_input_names_the_field(make, field):
 
 def test_uniform_prior():
     np.testing.assert_allclose(np.exp(uniform_log_posterior(3, 4)), 0.25)
+
+
+# ---- dwell adaptation (diminishing returns of a fixation) -------------------------------------
+
+
+def test_dwell_dose_has_diminishing_returns_and_no_adaptation_is_exact():
+    from attend.rhythm.vision import FoveatedEye
+
+    plain = FoveatedEye()
+    assert plain.dwell_dose(0.3, 0.0125) == 0.0125  # bit for bit: g dt
+    eye = FoveatedEye(adaptation_time=0.15)
+    steps = [eye.dwell_dose(k * 0.0125, 0.0125) for k in range(40)]
+    assert np.all(np.diff(steps) < 0) and steps[0] < 0.0125
+    assert sum(steps) == pytest.approx(0.15 * (1 - np.exp(-40 * 0.0125 / 0.15)), rel=1e-12)
+    assert sum(steps) < 0.15
+    with pytest.raises(AttendInputError, match="adaptation_time"):
+        FoveatedEye(adaptation_time=0.0)

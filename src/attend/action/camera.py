@@ -7,6 +7,16 @@ footprint and the line of sight from the camera to the cell centre misses every 
 
 Measurement per observed cell i:  z_i = 1 if the detector fires on the cell, else 0.05,
 with noise variance  sigma^2(h) = 1 - exp(-c h),  c = 0.05 / m  (0.39 at 10 m, 0.73 at 26 m).
+
+Motion blur (optional, off by default): an image taken at ground speed v [m/s] and turn rate
+omega [rad/s] is degraded by the factor
+
+    q(v, omega) = 1 / (1 + b_v |v| + b_omega |omega|)   in (0, 1],  q = 1 when hovering,
+
+b_v = ``motion_blur_per_speed`` [s/m], b_omega = ``motion_blur_per_turn_rate`` [s/rad]: the
+detector's precision falls to q / sigma^2(h) (the noise variance it reports is sigma^2(h) / q)
+and its true-positive rate falls towards the false-positive rate, fpr + q (tpr - fpr). The
+camera is stabilised only when hovering. b_v = b_omega = 0 is the sharp camera, bit for bit.
 """
 
 from __future__ import annotations
@@ -122,6 +132,9 @@ class Detector:
     tpr(h). Other cells fire with fpr(h) each.
     Clutter: a Poisson number (mean ``clutter_rate_per_image``) of person-sized false blobs
     (2 x 3 cells) per image at random places in the footprint.
+    Motion blur: ``motion_blur_per_speed`` b_v [s/m] and ``motion_blur_per_turn_rate`` b_omega
+    [s/rad] (>= 0; module docstring): images taken while moving read with precision
+    q / sigma^2(h) and true-positive rate fpr + q (tpr - fpr), q = 1 / (1 + b_v v + b_omega omega).
     """
 
     max_true_positive_rate: float = 0.95
@@ -133,8 +146,14 @@ class Detector:
     clutter_rate_per_image: float = 0.0
     noise_rate_per_m: float = 0.05
     detection_unit: str = "person"
+    motion_blur_per_speed: float = 0.0
+    motion_blur_per_turn_rate: float = 0.0
 
     def __post_init__(self) -> None:
+        for name in ("motion_blur_per_speed", "motion_blur_per_turn_rate"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
+                raise ActionInputError(f"{name}: expected a blur coefficient >= 0 (s/m or s/rad), got {value!r}")
         if self.detection_unit not in ("person", "cell"):
             raise ActionInputError(f"detection_unit: expected 'person' or 'cell', got {self.detection_unit!r}")
         if not 0 < self.best_altitude_m < self.useless_altitude_m:
@@ -161,6 +180,30 @@ class Detector:
     def noise_variance(self, altitude_m: float | np.ndarray) -> np.ndarray:
         return noise_variance(altitude_m, self.noise_rate_per_m)
 
+    @property
+    def blurs(self) -> bool:
+        """Whether images taken while moving are degraded (a blur coefficient > 0)."""
+        return self.motion_blur_per_speed > 0 or self.motion_blur_per_turn_rate > 0
+
+    def blur_factor(self, speed_m_s: float | np.ndarray = 0.0, turn_rate_rad_s: float | np.ndarray = 0.0) -> np.ndarray:
+        """q = 1 / (1 + b_v |v| + b_omega |omega|) in (0, 1] [dimensionless]; 1 when hovering."""
+        v = np.abs(np.asarray(speed_m_s, dtype=float))
+        w = np.abs(np.asarray(turn_rate_rad_s, dtype=float))
+        return 1.0 / (1.0 + self.motion_blur_per_speed * v + self.motion_blur_per_turn_rate * w)
+
+    def image_noise_variance(self, altitude_m, speed_m_s=0.0, turn_rate_rad_s=0.0) -> np.ndarray:
+        """Noise variance of an image taken moving: sigma^2(h) / q(v, omega) (sigma^2(h) if sharp)."""
+        if not self.blurs:
+            return self.noise_variance(altitude_m)
+        return self.noise_variance(altitude_m) / self.blur_factor(speed_m_s, turn_rate_rad_s)
+
+    def image_true_positive_rate(self, altitude_m, speed_m_s=0.0, turn_rate_rad_s=0.0) -> np.ndarray:
+        """True-positive rate of an image taken moving: fpr(h) + q (tpr(h) - fpr(h))."""
+        if not self.blurs:
+            return self.true_positive_rate(altitude_m)
+        fpr = self.false_positive_rate(altitude_m)
+        return fpr + self.blur_factor(speed_m_s, turn_rate_rad_s) * (self.true_positive_rate(altitude_m) - fpr)
+
 
 @dataclass(frozen=True)
 class Image:
@@ -183,30 +226,36 @@ def take_image(
     time_s: float,
     rng: np.random.Generator,
     inject_false_blob: bool = False,
+    speed_m_s: float = 0.0,
+    turn_rate_rad_s: float = 0.0,
 ) -> Image:
     """Simulate one image at ``pose_m``: per-cell detections with tpr(h) on person cells and
-    fpr(h) elsewhere, plus clutter blobs (and one injected blob when asked)."""
+    fpr(h) elsewhere, plus clutter blobs (and one injected blob when asked). ``speed_m_s`` and
+    ``turn_rate_rad_s``: the camera's motion when the image is taken (motion blur of a detector
+    with blur coefficients; no effect on a sharp detector)."""
     pose = np.asarray(pose_m, dtype=float)
     visible = camera.visible_cells(pose[None], field.grid, field.obstacles)[0]
     cells = np.flatnonzero(visible)
     h = pose[2]
     detected = rng.random(len(cells)) < detector.false_positive_rate(h)
+    tpr = detector.image_true_positive_rate(h, speed_m_s, turn_rate_rad_s)
     if detector.detection_unit == "cell":
         on_person = field.truth[cells] > 0.5
-        detected[on_person] = rng.random(int(on_person.sum())) < detector.true_positive_rate(h)
+        detected[on_person] = rng.random(int(on_person.sum())) < tpr
     else:
         for person in field.person_cells:
             seen = np.isin(cells, person)
             fraction = seen.sum() / max(len(person), 1)
             if fraction == 0:
                 continue
-            detected[seen] = rng.random() < detector.true_positive_rate(h) * min(1.0, 2 * fraction)
+            detected[seen] = rng.random() < tpr * min(1.0, 2 * fraction)
     n_blobs = rng.poisson(detector.clutter_rate_per_image) if detector.clutter_rate_per_image > 0 else 0
     n_blobs += int(inject_false_blob)
     clutter = _false_blobs(field, cells, n_blobs, rng)
     detected |= np.isin(cells, clutter)
     z = np.where(detected, DETECTED_VALUE, NOT_DETECTED_VALUE)
-    return Image(pose, float(time_s), cells, z, float(detector.noise_variance(h)), clutter)
+    variance = detector.image_noise_variance(h, speed_m_s, turn_rate_rad_s)
+    return Image(pose, float(time_s), cells, z, float(variance), clutter)
 
 
 def _false_blobs(field: SearchField, cells: np.ndarray, n_blobs: int, rng: np.random.Generator) -> np.ndarray:

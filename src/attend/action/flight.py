@@ -62,6 +62,19 @@ class FlightModel:
         brake_part = peak_speed * braking - 0.5 * a * braking**2
         return np.minimum(accel_part + cruise_part + brake_part, d)
 
+    def speed_after(self, elapsed_s: np.ndarray, distance_m: np.ndarray) -> np.ndarray:
+        """Speed (m/s) ``elapsed_s`` into a rest-to-rest segment of length ``distance_m``: a s while
+        accelerating, the peak speed while cruising, falling at a while braking, 0 once arrived
+        (hovering)."""
+        s = np.asarray(elapsed_s, dtype=float)
+        d = np.asarray(distance_m, dtype=float)
+        v, a = self.speed_m_s, self.acceleration_m_s2
+        total = self.segment_duration(d)
+        peak_time = np.where(d >= v * v / a, v / a, total / 2)
+        peak_speed = a * peak_time
+        speed = np.minimum(np.minimum(a * s, peak_speed), a * (total - s))
+        return np.where((s > 0) & (s < total), np.maximum(speed, 0.0), 0.0)
+
     def segment_images(
         self,
         start_m: np.ndarray,
@@ -69,7 +82,8 @@ class FlightModel:
         time_to_next_image_s: np.ndarray,
         time_left_s: np.ndarray,
         hover_for_image: bool = True,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        with_speeds: bool = False,
+    ) -> tuple[np.ndarray, ...]:
         """Images taken on k segments start -> end (arrays (k, 3)), vectorised.
 
         The UAV hovers at the end of a segment until the next image when the segment is shorter
@@ -78,7 +92,8 @@ class FlightModel:
         and belongs to it: a moving segment then waits for the image one period later.
         Flight stops at ``time_left_s``. Returns image poses (k, J, 3), image times since the
         segment start (k, J), valid mask (k, J), segment duration (k,) and the time from the
-        segment end to the next image (k,).
+        segment end to the next image (k,); ``with_speeds``: also the speed at each image (k, J)
+        [m/s] (0 when hovering).
         """
         start = np.atleast_2d(np.asarray(start_m, float))
         end = np.atleast_2d(np.asarray(end_m, float))
@@ -101,28 +116,36 @@ class FlightModel:
         fraction = np.where(length[:, None] > 0, flown / np.maximum(length[:, None], 1e-12), 0.0)
         poses = start[:, None, :] + fraction[..., None] * (end - start)[:, None, :]
         next_after = first + n_images * period - duration
+        if with_speeds:
+            return poses, times, valid, duration, next_after, self.speed_after(times, length[:, None])
         return poses, times, valid, duration, next_after
 
     def path_images(
-        self, start_m: np.ndarray, paths_m: np.ndarray, time_to_next_image_s: float, time_left_s: float
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        self, start_m: np.ndarray, paths_m: np.ndarray, time_to_next_image_s: float, time_left_s: float,
+        with_speeds: bool = False,
+    ) -> tuple[np.ndarray, ...]:
         """Images along k paths of w waypoints (k, w, 3) from a common start: poses (k, J, 3),
-        valid (k, J), flight time of each path (k,) and per-segment durations (k, w)."""
+        valid (k, J), flight time of each path (k,) and per-segment durations (k, w);
+        ``with_speeds``: also the speed at each image (k, J) [m/s]."""
         paths = np.asarray(paths_m, float)
         k, w, _ = paths.shape
         current = np.broadcast_to(np.asarray(start_m, float), (k, 3))
         first = np.full(k, float(time_to_next_image_s))
         left = np.full(k, float(time_left_s))
-        all_poses, all_valid, durations = [], [], []
+        all_poses, all_valid, durations, all_speeds = [], [], [], []
         for j in range(w):
-            poses, _, valid, duration, first = self.segment_images(current, paths[:, j], first, left)
+            poses, _, valid, duration, first, *speeds = self.segment_images(current, paths[:, j], first, left,
+                                                                             with_speeds=with_speeds)
+            all_speeds.extend(speeds)
             all_poses.append(poses)
             all_valid.append(valid)
             durations.append(duration)
             left = left - duration
             current = paths[:, j]
         durations_arr = np.column_stack(durations)
-        return np.concatenate(all_poses, axis=1), np.concatenate(all_valid, axis=1), durations_arr.sum(axis=1), durations_arr
+        out = (np.concatenate(all_poses, axis=1), np.concatenate(all_valid, axis=1), durations_arr.sum(axis=1),
+               durations_arr)
+        return out + (np.concatenate(all_speeds, axis=1),) if with_speeds else out
 
 
 def path_collides(points_m: np.ndarray, obstacles: Sequence[Obstacle], margin_m: float = 1.0) -> np.ndarray:

@@ -50,6 +50,7 @@ class ExperimentResult:
     notes: list[str] = field(default_factory=list)
     runtime_s: float | None = None
     cache_key: str | None = None
+    tables: dict[str, Any] = field(default_factory=dict)
 
     def add(self, name: str, value: float, unit: str, published: float | None = None) -> None:
         self.metrics.append(Metric(name, float(value), unit, published))
@@ -61,7 +62,9 @@ class ExperimentResult:
         raise KeyError(f"experiment {self.experiment!r} has no metric {name!r}")
 
     def to_json_dict(self) -> dict[str, Any]:
-        return {
+        """The JSON form; ``tables`` (structured results beyond the metrics, e.g. a per-setting
+        map) appear under their own keys when there are any."""
+        data = {
             "experiment": self.experiment,
             "metrics": [
                 {
@@ -78,6 +81,7 @@ class ExperimentResult:
             "runtime_s": self.runtime_s,
             "cache_key": self.cache_key,
         }
+        return data | {key: _jsonable(value) for key, value in self.tables.items() if key not in data}
 
     @classmethod
     def from_json_dict(cls, data: dict[str, Any]) -> "ExperimentResult":
@@ -86,8 +90,10 @@ class ExperimentResult:
             Metric(m["name"], float("nan") if m["value"] is None else m["value"], m["unit"], m["published"])
             for m in data["metrics"]
         ]
+        known = {"experiment", "metrics", "settings", "figures", "notes", "runtime_s", "cache_key"}
         return cls(data["experiment"], metrics, data.get("settings", {}), data.get("figures", []),
-                   notes=data.get("notes", []), runtime_s=data.get("runtime_s"), cache_key=data.get("cache_key"))
+                   notes=data.get("notes", []), runtime_s=data.get("runtime_s"), cache_key=data.get("cache_key"),
+                   tables={key: value for key, value in data.items() if key not in known})
 
     def relative_figures(self, out_dir: str | Path) -> list[str]:
         """The figure paths relative to ``out_dir`` (those outside it stay as they are)."""

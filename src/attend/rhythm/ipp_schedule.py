@@ -49,7 +49,7 @@ from attend.action.planners import Planner
 from attend.rhythm.oscillator import PrecisionOscillator, _finite
 
 __all__ = [
-    "FixedBudgetSchedule", "OscillatorSchedule", "PlanContext", "PrecisionDrivenSchedule", "ReplanSchedule",
+    "ContinuousSchedule", "FixedBudgetSchedule", "OscillatorSchedule", "PlanContext", "PrecisionDrivenSchedule", "ReplanSchedule",
     "ScheduledEpisodeLog",
     "SegmentSchedule", "coarse_trace_reduction", "expected_trace_reduction", "make_schedule", "path_gain", "replan_decision",
     "run_scheduled_episode",
@@ -111,20 +111,21 @@ def path_gain(planner: Planner, belief: OccupancyMap, pose: Sequence[float], way
 
     The path starts at rest at ``pose`` and visits ``waypoints`` (w, 3) with the planner's
     flight, camera and detector models (images on the mission clock, first one after
-    ``time_to_next_image_s``, flight stopped after ``time_left_s``). The gain is scored like
-    the planner's (coarse-grained over ``block_cells``^2 blocks, default the planner's
+    ``time_to_next_image_s``, flight stopped after ``time_left_s``; images taken moving are
+    degraded by the detector's motion blur, if any). The gain is scored like the planner's (coarse-grained over ``block_cells``^2 blocks, default the planner's
     ``planning_block_cells``; 1: exact)."""
     path = np.asarray(waypoints, dtype=float).reshape(-1, 3)
     if len(path) == 0 or time_left_s <= 0:
         return 0.0, 0.0
     setup = planner.setup
-    poses, valid, total, _ = setup.flight.path_images(np.asarray(pose, float), path[None], time_to_next_image_s,
-                                                      time_left_s)
+    poses, valid, total, _, speeds = setup.flight.path_images(np.asarray(pose, float), path[None],
+                                                              time_to_next_image_s, time_left_s, with_speeds=True)
     taken = poses[0][valid[0]]
     if len(taken) == 0:
         return 0.0, float(total[0])
     visible = setup.camera.visible_cells(taken, setup.field.grid, setup.field.obstacles)
-    precision = (visible / setup.detector.noise_variance(taken[:, 2])[:, None]).sum(axis=0)
+    variance = setup.detector.image_noise_variance(taken[:, 2], speeds[0][valid[0]])
+    precision = (visible / variance[:, None]).sum(axis=0)
     block = setup.planning_block_cells if block_cells is None else block_cells
     return coarse_trace_reduction(belief, precision, block), float(total[0])
 
@@ -159,6 +160,12 @@ class ReplanSchedule(ReplanPolicy):
     def waypoints_per_plan(self, planner: Planner) -> int | None:
         """1 if the schedule replans at every waypoint, else the whole plan (None)."""
         return 1 if self.at_waypoint else None
+
+
+class ContinuousSchedule(ReplanSchedule):
+    """Always moving, always sensing: fly every plan to its end, imaging on the way, then replan."""
+
+    name = "continuous"
 
 
 class SegmentSchedule(ReplanSchedule):
@@ -201,12 +208,15 @@ class PrecisionDrivenSchedule(ReplanSchedule):
     stay rate < tolerance * fresh rate * exp(-prior_weight * sin theta(t)) (module docstring).
 
     oscillator: the rhythm used as a prior on the timing (its phase theta(t) on the mission
-    clock); prior_weight kappa >= 0; tolerance rho > 0. ``decisions`` logs (time [s], stay rate,
-    fresh rate, replanned) of every decision of the current mission."""
+    clock); prior_weight kappa >= 0; tolerance rho > 0. ``switch_cost_s`` c >= 0: flight time a
+    replan costs (the planning latency, spent hovering): a fresh plan of duration D_k then pays
+    f D_k / (D_k + c) per second of battery (c = 0: the rule above). ``decisions`` logs (time [s],
+    stay rate, fresh rate, replanned) of every decision of the current mission."""
 
     name = "precision"
 
-    def __init__(self, oscillator: PrecisionOscillator, prior_weight: float = 0.5, tolerance: float = 1.0) -> None:
+    def __init__(self, oscillator: PrecisionOscillator, prior_weight: float = 0.5, tolerance: float = 1.0,
+                 switch_cost_s: float = 0.0) -> None:
         if not isinstance(oscillator, PrecisionOscillator):
             raise AttendInputError(f"oscillator: expected a PrecisionOscillator, got {type(oscillator).__name__}")
         self.oscillator = oscillator
@@ -215,11 +225,16 @@ class PrecisionDrivenSchedule(ReplanSchedule):
             raise AttendInputError(f"prior_weight: expected a number >= 0, got {prior_weight!r}")
         self.prior_weight = weight
         self.tolerance = positive_scalar(tolerance, "tolerance")
+        cost = _finite(switch_cost_s, "switch_cost_s")
+        if cost < 0:
+            raise AttendInputError(f"switch_cost_s: expected a time >= 0 s, got {switch_cost_s!r}")
+        self.switch_cost_s = cost
         self.reset()
 
     def reset(self) -> None:
         self.plan_rate = 0.0
         self.plan_trace = 1.0
+        self.plan_duration = 0.0
         self.decisions: list[tuple[float, float, float, bool]] = []
 
     def start_plan(self, context: PlanContext) -> None:
@@ -227,10 +242,15 @@ class PrecisionDrivenSchedule(ReplanSchedule):
                                    context.time_to_next_image_s, context.time_left_s)
         self.plan_rate = gain / duration if duration > 0 else 0.0
         self.plan_trace = max(context.belief.trace(), 1e-12)
+        self.plan_duration = duration
 
     def fresh_rate(self, belief: OccupancyMap) -> float:
-        """r_k tr P / tr P_k: the last plan's rate scaled by the uncertainty left."""
-        return self.plan_rate * belief.trace() / self.plan_trace
+        """r_k tr P / tr P_k: the last plan's rate scaled by the uncertainty left (times
+        D_k / (D_k + c) when a replan costs c seconds)."""
+        rate = self.plan_rate * belief.trace() / self.plan_trace
+        if self.switch_cost_s > 0:
+            rate *= self.plan_duration / (self.plan_duration + self.switch_cost_s)
+        return rate
 
     def after_image(self, context: PlanContext) -> bool:
         if len(context.remaining) == 0:
@@ -246,14 +266,18 @@ class PrecisionDrivenSchedule(ReplanSchedule):
 
 
 def make_schedule(policy: str, oscillator_frequency_hz: float = 0.05, oscillator_phase_rad: float = 0.0,
-                  prior_weight: float = 0.5, tolerance: float = 1.0) -> ReplanSchedule:
+                  prior_weight: float = 0.5, tolerance: float = 1.0, switch_cost_s: float = 0.0) -> ReplanSchedule:
     """Schedule by name: "segment", "fixed_<T>s" (e.g. "fixed_20s"), "oscillator", "precision"
-    (with the oscillator prior) or "precision_no_prior" (kappa = 0)."""
+    (with the oscillator prior), "precision_no_prior" (kappa = 0) or "continuous" (always
+    moving: fly each plan to its end). ``switch_cost_s``: the replan cost the precision-driven
+    rules account for."""
     if not isinstance(policy, str):
         raise AttendInputError(f"policy: expected a policy name, got {policy!r}")
     oscillator = PrecisionOscillator(frequency=oscillator_frequency_hz, phase=oscillator_phase_rad)
     if policy == "segment":
         return SegmentSchedule()
+    if policy == "continuous":
+        return ContinuousSchedule()
     if policy.startswith("fixed_") and policy.endswith("s"):
         try:
             seconds = float(policy[len("fixed_"):-1])
@@ -264,13 +288,14 @@ def make_schedule(policy: str, oscillator_frequency_hz: float = 0.05, oscillator
     if policy == "oscillator":
         return OscillatorSchedule(oscillator)
     if policy == "precision":
-        return PrecisionDrivenSchedule(oscillator, prior_weight, tolerance)
+        return PrecisionDrivenSchedule(oscillator, prior_weight, tolerance, switch_cost_s)
     if policy == "precision_no_prior":
-        schedule = PrecisionDrivenSchedule(oscillator, 0.0, tolerance)
+        schedule = PrecisionDrivenSchedule(oscillator, 0.0, tolerance, switch_cost_s)
         schedule.name = "precision_no_prior"
         return schedule
     raise AttendInputError(
-        f"policy: expected 'segment', 'fixed_<seconds>s', 'oscillator', 'precision' or 'precision_no_prior', "
+        f"policy: expected 'segment', 'continuous', 'fixed_<seconds>s', 'oscillator', 'precision' or "
+        f"'precision_no_prior', "
         f"got {policy!r}")
 
 
@@ -295,15 +320,19 @@ class ScheduledEpisodeLog(EpisodeLog):
 
 
 def run_scheduled_episode(field, planner: Planner, schedule: ReplanSchedule, budget_s: float = 150.0, seed: int = 0,
-                          diagonal: bool = False, keep_maps: bool = False) -> ScheduledEpisodeLog:
+                          diagonal: bool = False, keep_maps: bool = False,
+                          planning_latency_s: float = 0.0, latency_mode: str = "hover") -> ScheduledEpisodeLog:
     """Fly one mission of ``budget_s`` s [flight time]: plan, fly the plan taking and fusing
     images, replan when ``schedule`` says so (or the plan is used up), until the budget is spent.
 
     field: an :class:`attend.action.SearchField`; planner: any :class:`attend.action.Planner`
     (its ``setup`` gives the camera, detector and flight models); seed: detector noise and
     planner seed; diagonal: per-cell (diagonal) map covariance; keep_maps: log the map after
-    each image. Planning time is not charged against the budget (it is logged). The schedule is
-    consulted after every image except one taken where a plan starts (before it has flown)."""
+    each image. Planning wall time is not charged against the budget (it is logged); a fixed
+    ``planning_latency_s`` per plan is (the UAV hovers meanwhile, or with ``latency_mode`` "fly"
+    keeps flying the old plan, see :func:`attend.action.episode.fly_mission`); motion blur comes with the planner's detector.
+    The schedule is consulted after every image except one taken where a plan starts (before
+    it has flown)."""
     if not isinstance(schedule, ReplanSchedule):
         raise AttendInputError(f"schedule: expected a ReplanSchedule, got {type(schedule).__name__}")
     if not isinstance(planner, Planner):
@@ -312,6 +341,6 @@ def run_scheduled_episode(field, planner: Planner, schedule: ReplanSchedule, bud
     setup = planner.setup
     log = ScheduledEpisodeLog(planner.name, seed, float(budget_s), len(field.people), schedule=schedule.name)
     fly_mission(field, planner, setup.camera, setup.detector, setup.flight, log, schedule, diagonal=diagonal,
-                keep_maps=keep_maps)
+                keep_maps=keep_maps, planning_latency_s=planning_latency_s, latency_mode=latency_mode)
     log.decisions = list(getattr(schedule, "decisions", []))
     return log

@@ -212,13 +212,18 @@ class PrecisionDrivenScheduler(_Scheduler):
 
     ``perception_gain`` defaults to the oscillator's mean gain over its perception windows, so
     the precision budget per perception step matches :class:`OscillatorScheduler`'s.
+
+    ``decision_time`` [s] >= 0: deciding to move takes time. The rule reads the precision state,
+    so the move starts only ``decision_time`` after the decision (rounded to whole steps), the
+    sensor perceiving where it is meanwhile; clock-driven schedulers know their move times in
+    advance and prepare the move during the fixation. 0 (default): the move starts at once.
     """
 
     def __init__(self, oscillator: PrecisionOscillator, time_step: float = 0.0125,
                  action_duration: float = 0.0625, prior_weight: float = 1.0,
                  saccadic_suppression: float = 0.1, perception_gain: float | None = None,
                  horizon_steps: int | None = None, min_fixation_steps: int = 1,
-                 action_fraction: float = 0.25) -> None:
+                 action_fraction: float = 0.25, decision_time: float = 0.0) -> None:
         if not isinstance(oscillator, PrecisionOscillator):
             raise AttendInputError(f"oscillator: expected a PrecisionOscillator, got {type(oscillator).__name__}")
         self.oscillator = oscillator
@@ -240,6 +245,11 @@ class PrecisionDrivenScheduler(_Scheduler):
             raise AttendInputError(
                 f"horizon_steps: expected more than the {self.action_steps} action steps, got {horizon_steps!r}")
         self.min_fixation_steps = _positive_int(min_fixation_steps, "min_fixation_steps")
+        decision = _finite(decision_time, "decision_time")
+        if decision < 0:
+            raise AttendInputError(f"decision_time: expected a time >= 0 s, got {decision_time!r}")
+        self.decision_time = decision
+        self.decision_steps = int(round(decision / self.time_step))
 
     def should_move(self, gain_of_staying: float, gain_of_moving: float, time: float) -> bool:
         """The decision rule above at time ``time`` [s]: G_stay (one step) vs G_move (a fixation of
@@ -252,20 +262,26 @@ class PrecisionDrivenScheduler(_Scheduler):
             raise AttendInputError("task: the precision-driven scheduler needs a ScheduledTask to consult")
         n_steps = self._check(n_steps)
         dt, g = self.time_step, self.perception_gain
-        fixation_steps, action_left, i = 0, 0, 0
+        fixation_steps, action_left, deciding, i = 0, 0, -1, 0
         while i < n_steps:
             t = i * dt
+            if deciding == 0:  # the decision is made: move now
+                action_left, fixation_steps, deciding = self.action_steps, 0, -1
             if action_left > 0:
                 onset = action_left == self.action_steps
                 yield ScheduleStep(i, t, dt, ACT, self.saccadic_suppression * g, onset)
                 action_left -= 1
                 i += 1
                 continue
-            if fixation_steps >= self.min_fixation_steps and self.should_move(
+            if deciding > 0:  # perceiving while the decision to move is being taken
+                deciding -= 1
+            elif fixation_steps >= self.min_fixation_steps and self.should_move(
                     task.expected_gain_of_staying(g, dt),
                     task.expected_gain_of_moving(g, (self.horizon_steps - self.action_steps) * dt), t + 0.5 * dt):
-                action_left, fixation_steps = self.action_steps, 0
-                continue
+                if self.decision_steps == 0:
+                    action_left, fixation_steps = self.action_steps, 0
+                    continue
+                deciding = self.decision_steps - 1
             yield ScheduleStep(i, t, dt, PERCEIVE, g, fixation_steps == 0)
             fixation_steps += 1
             i += 1

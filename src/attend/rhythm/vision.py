@@ -11,6 +11,12 @@ every location an observation
 rho ``foveal_precision_rate`` [1/(intensity^2 s)], w ``fovea_width`` [grid units]: acuity falls with
 eccentricity |x_l - x_f|. g comes from the scheduler (suppressed during saccades).
 
+Diminishing returns of dwelling (optional): with ``adaptation_time`` tau_a [s] the precision rate
+decays during a fixation (adaptation, fading of a stabilised image): a step from dwell time tau
+to tau + dt delivers the dose g tau_a (exp(-tau / tau_a) - exp(-(tau + dt) / tau_a)) instead of
+g dt, so a fixation of length D yields at most g tau_a (1 - exp(-D / tau_a)) < g tau_a; a saccade
+restores the full rate. tau_a = inf (default): the dose is g dt, bit for bit.
+
 Beliefs: independent categorical posteriors q_l(k), updated exactly (Bayes):
 
     log q_l'(k) = log q_l(k) - lambda_l / 2 |y_l - mu_k|^2 - log Z_l.
@@ -134,15 +140,29 @@ def random_scene(rows: int = 4, cols: int = 4, letters: str = "EFTLOC", seed: in
 class FoveatedEye:
     """Acuity exp(-d^2 / (2 w^2)) with d the eccentricity [grid units]; ``fovea_width`` w > 0
     [grid units]; ``foveal_precision_rate`` rho > 0 [1/(intensity^2 s)]: precision per second of
-    viewing at the fovea at gain 1."""
+    viewing at the fovea at gain 1; ``adaptation_time`` tau_a > 0 [s] (inf: none): the precision
+    rate decays as exp(-tau / tau_a) with the dwell time tau of a fixation (module docstring)."""
 
     fovea_width: float = 0.7
     foveal_precision_rate: float = 12.0
+    adaptation_time: float = float("inf")
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.adaptation_time, (int, float)) and self.adaptation_time > 0
+                and not np.isnan(self.adaptation_time)):
+            raise AttendInputError(f"adaptation_time: expected a time > 0 s (inf: no adaptation), got {self.adaptation_time!r}")
         object.__setattr__(self, "fovea_width", positive_scalar(self.fovea_width, "fovea_width", "grid units"))
         object.__setattr__(self, "foveal_precision_rate",
                            positive_scalar(self.foveal_precision_rate, "foveal_precision_rate", "1/(intensity^2 s)"))
+
+    def dwell_dose(self, dwell: float, duration: float) -> float:
+        """Effective viewing time [s] of a step from dwell time ``dwell`` to ``dwell + duration``
+        [s]: tau_a (exp(-dwell / tau_a) - exp(-(dwell + duration) / tau_a)); ``duration`` if no
+        adaptation."""
+        if not np.isfinite(self.adaptation_time):
+            return duration
+        tau = self.adaptation_time
+        return tau * (np.exp(-dwell / tau) - np.exp(-(dwell + duration) / tau))
 
     def acuity(self, locations: np.ndarray) -> np.ndarray:
         """(F, L) acuity exp(-|x_l - x_f|^2 / (2 w^2)) of every fixation f at every location l."""
@@ -357,6 +377,7 @@ class ActiveVisionAgent:
         self.saccades: list[SaccadeRecord] = []
         self.revisits = 0
         self.time = 0.0
+        self.dwell = 0.0
         self.entropy_trace: list[float] = []
         self.accuracy_trace: list[float] = []
 
@@ -386,14 +407,16 @@ class ActiveVisionAgent:
 
     # ScheduledTask
     def expected_gain_of_staying(self, precision_gain: float, duration: float) -> float:
-        return float(self.salience(precision_gain * duration, [self.fixation])[0])
+        dose = precision_gain * self.eye.dwell_dose(self.dwell, duration)
+        return float(self.salience(dose, [self.fixation])[0])
 
     def expected_gain_of_moving(self, precision_gain: float, duration: float) -> float:
         others = [i for i in range(self.scene.n_locations) if i != self.fixation]
-        return float(self.salience(precision_gain * duration, others).max())
+        return float(self.salience(precision_gain * self.eye.dwell_dose(0.0, duration), others).max())
 
     def perceive(self, precision_gain: float, duration: float) -> None:
-        self._sample(precision_gain * duration)
+        self._sample(precision_gain * self.eye.dwell_dose(self.dwell, duration))
+        self.dwell += duration
         self._record(duration)
 
     def act(self, precision_gain: float, duration: float, onset: bool) -> None:
@@ -408,6 +431,7 @@ class ActiveVisionAgent:
             self.visited_since_reset.add(target)
             self.fixation = target
             self.fixations.append(target)
+            self.dwell = 0.0
         self._sample(precision_gain * duration)  # data taken while moving: suppressed precision
         self._record(duration)
 

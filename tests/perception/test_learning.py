@@ -476,3 +476,18 @@ def test_drifting_known_entries_are_named():
                             precision_convention="max", initial=start,
                             **dict(LEARNING, known_prior_precision=3.3e6, max_iterations=2))
     assert not result.converged and "known_prior_precision = inf" in result.message
+
+
+def test_identify_accepts_a_python_control_statespace():
+    """The prior system may be a python-control StateSpace (converted with from_statespace)."""
+    control = pytest.importorskip("control")
+    from attend import identify, mass_spring_damper, simulate
+
+    system = mass_spring_damper()
+    t = np.arange(200) * 0.1
+    u = np.exp(-0.25 * (t - 8) ** 2)[:, None]
+    log = simulate(system, u, 0.1, kernel_width=0.5, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=0)
+    settings = dict(kernel_width=0.5, free=["A[2,1]"], max_iterations=3)
+    from_statespace = identify(control.ss(system.A, system.B, system.C, 0), log.outputs, u, 0.1, **settings)
+    direct = identify(system, log.outputs, u, 0.1, **settings)
+    np.testing.assert_allclose(from_statespace.system.A, direct.system.A)

@@ -19,7 +19,7 @@ from attend.perception.learning.parameters import (
     system_from_parameters,
 )
 from attend.perception.learning.problem import IdentifiabilityWarning, LearningWarning
-from attend.systems import LinearSystem, observability_rank
+from attend.systems import LinearSystem, as_linear_system, observability_rank
 
 KNOWN_DISPLACED_STD = 5.0  # identify warns when a known entry ends this many prior std from its mean
 
@@ -149,8 +149,7 @@ def identify(
     while B is free, or when the free entries are not locally identifiable from input-output data.
     If a step diverges the learning stops (LearningWarning) and returns the last accepted estimate.
     """
-    if not isinstance(system_prior, LinearSystem):
-        raise AttendInputError("system_prior: expected an attend.LinearSystem")
+    system_prior = as_linear_system(system_prior, "system_prior")  # a python-control StateSpace converts
     dt, kernel_width = positive_scalar(dt, "dt", "s"), positive_scalar(kernel_width, "kernel_width", "s")
     p, d = _orders(embedding_order, input_order)
     y, u = _log(system_prior, outputs, inputs, max(p, d) + 1)

@@ -490,4 +490,4 @@ def test_identify_accepts_a_python_control_statespace():
     settings = dict(kernel_width=0.5, free=["A[2,1]"], max_iterations=3)
     from_statespace = identify(control.ss(system.A, system.B, system.C, 0), log.outputs, u, 0.1, **settings)
     direct = identify(system, log.outputs, u, 0.1, **settings)
-    np.testing.assert_allclose(from_statespace.system.A, direct.system.A)
+    np.testing.assert_allclose(from_statespace.system().A, direct.system().A)

@@ -748,8 +748,11 @@ class DEMObserver:
             return
         names = list(self.system.state_names) + ([] if self.known_inputs else list(self.system.input_names))
         std = np.concatenate([state_std, [] if self.known_inputs else input_std])
+        checked = np.ones(len(std), dtype=bool)
+        if not self.known_inputs:  # measured inputs passed as pinned unknowns are given, not estimated
+            checked[self.system.n_states:] = np.diag(self.input_prior_precision) < PINNED_INPUT_PRECISION
         with np.errstate(invalid="ignore"):
-            worse = np.isfinite(std) & np.isfinite(prior) & (std > prior)
+            worse = checked & np.isfinite(std) & np.isfinite(prior) & (std > 1.01 * prior)
         if worse.any():
             listed = ", ".join(f"{name} (error std {e:.3g}, spread {s:.3g})"
                                for name, e, s, bad in zip(names, std, prior, worse) if bad)

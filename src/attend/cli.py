@@ -463,11 +463,22 @@ def main(argv=None) -> int:
         return 0
     handlers = {"estimate": _command_estimate, "reproduce": _command_reproduce, "search": _command_search,
                 "identify": _command_identify}
-    warnings.simplefilter("default")
-    warnings.formatwarning = lambda message, category, *rest: f"attend: warning: {_one_line(message)}\n"
     args.debug = debug
+    with warnings.catch_warnings():  # the command's warning style, restored when it returns
+        warnings.simplefilter("default")
+        warnings.showwarning = _show_warning
+        return _run_handler(handlers[args.command], args, debug)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings of a command: one line ``attend: warning: ...`` on standard error."""
+    print(f"attend: warning: {_one_line(message)}", file=sys.stderr if file is None else file)
+
+
+def _run_handler(handler, args, debug: bool) -> int:
+    """Run one command, mapping errors to exit statuses (0 done, 1 internal, 2 bad input)."""
     try:
-        return handlers[args.command](args)
+        return handler(args)
     except AttendInputError as error:
         if debug:
             raise

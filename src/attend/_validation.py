@@ -125,6 +125,19 @@ def positive_scalar(value, field: str, unit: str = "") -> float:
     return number
 
 
+def kernel_width(value, field: str) -> float:
+    """A noise kernel width >= 0 [s] (0: white noise)."""
+    if isinstance(value, bool):
+        raise AttendInputError(f"{field}: expected a number >= 0 (s; 0 for white noise), got {value!r}")
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise AttendInputError(f"{field}: expected a number >= 0 (s; 0 for white noise), got {value!r}") from None
+    if not np.isfinite(number) or number < 0:
+        raise AttendInputError(f"{field}: expected a finite number >= 0 (s; 0 for white noise), got {value!r}")
+    return number
+
+
 def order(value, field: str, maximum: int = 24) -> int:
     """A non-negative integer embedding order."""
     if (isinstance(value, (bool, np.bool_)) or not isinstance(value, Real)

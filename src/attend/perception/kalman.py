@@ -33,6 +33,7 @@ from scipy.linalg import cho_factor, cho_solve
 
 from attend._threads import single_blas_thread, with_single_blas_thread
 from attend._validation import AttendInputError, as_matrix, positive_scalar, precision_matrix, require_finite
+from attend._validation import kernel_width as checked_width
 from attend.noise import (
     NoiseStateSpace,
     kernel_autocorrelation,
@@ -58,17 +59,6 @@ class StateEstimate(NamedTuple):
     state_std: np.ndarray
     input_std: np.ndarray
     method: str
-
-
-def _width(value, field: str) -> float:
-    """A kernel width >= 0 [s] (0: white noise)."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise AttendInputError(f"{field}: expected a number >= 0 (s; 0 for white noise), got {value!r}") from None
-    if not np.isfinite(number) or number < 0:
-        raise AttendInputError(f"{field}: expected a finite number >= 0 (s; 0 for white noise), got {value!r}")
-    return number
 
 
 def _factor(precision: np.ndarray, field: str) -> np.ndarray:
@@ -139,13 +129,13 @@ class KalmanEstimator:
         set_ = object.__setattr__
         n, r, m = system.n_states, system.n_inputs, system.n_outputs
         set_(self, "dt", positive_scalar(self.dt, "dt", "s"))
-        shared = None if self.kernel_width is None else _width(self.kernel_width, "kernel_width")
+        shared = None if self.kernel_width is None else checked_width(self.kernel_width, "kernel_width")
         widths, sources = {}, {}
         for name in ("process_kernel_width", "sensor_kernel_width"):
             value = getattr(self, name)
             if value is None and shared is None:
                 raise AttendInputError(f"{name}: required (or kernel_width for both noises); 0 means white noise")
-            widths[name] = shared if value is None else _width(value, name)
+            widths[name] = shared if value is None else checked_width(value, name)
             sources[name] = "kernel_width" if value is None else name
             set_(self, name, widths[name])
         self._model["width_fields"] = sources
@@ -164,7 +154,7 @@ class KalmanEstimator:
             width = self.input_kernel_width
             if width is None:
                 width = widths["process_kernel_width"] or widths["sensor_kernel_width"]
-            width = _width(width, "input_kernel_width")
+            width = checked_width(width, "input_kernel_width")
             if width == 0:
                 raise AttendInputError("input_kernel_width: expected a width > 0 [s] for the unknown inputs' "
                                        "prior (the noise widths are both 0)")

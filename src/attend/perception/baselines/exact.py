@@ -9,6 +9,7 @@ import numpy as np
 from scipy.linalg import solve_triangular
 
 from attend._validation import AttendInputError, positive_scalar, require_finite
+from attend._validation import kernel_width as checked_width
 from attend.noise import autocorrelation, gaussian_kernel
 from attend.perception.baselines.filters import _inputs, _outputs, _std_vector, _system
 
@@ -245,19 +246,10 @@ def _causal_means(G, white, z_mean, u_mean, q, n, known):
 
 def _noise_widths(kernel_width, process_kernel_width, sensor_kernel_width, input_kernel_width):
     """(s_w, s_z, s_u) [s] from the shared width and the per-noise overrides (0 = white)."""
-    def width(value, field):
-        try:
-            number = float(value)
-        except (TypeError, ValueError):
-            raise AttendInputError(f"{field}: expected a number >= 0 [s], got {value!r}") from None
-        if not np.isfinite(number) or number < 0:
-            raise AttendInputError(f"{field}: expected a finite number >= 0 [s], got {value!r}")
-        return number
-
     widths = []
     for value, field in ((process_kernel_width, "process_kernel_width"), (sensor_kernel_width, "sensor_kernel_width")):
         if value is None and kernel_width is None:
             raise AttendInputError(f"{field}: required (or kernel_width for both noises)")
-        widths.append(width(kernel_width if value is None else value, field))
-    s_u = widths[0] if input_kernel_width is None else width(input_kernel_width, "input_kernel_width")
+        widths.append(checked_width(kernel_width if value is None else value, field))
+    s_u = widths[0] if input_kernel_width is None else checked_width(input_kernel_width, "input_kernel_width")
     return widths[0], widths[1], s_u

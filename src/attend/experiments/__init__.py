@@ -1,8 +1,22 @@
-"""Reproduction experiments, one module per paper figure.
+"""Reproduction experiments, one module per paper figure: thin clients of the library.
 
-Each module has ``run(quick=True, out_dir=None, progress=True) -> ExperimentResult``; the CLI's
-``attend reproduce NAME`` calls it and writes ``NAME.json`` and PNG figures. Sweeps (fig4, fig5)
-also take ``cluster="tcp://host:8786"`` to run on a Dask cluster (see :mod:`attend.sweep`).
+Every experiment module follows one contract:
+
+- ``run(quick=True, progress=True, **options) -> ExperimentResult`` computes and returns; it
+  draws nothing and writes no file. Everything a figure needs is kept in ``result.tables``
+  (JSON-able values: numbers, strings, lists and dicts of them), so the JSON re-plots.
+- ``plot(result, out_dir) -> list[str]`` draws the figures from the result alone (as rebuilt by
+  ``ExperimentResult.from_json_dict``), writes PNG files into ``out_dir`` and returns their
+  paths. Every axis is labelled, with units.
+- ``CAPTIONS: dict[str, str]``: figure file name -> a caption a reader understands without the
+  code (what is drawn, against what, and what to look for).
+- ``claims(result) -> list[Claim]``: the paper's claims this experiment tests, with what attend
+  measured, the published value where there is one, and the verdict.
+
+``attend reproduce NAME`` calls ``run``, then ``plot``, then writes ``NAME.json``; ``attend
+report DIR`` rebuilds the figures and ``DIR/index.html`` from the JSON files alone. Sweeps
+(fig4, fig5) also take ``cluster="tcp://host:8786"`` to run on a Dask cluster (see
+:mod:`attend.sweep`).
 """
 
 from __future__ import annotations

@@ -38,6 +38,29 @@ class Metric:
         return abs(self.value - self.published) / abs(self.published)
 
 
+#: The verdicts a claim can get in the report.
+VERDICTS = ("reproduced", "differs", "does not hold")
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One claim of the paper as attend tested it: the claim in words, what attend measured (with
+    units), the published value where there is one, and the verdict, one of :data:`VERDICTS`."""
+
+    claim: str
+    measured: str
+    verdict: str
+    published: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.verdict not in VERDICTS:
+            raise ValueError(f"claim verdict {self.verdict!r}; expected one of {', '.join(VERDICTS)}")
+
+    def to_json_dict(self) -> dict[str, Any]:
+        return {"claim": self.claim, "measured": self.measured, "published": self.published,
+                "verdict": self.verdict}
+
+
 @dataclass
 class ExperimentResult:
     """Metrics, settings and figure files of one experiment run."""

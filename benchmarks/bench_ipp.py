@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from attend.action.belief import OccupancyMap, _prior_covariance_cached, prior_covariance
+from attend.action.belief import PAPER_PRIOR, OccupancyMap, prior_covariance
 from attend.action.camera import Camera, Detector
 from attend.action.field import Grid, make_field
 from attend.action.planners import PlanningSetup, make_planner
@@ -71,22 +71,18 @@ def replan_times(cells_per_side: int, block: int, planner: str = "precision_gain
 def coarse_vs_exact(seed: int = 0) -> tuple[float, float, bool]:
     """Spearman rank correlation, median ratio and same-argmax of coarse (2x2) vs exact single-image
     trace reductions over the candidate lattice, on a belief after three images."""
-    from attend.action.camera import take_image
-    from attend.action.planners import _PlanningModel
+    from attend.action.episode import belief_after_images
+    from attend.action.planners.scoring import ScreeningModel
 
     field = make_field(seed)
     setup = PlanningSetup(field)
-    rng = np.random.default_rng(seed)
-    belief = OccupancyMap.prior(field.grid)
-    for pose in ([10, 0, 10], [0, 5, 14], [-8, -8, 8]):
-        image = take_image(field, setup.camera, setup.detector, pose, 0.0, rng)
-        belief.fuse(image.cells, image.measurements, image.noise_variance)
+    belief = belief_after_images(field, setup, ([10, 0, 10], [0, 5, 14], [-8, -8, 8]), seed=seed)
     lattice = setup.lattice()
     visible = setup.camera.visible_cells(lattice, field.grid)[:, None, :]
     noise = setup.detector.noise_variance(lattice[:, 2])[:, None]
     gains = []
     for block in (1, 2):
-        model = _PlanningModel(belief, PlanningSetup(field, planning_block_cells=block), None)
+        model = ScreeningModel(belief, PlanningSetup(field, planning_block_cells=block), None)
         gains.append(model.gains(model.precision(visible, noise))[0])
     ranks = [np.argsort(np.argsort(g)) for g in gains]
     return float(np.corrcoef(*ranks)[0, 1]), float(np.median(gains[1] / gains[0])), bool(np.argmax(gains[0]) == np.argmax(gains[1]))
@@ -133,9 +129,8 @@ def main() -> None:
     for side in (20, 40, 60, 80):
         if side > args.max_grid:
             continue
-        _prior_covariance_cached.cache_clear()
         tic = time.perf_counter()
-        prior_covariance(side)
+        PAPER_PRIOR.build_covariance(side)
         prior_time = time.perf_counter() - tic
         times, fusion, cpu = replan_times(side, 2, repeats=3)
         line(f"{side}x{side}: prior / fusion / median replan (CPU)",
@@ -182,8 +177,8 @@ class _TruthOracle:
     name = "truth_oracle"
     waypoints_per_replan = None
 
-    def __init__(self, field, altitude_m: float) -> None:
-        self.field, self.altitude_m = field, altitude_m
+    def __init__(self, field, altitude_m: float, setup) -> None:
+        self.field, self.altitude_m, self.setup = field, altitude_m, setup
 
     def reset(self, seed: int = 0) -> None:
         pass
@@ -202,7 +197,7 @@ def find_all_diagnostics(trials: int) -> None:
     "efe_confirm": EFE search at 14 m, confirmation at 8 m; settings chosen on seeds 100-199 and
     100-124, disjoint from the trial seeds) and for the ground-truth oracle ceiling at 5, 8 and
     11 m."""
-    from attend.action.episode import run_episode
+    from attend.action.episode import fly
 
     print(f"\nFinding all 7 (seeds 0-{trials - 1}; strict: every cell of a person > 0.5 | diagnostic: person-mean > 0.5)")
     runs = {}
@@ -211,9 +206,9 @@ def find_all_diagnostics(trials: int) -> None:
         setup = PlanningSetup(field)
         planners = {"cover_confirm (cover 2 x 13 m, confirm)": make_planner("cover_confirm", setup, seed),
                     "efe_confirm (search 14 m, confirm 8 m)": make_planner("efe_confirm", setup, seed)}
-        planners.update({f"truth oracle at {h:g} m (ceiling)": _TruthOracle(field, h) for h in (5.0, 8.0, 11.0)})
+        planners.update({f"truth oracle at {h:g} m (ceiling)": _TruthOracle(field, h, setup) for h in (5.0, 8.0, 11.0)})
         for label, planner in planners.items():
-            log = run_episode(field, planner, setup.camera, setup.detector, setup.flight, 150.0, seed, keep_maps=False)
+            log = fly(field, planner, 150.0, seed, keep_maps=False)
             runs.setdefault(label, []).append(
                 (np.isfinite(log.time_to_find_all_s()), np.isfinite(log.time_to_find_all_s("people_found_person_mean")),
                  log.series("people_found")[-1], log.series("rse")[-1], log.series("trace")[-1]))

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from attend.action import ActionInputError, Camera, OccupancyMap, PlanningSetup, make_field, make_planner
-from attend.action.confirm import CoverConfirmPlanner, confirmation_value, detections
+from attend.action.planners.cover_confirm import CoverConfirmPlanner, confirmation_value, detections
 from attend.action.planners import kalman_mean
 
 

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from attend.action.episode import run_episode
+from attend.action.episode import fly
 from attend.action.errors import ActionInputError
 from attend.action.field import make_field
 from attend.action.flight import path_collides
@@ -45,9 +45,9 @@ def test_precision_gain_choice_beats_lattice_candidates_on_its_objective(exact_c
     belief = OccupancyMap.prior(field.grid)
     pose = np.array(field.start_pose_m)
     chosen = planner.plan(belief, pose, 150.0, 0.0)
-    from attend.action.planners import _ExactModel, _PlanningModel
+    from attend.action.planners.scoring import ExactModel, ScreeningModel
 
-    model = _ExactModel(belief, None) if exact_candidates else _PlanningModel(belief, setup, None)
+    model = ExactModel(belief, None) if exact_candidates else ScreeningModel(belief, setup, None)
     candidates = np.vstack([chosen, setup.lattice()])
     scores = planner._score_paths(model, belief, pose, candidates[:, None, :], 0.0, 150.0)
     assert scores[0] >= scores[1:].max() - 1e-9
@@ -56,7 +56,7 @@ def test_precision_gain_choice_beats_lattice_candidates_on_its_objective(exact_c
 def test_episode_logs_every_image_and_trace_never_increases():
     field = make_field(4)
     setup = PlanningSetup(field, cma_evaluations=6)
-    log = run_episode(field, make_planner("lawnmower", setup), setup.camera, setup.detector, setup.flight, 40.0, seed=4)
+    log = fly(field, make_planner("lawnmower", setup), 40.0, seed=4)
     n_images = len(log.times_s)
     assert n_images == int(40.0 * 0.15) + 1  # one image every 6.67 s from t = 0
     for key in ("rse", "trace", "trace_interest", "people_found", "false_alarm_cells", "rmse"):
@@ -68,19 +68,19 @@ def test_episode_logs_every_image_and_trace_never_increases():
 def test_diagonal_filter_runs_and_is_less_informed_by_neighbours():
     field = make_field(5)
     setup = PlanningSetup(field, cma_evaluations=6)
-    full = run_episode(field, make_planner("lawnmower", setup), setup.camera, setup.detector, setup.flight, 20.0, seed=5)
-    diag = run_episode(field, make_planner("lawnmower", setup), setup.camera, setup.detector, setup.flight, 20.0, seed=5,
+    full = fly(field, make_planner("lawnmower", setup), 20.0, seed=5)
+    diag = fly(field, make_planner("lawnmower", setup), 20.0, seed=5,
                        diagonal=True)
     assert diag.series("trace")[0] == pytest.approx(full.series("trace")[0])
     # without correlations an image only informs the cells it sees
     assert diag.series("trace")[-1] > full.series("trace")[-1]
 
 
-def test_run_episode_rejects_bad_budget():
+def test_fly_rejects_bad_budget():
     field = make_field(0)
     setup = PlanningSetup(field)
     with pytest.raises(ActionInputError, match="budget_s"):
-        run_episode(field, make_planner("random", setup), setup.camera, setup.detector, setup.flight, 0.0)
+        fly(field, make_planner("random", setup), 0.0)
 
 
 @pytest.mark.parametrize(
@@ -112,7 +112,7 @@ def test_run_search_writes_outputs(tmp_path):
 def test_injected_false_detection_is_resolved_by_revisits():
     field = make_field(3, people_region="lower_half")
     setup = PlanningSetup(field)
-    log = run_episode(field, make_planner("lawnmower", setup), setup.camera, setup.detector, setup.flight, 150.0, seed=3,
+    log = fly(field, make_planner("lawnmower", setup), 150.0, seed=3,
                       inject_false_detection_images=(0,))
     blob = log.clutter_cells[0]
     assert len(blob) == 6 and np.all(field.truth[blob] == 0)
@@ -123,22 +123,18 @@ def test_injected_false_detection_is_resolved_by_revisits():
 
 
 def test_coarse_grained_planning_gains_rank_candidates_like_exact_full_covariance():
-    from attend.action.camera import take_image
-    from attend.action.planners import _PlanningModel
+    from attend.action.episode import belief_after_images
+    from attend.action.planners.scoring import ScreeningModel
 
     field = make_field(0)
-    rng = np.random.default_rng(0)
     setup_exact = PlanningSetup(field, planning_block_cells=1)
-    belief = OccupancyMap.prior(field.grid)
-    for pose in ([10, 0, 10], [0, 5, 14], [-8, -8, 8]):
-        image = take_image(field, setup_exact.camera, setup_exact.detector, pose, 0.0, rng)
-        belief.fuse(image.cells, image.measurements, image.noise_variance)
+    belief = belief_after_images(field, setup_exact, ([10, 0, 10], [0, 5, 14], [-8, -8, 8]), seed=0)
     lattice = setup_exact.lattice()
     visible = setup_exact.camera.visible_cells(lattice, field.grid)[:, None, :]
     noise = setup_exact.detector.noise_variance(lattice[:, 2])[:, None]
     gains = {}
     for block in (1, 2):
-        model = _PlanningModel(belief, PlanningSetup(field, planning_block_cells=block), None)
+        model = ScreeningModel(belief, PlanningSetup(field, planning_block_cells=block), None)
         gains[block], _ = model.gains(model.precision(visible, noise))
     # exact trace reduction equals the dense posterior formula for one candidate
     k = int(np.argmax(gains[1]))
@@ -151,22 +147,18 @@ def test_coarse_grained_planning_gains_rank_candidates_like_exact_full_covarianc
 
 
 def test_exact_rescoring_model_matches_dense_full_covariance_gains():
-    from attend.action.camera import take_image
-    from attend.action.planners import _ExactModel, _PlanningModel
+    from attend.action.episode import belief_after_images
+    from attend.action.planners.scoring import ExactModel, ScreeningModel
 
     field = make_field(0)
     setup = PlanningSetup(field, planning_block_cells=1)
-    rng = np.random.default_rng(0)
-    belief = OccupancyMap.prior(field.grid)
-    for pose in ([10, 0, 10], [0, 5, 14]):
-        image = take_image(field, setup.camera, setup.detector, pose, 0.0, rng)
-        belief.fuse(image.cells, image.measurements, image.noise_variance)
+    belief = belief_after_images(field, setup, ([10, 0, 10], [0, 5, 14]), seed=0)
     lattice = setup.lattice()[::5]
     visible = setup.camera.visible_cells(lattice, field.grid)[:, None, :]
     noise = setup.detector.noise_variance(lattice[:, 2])[:, None]
     weights = np.random.default_rng(1).random(field.grid.n_cells)
     for cell_weights in (None, weights):
-        dense, exact = _PlanningModel(belief, setup, cell_weights), _ExactModel(belief, cell_weights)
+        dense, exact = ScreeningModel(belief, setup, cell_weights), ExactModel(belief, cell_weights)
         for _ in range(2):  # before and after conditioning on one image
             want = dense.gains(dense.precision(visible, noise), want_information=True)
             got = exact.gains(exact.precision(visible, noise), want_information=True)
@@ -188,21 +180,17 @@ def test_exact_candidates_is_validated():
 def test_greedy_exact_value_from_segments_equals_exact_path_score(name):
     """Chain rule: the exact segment values summed over the greedy path equal the exact score of
     the whole path (so the greedy path need not be re-scored at the end)."""
-    from attend.action.camera import take_image
-    from attend.action.planners import _ExactModel
+    from attend.action.episode import belief_after_images
+    from attend.action.planners.scoring import ExactModel
 
     field = make_field(2)
     setup = PlanningSetup(field, cma_evaluations=6)
     planner = make_planner(name, setup, 0)
-    rng = np.random.default_rng(0)
-    belief = OccupancyMap.prior(field.grid)
-    for pose in ([10, 0, 10], [0, 5, 14]):
-        image = take_image(field, setup.camera, setup.detector, pose, 0.0, rng)
-        belief.fuse(image.cells, image.measurements, image.noise_variance)
+    belief = belief_after_images(field, setup, ([10, 0, 10], [0, 5, 14]), seed=0)
     seen = {}
 
     def spy(belief_, pose_, greedy, t_next, budget, model, exact=None, greedy_exact=None):
-        exact_model = _ExactModel(belief_, planner.cell_weights(belief_))
+        exact_model = ExactModel(belief_, planner.cell_weights(belief_))
         seen["path"] = float(planner._score_paths(exact_model, belief_, pose_, greedy[None], t_next, budget)[0])
         seen["segments"] = greedy_exact
         return greedy

@@ -3,21 +3,31 @@ rescue (seed §4.3, Figs. 6-9).
 
 Data path: SearchField (people, obstacles) -> Camera + Detector (images at 0.15 Hz) ->
 OccupancyMap (GP prior, Kalman fusion, precision map) -> Planner (expected precision gain,
-adaptive, expected free energy, cover-then-confirm; lawnmower and random baselines) -> run_episode / run_search.
+adaptive, expected free energy, cover-then-confirm; lawnmower and random baselines; all listed in
+``PLANNERS``) -> :func:`fly` (one mission, the only flight loop) -> :func:`run_search` (one
+mission with its files, ``attend search``).
 """
 
-from attend.action.belief import OccupancyMap, kalman_update, kalman_update_diagonal, observation_gains, prior_covariance
+from attend.action.belief import (
+    PAPER_PRIOR,
+    GaussianProcessPrior,
+    OccupancyMap,
+    kalman_update,
+    kalman_update_diagonal,
+    observation_gains,
+    prior_covariance,
+)
 from attend.action.camera import Camera, Detector, Image, noise_variance, take_image
-from attend.action.confirm import CoverConfirmPlanner, confirmation_value, detections
-from attend.action.episode import EpisodeLog, PlanContext, ReplanPolicy, fly_mission, run_episode
+from attend.action.episode import EpisodeLog, PlanContext, ReplanPolicy, fly
 from attend.action.errors import ActionInputError
 from attend.action.field import Grid, Obstacle, Person, SearchField, make_field
 from attend.action.flight import FlightModel
-from attend.action.metrics import map_metrics, root_squared_error
+from attend.action.metrics import FOUND_THRESHOLD, map_metrics, root_squared_error
 from attend.action.mission import run_search
 from attend.action.planners import (
     PLANNERS,
     AdaptivePlanner,
+    CoverConfirmPlanner,
     ExpectedFreeEnergyPlanner,
     LawnmowerPlanner,
     Planner,
@@ -25,6 +35,8 @@ from attend.action.planners import (
     PrecisionGainPlanner,
     RandomPlanner,
     SearchConfirmPlanner,
+    confirmation_value,
+    detections,
     make_planner,
 )
 
@@ -36,12 +48,15 @@ __all__ = [
     "Detector",
     "EpisodeLog",
     "ExpectedFreeEnergyPlanner",
+    "FOUND_THRESHOLD",
     "FlightModel",
+    "GaussianProcessPrior",
     "Grid",
     "Image",
     "LawnmowerPlanner",
     "Obstacle",
     "OccupancyMap",
+    "PAPER_PRIOR",
     "PLANNERS",
     "Person",
     "PlanContext",
@@ -49,14 +64,14 @@ __all__ = [
     "PlanningSetup",
     "PrecisionGainPlanner",
     "RandomPlanner",
-    "SearchConfirmPlanner",
     "ReplanPolicy",
+    "SearchConfirmPlanner",
     "SearchField",
     "confirmation_value",
     "detections",
+    "fly",
     "kalman_update",
     "kalman_update_diagonal",
-    "fly_mission",
     "make_field",
     "make_planner",
     "map_metrics",
@@ -64,7 +79,6 @@ __all__ = [
     "observation_gains",
     "prior_covariance",
     "root_squared_error",
-    "run_episode",
     "run_search",
     "take_image",
 ]

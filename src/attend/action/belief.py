@@ -25,40 +25,70 @@ import scipy.ndimage
 
 from attend.action.field import Grid
 
-PRIOR_MEAN = 0.1
-LENGTH_SCALE_CELLS = 3.67
-SIGNAL_VARIANCE = 1.82
-PRIOR_NOISE_VARIANCE = 2.01
-
 
 def matern32(distance: np.ndarray, length_scale: float, signal_variance: float) -> np.ndarray:
-    """Matern-3/2 kernel  s2 (1 + sqrt(3) d / l) exp(-sqrt(3) d / l)."""
+    """Matern-3/2 kernel  k(d) = s2 (1 + sqrt(3) d / l) exp(-sqrt(3) d / l).
+
+    distance: d (any shape); length_scale: l, in the units of d; signal_variance: s2."""
     scaled = np.sqrt(3.0) * np.asarray(distance) / length_scale
     return signal_variance * (1 + scaled) * np.exp(-scaled)
 
 
+@dataclass(frozen=True)
+class GaussianProcessPrior:
+    """The map prior x ~ N(mean 1, P), P = K - K (K + r0 I)^-1 K, K the Matern-3/2 kernel
+    k(d) = s2 (1 + sqrt(3) d / l) exp(-sqrt(3) d / l) over cell indices (d in cells).
+
+    mean: prior occupancy of every cell; length_scale_cells: l [cells]; signal_variance: s2;
+    noise_variance: r0 (the anchors condition the GP on one reading of noise r0 per cell).
+    """
+
+    mean: float = 0.1
+    length_scale_cells: float = 3.67
+    signal_variance: float = 1.82
+    noise_variance: float = 2.01
+
+    def build_covariance(self, cells_per_side: int) -> np.ndarray:
+        """Compute P = K - K (K + r0 I)^-1 K afresh (n x n, n = cells_per_side^2; uncached, for timing).
+
+        cells_per_side: side of the square grid in cells."""
+        grid = Grid(cells_per_side=int(cells_per_side))
+        index = grid.cell_indices().astype(float)
+        distance = np.sqrt(((index[:, None, :] - index[None, :, :]) ** 2).sum(-1))
+        kernel = matern32(distance, float(self.length_scale_cells), float(self.signal_variance))
+        # P = K - K (K + r0 I)^-1 K = r0 K (K + r0 I)^-1 ; solve with the SPD factor of K + r0 I.
+        factor = scipy.linalg.cho_factor(kernel + float(self.noise_variance) * np.eye(len(kernel)))
+        covariance = kernel - kernel @ scipy.linalg.cho_solve(factor, kernel)
+        return 0.5 * (covariance + covariance.T)
+
+    def covariance(self, cells_per_side: int) -> np.ndarray:
+        """Prior covariance P (n x n, n = cells_per_side^2), read-only and shared (cached): copy
+        before changing it.
+
+        cells_per_side: side of the square grid in cells."""
+        return _cached_covariance(self, int(cells_per_side))
+
+    def variance(self, cells_per_side: int) -> np.ndarray:
+        """Prior per-cell variance diag(P) (n,); cells_per_side: side of the square grid in cells."""
+        return np.diag(self.covariance(cells_per_side)).copy()
+
+
 @lru_cache(maxsize=4)
-def _prior_covariance_cached(cells_per_side: int, length_scale: float, signal_variance: float, noise_variance: float) -> np.ndarray:
-    grid = Grid(cells_per_side=cells_per_side)
-    index = grid.cell_indices().astype(float)
-    distance = np.sqrt(((index[:, None, :] - index[None, :, :]) ** 2).sum(-1))
-    kernel = matern32(distance, length_scale, signal_variance)
-    # P = K - K (K + r0 I)^-1 K = r0 K (K + r0 I)^-1 ; solve with the SPD factor of K + r0 I.
-    factor = scipy.linalg.cho_factor(kernel + noise_variance * np.eye(len(kernel)))
-    covariance = kernel - kernel @ scipy.linalg.cho_solve(factor, kernel)
-    covariance = 0.5 * (covariance + covariance.T)
+def _cached_covariance(prior: GaussianProcessPrior, cells_per_side: int) -> np.ndarray:
+    covariance = prior.build_covariance(cells_per_side)
     covariance.setflags(write=False)
     return covariance
 
 
-def prior_covariance(
-    cells_per_side: int = 40,
-    length_scale_cells: float = LENGTH_SCALE_CELLS,
-    signal_variance: float = SIGNAL_VARIANCE,
-    noise_variance: float = PRIOR_NOISE_VARIANCE,
-) -> np.ndarray:
-    """Prior map covariance P = K - K (K + r0 I)^-1 K over cell indices (a fresh copy, n x n)."""
-    return _prior_covariance_cached(int(cells_per_side), float(length_scale_cells), float(signal_variance), float(noise_variance)).copy()
+#: The anchors' prior for the 40 x 40 grid of 0.75 m cells (ICRA'19): trace(P) = 386.6.
+PAPER_PRIOR = GaussianProcessPrior()
+
+
+def prior_covariance(cells_per_side: int = 40, prior: GaussianProcessPrior = PAPER_PRIOR) -> np.ndarray:
+    """Prior map covariance P = K - K (K + r0 I)^-1 K (a fresh copy, n x n).
+
+    cells_per_side: side of the square grid in cells; prior: the GP hyperparameters."""
+    return prior.covariance(cells_per_side).copy()
 
 
 def kalman_update(
@@ -131,11 +161,15 @@ class OccupancyMap:
             self.blob_detection_count = np.zeros(self.grid.n_cells, dtype=int)
 
     @classmethod
-    def prior(cls, grid: Grid, diagonal: bool = False, prior_mean: float = PRIOR_MEAN) -> "OccupancyMap":
-        covariance = prior_covariance(grid.cells_per_side)
+    def prior(cls, grid: Grid, diagonal: bool = False, prior: GaussianProcessPrior = PAPER_PRIOR) -> "OccupancyMap":
+        """The belief before any image: mean ``prior.mean`` everywhere, covariance
+        ``prior.covariance``.
+
+        grid: the map's grid; diagonal: keep only diag(P) (per-cell filter); prior: the GP prior."""
+        covariance = prior_covariance(grid.cells_per_side, prior)
         if diagonal:
             covariance = np.diag(covariance).copy()
-        return cls(grid, np.full(grid.n_cells, prior_mean), covariance, diagonal)
+        return cls(grid, np.full(grid.n_cells, prior.mean), covariance, diagonal)
 
     @property
     def variance(self) -> np.ndarray:

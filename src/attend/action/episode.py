@@ -19,14 +19,14 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
 from attend.action.belief import OccupancyMap
 from attend.action.camera import take_image
 from attend.action.errors import ActionInputError
-from attend.action.field import validate_pose
+from attend.action.field import SearchField, validate_pose
 from attend.action.metrics import map_metrics
 from attend.action.planners import Planner
 
@@ -97,7 +97,7 @@ class PlanContext:
 
 
 class ReplanPolicy:
-    """When the UAV stops following its plan and replans (the hook of :func:`fly_mission`).
+    """When the UAV stops following its plan and replans (the hook of :func:`fly`).
 
     This base policy is the plain episode: fly the planner's ``waypoints_per_replan`` waypoints
     of each plan (all if None), then replan. Subclasses (attend.rhythm.ipp_schedule) override
@@ -126,72 +126,85 @@ class ReplanPolicy:
         return False
 
 
-def run_episode(
-    field,
+def fly(
+    field: SearchField,
     planner: Planner,
-    camera,
-    detector,
-    flight,
     budget_s: float = 150.0,
     seed: int = 0,
+    policy: ReplanPolicy | None = None,
+    *,
     diagonal: bool = False,
+    keep_maps: bool = True,
     charge_planning_time: bool = False,
     inject_false_detection_images: Sequence[int] = (),
-    keep_maps: bool = True,
-    on_image=None,
     planning_latency_s: float = 0.0,
     latency_mode: str = "hover",
+    on_image: Callable[[float], None] | None = None,
+    log: EpisodeLog | None = None,
 ) -> EpisodeLog:
-    """Fly one mission of ``budget_s`` s with ``planner``; detector randomness from ``seed``.
+    """Fly one mission: plan, fly the plan taking images at the camera rate and fusing each into
+    the map (every metric of :func:`attend.action.metrics.map_metrics` logged at each), replan
+    when ``policy`` says so or the plan is flown, until ``budget_s`` of flight time is spent.
+    Camera, detector (its blur coefficients degrade images by the speed at which they are taken)
+    and flight model come from ``planner.setup``, the map prior from ``planner.setup.map_prior``.
 
-    diagonal: per-cell (diagonal) Kalman filter instead of full covariance;
-    charge_planning_time: the UAV hovers while planning and that time counts against the budget;
-    inject_false_detection_images: image numbers (0 = first) that get one false 2 x 3-cell blob;
-    on_image: called with the mission time [s] of every image (e.g. to show progress);
-    planning_latency_s: seconds of on-board planning per (re)plan, counted against the budget,
-    spent hovering (latency_mode "hover") or flying the old plan ("fly").
+    field: the search field (people, obstacles, start pose); planner: any :class:`Planner`
+    (reset with ``seed`` at the start); budget_s: flight budget [s] (> 0); seed: seeds the
+    detector noise and the planner; policy: when to replan (:class:`ReplanPolicy`; None: after
+    the planner's ``waypoints_per_replan`` waypoints); diagonal: per-cell (diagonal) Kalman
+    filter instead of the full covariance; keep_maps: log the map mean and variance after every
+    image; charge_planning_time: the UAV hovers while planning and that wall time counts against
+    the budget; inject_false_detection_images: image numbers (0 = first) that get one false
+    2 x 3-cell blob; planning_latency_s: seconds of on-board planning per (re)plan, counted
+    against the budget; latency_mode: "hover" (wait where the UAV stopped) or "fly" (keep flying
+    the rest of the old plan, if any, while the new one is computed; module docstring);
+    on_image: called with the mission time [s] of every image (e.g. to show progress); log: an
+    empty :class:`EpisodeLog` (or subclass) with this ``budget_s`` and ``seed`` to fill (None: a
+    new one). Returns the log, including the mission time of every replan and the wall time of
+    the policy's decisions per plan.
     """
     if not (np.isfinite(budget_s) and budget_s > 0):
         raise ActionInputError(f"budget_s: expected a flight budget > 0 s, got {budget_s!r}")
-    log = EpisodeLog(planner.name, seed, float(budget_s), len(field.people))
-    return fly_mission(field, planner, camera, detector, flight, log, ReplanPolicy(), diagonal=diagonal,
-                       charge_planning_time=charge_planning_time,
-                       inject_false_detection_images=inject_false_detection_images, keep_maps=keep_maps,
-                       on_image=on_image, planning_latency_s=planning_latency_s, latency_mode=latency_mode)
-
-
-def fly_mission(field, planner: Planner, camera, detector, flight, log: EpisodeLog, policy: ReplanPolicy,
-                diagonal: bool = False, charge_planning_time: bool = False,
-                inject_false_detection_images: Sequence[int] = (), keep_maps: bool = True,
-                on_image=None, planning_latency_s: float = 0.0, latency_mode: str = "hover") -> EpisodeLog:
-    """The flight loop behind every episode: plan, fly the plan taking and fusing images (every
-    metric logged at each), replan when ``policy`` says so or the plan is flown, until
-    ``log.budget_s`` is spent. Detector noise and planner seed from ``log.seed``; ``log`` (an
-    empty :class:`EpisodeLog` or subclass) is filled and returned, including the mission time of
-    every replan (``replan_times_s``) and the wall time of the policy's decisions per plan.
-    ``on_image``, if given, is called with the mission time [s] of every image.
-    ``planning_latency_s``: seconds of on-board planning per (re)plan, charged against the budget;
-    ``latency_mode`` "hover" (wait where the UAV stopped) or "fly" (keep flying the rest of the old
-    plan, if any, while the new one is computed; module docstring); ``detector`` blur
-    coefficients degrade images by the speed at which they are taken."""
     if latency_mode not in ("hover", "fly"):
         raise ActionInputError(f"latency_mode: expected 'hover' or 'fly', got {latency_mode!r}")
     latency = float(planning_latency_s)
     if not (np.isfinite(latency) and latency >= 0):
         raise ActionInputError(f"planning_latency_s: expected a latency >= 0 s, got {planning_latency_s!r}")
-    budget_s, seed = log.budget_s, log.seed
-    pose = validate_pose(field.start_pose_m, field.grid, field.altitude_limits_m, "start_pose_m")
-    rng = np.random.default_rng(seed)
-    planner.reset(seed)
-    policy.reset()
-    belief = OccupancyMap.prior(field.grid, diagonal=diagonal)
-    truth = field.truth
+    if log is None:
+        log = EpisodeLog(planner.name, seed, float(budget_s), len(field.people))
+    elif log.times_s or log.budget_s != float(budget_s) or log.seed != seed:
+        raise ActionInputError(f"log: expected an empty EpisodeLog with budget_s={budget_s!r} and seed={seed!r}")
+    mission = _Mission(field, planner, log, ReplanPolicy() if policy is None else policy, diagonal, keep_maps,
+                       inject_false_detection_images, on_image)
+    mission.run(charge_planning_time, latency, latency_mode)
+    return log
 
-    def record(image=None) -> None:
-        values = map_metrics(belief.mean, belief.variance, truth, field.person_cells, field.grid.shape)
+
+class _Mission:
+    """The state of one flight: belief, pose, mission time, images taken (used by :func:`fly`)."""
+
+    def __init__(self, field, planner, log, policy, diagonal, keep_maps, inject_false_detection_images, on_image) -> None:
+        self.field, self.planner, self.log, self.policy = field, planner, log, policy
+        setup = planner.setup
+        self.camera, self.detector, self.flight = setup.camera, setup.detector, setup.flight
+        self.keep_maps, self.on_image = keep_maps, on_image
+        self.inject = set(int(i) for i in inject_false_detection_images)
+        self.pose = validate_pose(field.start_pose_m, field.grid, field.altitude_limits_m, "start_pose_m")
+        self.rng = np.random.default_rng(log.seed)
+        planner.reset(log.seed)
+        policy.reset()
+        self.belief = OccupancyMap.prior(field.grid, diagonal=diagonal, prior=setup.map_prior)
+        self.elapsed, self.time_to_next_image, self.n_images, self.deciding = 0.0, 0.0, 0, 0.0
+        self.record()
+        log.waypoints_m.append(self.pose.copy())
+
+    def record(self, image=None) -> None:
+        """Log every metric of the belief (and the maps, the image) after the prior or an image."""
+        belief, field, log = self.belief, self.field, self.log
+        values = map_metrics(belief.mean, belief.variance, field.truth, field.person_cells, field.grid.shape)
         for key, value in values.items():
             log.metrics.setdefault(key, []).append(value)
-        if keep_maps:
+        if self.keep_maps:
             log.means.append(belief.mean.copy())
             log.variances.append(belief.variance.copy())
         if image is not None:
@@ -199,105 +212,145 @@ def fly_mission(field, planner: Planner, camera, detector, flight, log: EpisodeL
             log.poses_m.append(image.pose_m)
             log.clutter_cells.append(image.clutter_cells)
 
-    record()
-    log.waypoints_m.append(pose.copy())
-    elapsed, time_to_next_image = 0.0, 0.0
-    n_images = 0
-    inject = set(int(i) for i in inject_false_detection_images)
+    def take(self, image_pose, image_time: float, speed: float = 0.0) -> None:
+        """Take an image at ``image_pose`` [m] and mission time ``image_time`` [s], fuse and log it."""
+        image = take_image(self.field, self.camera, self.detector, image_pose, image_time, self.rng,
+                           inject_false_blob=self.n_images in self.inject, speed_m_s=speed)
+        self.belief.fuse(image.cells, image.measurements, image.noise_variance)
+        self.record(image)
+        self.n_images += 1
+        if self.on_image is not None:
+            self.on_image(image.time_s)
 
-    def take(image_pose, image_time, speed=0.0) -> None:
-        nonlocal n_images
-        image = take_image(field, camera, detector, image_pose, image_time, rng,
-                           inject_false_blob=n_images in inject, speed_m_s=speed)
-        belief.fuse(image.cells, image.measurements, image.noise_variance)
-        record(image)
-        n_images += 1
-        if on_image is not None:
-            on_image(image.time_s)
 
-    deciding = 0.0
-
-    def fly(path: np.ndarray, limit: int | None, stop: float, decide: bool) -> tuple[bool, np.ndarray]:
+    def follow(self, path: np.ndarray, limit: int | None, stop: float, decide: bool) -> tuple[bool, np.ndarray]:
         """Fly the first ``limit`` waypoints of ``path`` (all if None) until mission time ``stop``,
         imaging and fusing; with ``decide`` the policy may cut after each image. Returns whether
         it cut and the rest of ``path`` not reached."""
-        nonlocal pose, elapsed, time_to_next_image, deciding
+        flight = self.flight
         count = len(path) if limit is None else min(limit, len(path))
         for j in range(count):
             goal = path[j]
-            if stop - elapsed <= 1e-9:
+            if stop - self.elapsed <= 1e-9:
                 return False, path[j:]
-            start = pose
+            start = self.pose
             travel = float(flight.segment_duration(np.linalg.norm(goal - start)))
             poses, times, valid, duration, next_after, speeds = flight.segment_images(
-                start, goal, time_to_next_image, stop - elapsed, with_speeds=True)
+                start, goal, self.time_to_next_image, stop - self.elapsed, with_speeds=True)
             flown, next_image, cut = float(duration[0]), float(next_after[0]), False
             for image_pose, image_time, speed in zip(poses[0][valid[0]], times[0][valid[0]], speeds[0][valid[0]]):
-                take(image_pose, elapsed + image_time, float(speed))
+                self.take(image_pose, self.elapsed + image_time, float(speed))
                 if not decide or (j == 0 and image_time <= 1e-9):
                     continue  # taken where the plan starts, before any flight: no decision yet
                 rest = path[j + 1:] if image_time >= travel - 1e-9 else path[j:]
                 tic = time.perf_counter()
-                cut = policy.after_image(PlanContext(planner, belief, np.asarray(image_pose, float), rest,
-                                                     elapsed + image_time, flight.image_period_s,
-                                                     budget_s - elapsed - image_time))
-                deciding += time.perf_counter() - tic
+                cut = self.policy.after_image(PlanContext(
+                    self.planner, self.belief, np.asarray(image_pose, float), rest, self.elapsed + image_time,
+                    flight.image_period_s, self.log.budget_s - self.elapsed - image_time))
+                self.deciding += time.perf_counter() - tic
                 if cut:
                     flown, next_image = float(image_time), flight.image_period_s
                     break
             arrived = flown >= travel - 1e-9
-            pose = np.asarray(goal, float) if arrived else flight_position(flight, start, goal, flown)
-            log.waypoints_m.append(pose.copy())
-            elapsed += flown
-            time_to_next_image = next_image
-            if cut or elapsed >= stop - 1e-9:
+            self.pose = np.asarray(goal, float) if arrived else flight_position(flight, start, goal, flown)
+            self.log.waypoints_m.append(self.pose.copy())
+            self.elapsed += flown
+            self.time_to_next_image = next_image
+            if cut or self.elapsed >= stop - 1e-9:
                 return cut, path[j + 1:] if arrived else path[j:]
         return False, path[count:]
 
-    leftover = np.zeros((0, 3))
-    while elapsed < budget_s - 1e-9:
+    def hover(self, duration_s: float) -> None:
+        """Hover ``duration_s`` [s] where the UAV is; the camera keeps shooting (sharp images)."""
+        while self.time_to_next_image < duration_s - 1e-9:
+            self.take(self.pose.copy(), self.elapsed + self.time_to_next_image)
+            self.time_to_next_image += self.flight.image_period_s
+        self.time_to_next_image -= duration_s
+        self.elapsed += duration_s
+        self.log.hover_s += duration_s
+
+    def plan(self, charge_planning_time: bool, latency: float, latency_mode: str,
+             leftover: np.ndarray) -> np.ndarray | None:
+        """One (re)plan with its costs: planning latency (hovering, or flying ``leftover``, the
+        rest of the old plan) and charged planning time. Returns the plan, or None when the
+        budget ran out meanwhile."""
+        budget_s, log = self.log.budget_s, self.log
         # latency flown on the old plan: plan now (belief and time of now) from where the UAV will be
         fly_old = latency > 0 and latency_mode == "fly" and len(leftover) > 0
         if fly_old:
-            planning_belief, planning_time = belief.copy(), elapsed
-            fly(leftover, None, min(budget_s, elapsed + latency), decide=False)
-            if elapsed >= budget_s - 1e-9:
-                break
+            planning_belief, planning_time = self.belief.copy(), self.elapsed
+            self.follow(leftover, None, min(budget_s, self.elapsed + latency), decide=False)
+            if self.elapsed >= budget_s - 1e-9:
+                return None
         else:
-            planning_belief, planning_time = belief, elapsed
+            planning_belief, planning_time = self.belief, self.elapsed
         tic = time.perf_counter()
-        plan = np.atleast_2d(planner.plan(planning_belief, pose, budget_s - elapsed, time_to_next_image)).reshape(-1, 3)
+        plan = self.planner.plan(planning_belief, self.pose, budget_s - self.elapsed, self.time_to_next_image)
         planning = time.perf_counter() - tic
         log.planner_times_s.append(planning)
         log.replan_times_s.append(planning_time)
         if charge_planning_time:
-            elapsed += planning
-            time_to_next_image = max(time_to_next_image - planning, 0.0)
-            if elapsed >= budget_s:
+            self.elapsed += planning
+            self.time_to_next_image = max(self.time_to_next_image - planning, 0.0)
+            if self.elapsed >= budget_s:
+                return None
+        if latency > 0 and not fly_old:  # hover while the on-board computer plans
+            self.hover(min(latency, budget_s - self.elapsed))
+            if self.elapsed >= budget_s - 1e-9:
+                return None
+        return np.atleast_2d(plan).reshape(-1, 3)
+
+    def run(self, charge_planning_time: bool, latency: float, latency_mode: str) -> None:
+        """Plan and fly until the budget is spent (or a planner returns no waypoint)."""
+        budget_s, log, policy = self.log.budget_s, self.log, self.policy
+        leftover = np.zeros((0, 3))
+        while self.elapsed < budget_s - 1e-9:
+            plan = self.plan(charge_planning_time, latency, latency_mode, leftover)
+            if plan is None or len(plan) == 0:
                 break
-        if latency > 0 and not fly_old:  # hover while the on-board computer plans; the camera keeps shooting (sharp)
-            hover = min(latency, budget_s - elapsed)
-            while time_to_next_image < hover - 1e-9:
-                take(pose.copy(), elapsed + time_to_next_image)
-                time_to_next_image += flight.image_period_s
-            time_to_next_image -= hover
-            elapsed += hover
-            log.hover_s += hover
-            if elapsed >= budget_s - 1e-9:
-                break
-        if len(plan) == 0:
-            break
-        tic = time.perf_counter()
-        policy.start_plan(PlanContext(planner, belief, pose, plan, elapsed, time_to_next_image, budget_s - elapsed))
-        deciding = time.perf_counter() - tic
-        deadline = policy.deadline(elapsed, elapsed + time_to_next_image)
-        _, leftover = fly(plan, policy.waypoints_per_plan(planner), min(budget_s, deadline), decide=True)
-        log.decision_times_s.append(deciding)
-    return log
+            tic = time.perf_counter()
+            policy.start_plan(PlanContext(self.planner, self.belief, self.pose, plan, self.elapsed,
+                                          self.time_to_next_image, budget_s - self.elapsed))
+            self.deciding = time.perf_counter() - tic
+            deadline = policy.deadline(self.elapsed, self.elapsed + self.time_to_next_image)
+            _, leftover = self.follow(plan, policy.waypoints_per_plan(self.planner), min(budget_s, deadline), decide=True)
+            log.decision_times_s.append(self.deciding)
+
+
+def fly_mission(field, planner: Planner, camera, detector, flight, log: EpisodeLog, policy: ReplanPolicy,
+                **options) -> EpisodeLog:
+    """Transitional: attend.rhythm.ipp_schedule's call of the flight loop, now :func:`fly`
+    (``fly(field, planner, log.budget_s, log.seed, policy, log=log, **options)``). ``camera``,
+    ``detector`` and ``flight`` must be the planner's own (``planner.setup``). Remove once
+    attend.rhythm calls :func:`fly`.
+
+    field, planner, policy, options: as :func:`fly`; camera, detector, flight: the planner's
+    setup's; log: the empty log to fill."""
+    setup = planner.setup
+    if (camera, detector, flight) != (setup.camera, setup.detector, setup.flight):
+        raise ActionInputError("camera, detector, flight: expected the planner's own (planner.setup)")
+    return fly(field, planner, log.budget_s, log.seed, policy, log=log, **options)
+
+
+def belief_after_images(field: SearchField, setup, poses_m: Sequence[Sequence[float]], seed: int = 0,
+                        diagonal: bool = False) -> OccupancyMap:
+    """The map after one image at each pose (taken at t = 0, no flight), from the setup's prior.
+
+    field: the search field; setup: a :class:`attend.action.PlanningSetup` (camera, detector,
+    map prior); poses_m: image poses (x, y, z) [m]; seed: seeds the detector noise; diagonal:
+    per-cell (diagonal) map."""
+    rng = np.random.default_rng(seed)
+    belief = OccupancyMap.prior(field.grid, diagonal=diagonal, prior=setup.map_prior)
+    for pose in poses_m:
+        image = take_image(field, setup.camera, setup.detector, pose, 0.0, rng)
+        belief.fuse(image.cells, image.measurements, image.noise_variance)
+    return belief
 
 
 def flight_position(flight, start: np.ndarray, goal: np.ndarray, elapsed_s: float) -> np.ndarray:
-    """Position after ``elapsed_s`` on the rest-to-rest segment start -> goal."""
+    """Position after ``elapsed_s`` [s] on the rest-to-rest segment start -> goal.
+
+    flight: the flight model; start, goal: segment ends (x, y, z) [m]; elapsed_s: time flown [s]."""
     length = float(np.linalg.norm(goal - start))
     if length == 0:
         return np.asarray(start, float)

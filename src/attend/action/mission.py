@@ -3,17 +3,18 @@
 from __future__ import annotations
 
 import json
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
 from attend.action.camera import Camera, Detector
-from attend.action.episode import EpisodeLog, run_episode
+from attend.action.episode import EpisodeLog, fly
 from attend.action.errors import ActionInputError
 from attend.action.field import DEFAULT_START_POSE_M, make_field
 from attend.action.flight import FlightModel
-from attend.action.planners import PLANNERS, PlanningSetup, make_planner
+from attend.action.planners import ALTITUDE_LAYERS_M, PLANNERS, PlanningSetup, make_planner
 
 
 def run_search(
@@ -26,7 +27,7 @@ def run_search(
     n_people: int = 7,
     start_pose_m: Sequence[float] = DEFAULT_START_POSE_M,
     altitude_limits_m: Sequence[float] = (2.0, 26.0),
-    altitude_layers_m: Sequence[float] = (5.0, 8.0, 11.0, 14.0),
+    altitude_layers_m: Sequence[float] = ALTITUDE_LAYERS_M,
     fov_deg: Sequence[float] = (45.0, 60.0),
     speed_m_s: float = 5.0,
     acceleration_m_s2: float = 3.0,
@@ -67,28 +68,40 @@ def run_search(
         raise ActionInputError(f"planner: expected one of {sorted(PLANNERS)}, got {planner!r}")
     if not (isinstance(budget_s, (int, float)) and np.isfinite(budget_s) and budget_s > 0):
         raise ActionInputError(f"budget_s: expected a flight budget > 0 s, got {budget_s!r}")
+    camera = Camera(*_field_of_view(fov_deg))
+    field = make_field(seed, n_people=n_people, obstacles=obstacles, people_region=people_region,
+                       start_pose_m=start_pose_m, altitude_limits_m=altitude_limits_m)
+    setup = PlanningSetup(
+        field, camera, Detector(clutter_rate_per_image=clutter_rate_per_image),
+        FlightModel(speed_m_s, acceleration_m_s2, image_rate_hz), tuple(altitude_layers_m),
+        lookahead_waypoints=lookahead_waypoints, cma_evaluations=cma_evaluations,
+    )
+    with _flight_progress(planner, budget_s, progress) as flown:
+        log = fly(field, make_planner(planner, setup, seed), budget_s, seed, diagonal=diagonal,
+                  charge_planning_time=charge_planning_time, on_image=flown)
+    settings = {
+        "planner": planner, "seed": seed, "obstacles": obstacles, "people_region": people_region,
+        "budget_s": budget_s, "diagonal": diagonal, "altitude_layers_m": list(altitude_layers_m),
+        "speed_m_s": speed_m_s, "image_rate_hz": image_rate_hz,
+    }
+    times = snapshot_times_s if snapshot_times_s is not None else np.linspace(0, budget_s, 4)
+    return write_mission(field, log, Path(out_dir), settings, times, gif, progress)
+
+
+def _field_of_view(fov_deg: Sequence[float]) -> tuple[float, float]:
+    """(fov_x, fov_y) in degrees, each in (0, 180), or ActionInputError naming ``fov_deg``."""
     try:
         fov_x, fov_y = (float(v) for v in fov_deg)
     except (TypeError, ValueError):
         raise ActionInputError(f"fov_deg: expected (fov_x, fov_y) in degrees, got {fov_deg!r}") from None
     if not all(np.isfinite(v) and 0 < v < 180 for v in (fov_x, fov_y)):
         raise ActionInputError(f"fov_deg: expected each field of view in (0, 180) degrees, got ({fov_x:g}, {fov_y:g})")
-    field = make_field(
-        seed,
-        n_people=n_people,
-        obstacles=obstacles,
-        people_region=people_region,
-        start_pose_m=start_pose_m,
-        altitude_limits_m=altitude_limits_m,
-    )
-    camera = Camera(fov_x, fov_y)
-    detector = Detector(clutter_rate_per_image=clutter_rate_per_image)
-    flight = FlightModel(speed_m_s, acceleration_m_s2, image_rate_hz)
-    setup = PlanningSetup(
-        field, camera, detector, flight, tuple(altitude_layers_m), lookahead_waypoints=lookahead_waypoints,
-        cma_evaluations=cma_evaluations,
-    )
-    chosen = make_planner(planner, setup, seed)
+    return fov_x, fov_y
+
+
+@contextmanager
+def _flight_progress(planner: str, budget_s: float, progress: bool):
+    """A tqdm bar over the flight budget (hidden unless ``progress``); yields the per-image callback."""
     from tqdm import tqdm
 
     with tqdm(total=round(float(budget_s), 1), desc=f"{planner} mission", unit="s flown", leave=False,
@@ -96,34 +109,37 @@ def run_search(
         def flown(time_s: float) -> None:
             bar.update(round(min(time_s, budget_s) - bar.n, 1))
 
-        log = run_episode(field, chosen, camera, detector, flight, budget_s, seed, diagonal=diagonal,
-                          charge_planning_time=charge_planning_time, on_image=flown)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+        yield flown
+
+
+def write_mission(field, log: EpisodeLog, out: Path, settings: dict, snapshot_times_s: Sequence[float],
+                  gif: bool = True, progress: bool = False) -> dict[str, Path]:
+    """Write a mission's metrics JSON, map snapshots, 3-D path, metric curves and (with ``gif``)
+    animation into ``out`` (created).
+
+    field: the search field; log: the mission's log (with maps); out: output directory;
+    settings: the mission's settings (stored in the JSON); snapshot_times_s: times [s] of the map
+    snapshots; gif: write the animated GIF; progress: a tqdm bar over the files. Returns the
+    written paths by kind ("metrics", "maps", "path_3d", "metrics_plot", "gif")."""
+    from tqdm import tqdm
+
     from attend.action import plots
 
-    times = snapshot_times_s if snapshot_times_s is not None else np.linspace(0, budget_s, 4)
-    settings = {
-        "planner": planner, "seed": seed, "obstacles": obstacles, "people_region": people_region,
-        "budget_s": budget_s, "diagonal": diagonal, "altitude_layers_m": list(altitude_layers_m),
-        "speed_m_s": speed_m_s, "image_rate_hz": image_rate_hz,
-    }
+    out.mkdir(parents=True, exist_ok=True)
     writers = {
         "metrics": lambda: write_metrics_json(log, field, out / "search_metrics.json", settings=settings),
-        "maps": lambda: plots.plot_maps(field, log, times, out / "search_maps.png"),
+        "maps": lambda: plots.plot_maps(field, log, snapshot_times_s, out / "search_maps.png"),
         "path_3d": lambda: plots.plot_path_3d(field, log, out / "search_path_3d.png"),
         "metrics_plot": lambda: plots.plot_metrics(log, out / "search_metrics.png"),
     }
     if gif:
         writers["gif"] = lambda: plots.write_gif(field, log, out / "search_mission.gif")
-    paths = {}
-    for name in tqdm(writers, desc="figures", unit="file", leave=False, disable=not progress):
-        paths[name] = writers[name]()
-    return paths
+    return {name: writers[name]() for name in tqdm(writers, desc="figures", unit="file", leave=False,
+                                                    disable=not progress)}
 
 
 def episode_summary(log: EpisodeLog) -> dict[str, float]:
-    """Final values of one mission."""
+    """Final values of one mission; log: the mission's log."""
     find_all = log.time_to_find_all_s()
     return {
         "final_rse": float(log.series("rse")[-1]),
@@ -139,7 +155,10 @@ def episode_summary(log: EpisodeLog) -> dict[str, float]:
 
 
 def write_metrics_json(log: EpisodeLog, field, path: Path, settings: dict) -> Path:
-    """Per-image metrics, the summary and the settings of one mission as JSON."""
+    """Per-image metrics, the summary and the settings of one mission as JSON.
+
+    log: the mission's log; field: its search field; path: the JSON file written; settings: the
+    mission's settings. Returns ``path``."""
     data = {
         "settings": settings,
         "summary": episode_summary(log),

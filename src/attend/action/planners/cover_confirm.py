@@ -31,16 +31,7 @@ views the UAV reaches before its next image. When no view advances any detection
 cells, tpr(h) sum over ungrouped cells in view of P(x_i > 0.5) = Phi((mean_i - 0.5) / sigma_i).
 One view (one image) per replan. Decisions use the belief only.
 
-Settings were chosen on seeds 100-199, disjoint from the evaluation seeds 0-24 (all 7 found within
-150 s): 13 m and two passes, reading threshold 0.3 (0.25: 88 %, 0.35: 92 %), margin 0.03 (0.05:
-88 %) -> 92 %. Rejected there: groups from the mean reading alone, isolated false positives
-included, 87 %; cells with any person-sized detection and a mean reading >= 0.2 (or 0.1) 79-80 %;
-a bonus for completing a person 68-81 % (only for the last one or two images: 92 / 91 %); extra
-views at 3-6 m 78-88 %; the share f_g taken over the group grown by one cell 91 %; no lattice
-views while confirming 88 %. Earlier variants (before the episode imaged the first stop, see
-``FlightModel.segment_images``): detections from the map mean instead of the readings 40-72 %, a
-search term added to the confirmation value 16-36 %, one pass at 14 m 36 %, two passes at 14 m
-76 % (benchmarks/bench_ipp.py).
+Tuning history: docs/experiments/ipp.md.
 """
 
 from __future__ import annotations
@@ -54,11 +45,19 @@ from attend.action.camera import DETECTED_VALUE, NOT_DETECTED_VALUE
 from attend.action.errors import ActionInputError
 from attend.action.flight import detour
 from attend.action.metrics import FOUND_THRESHOLD
-from attend.action.planners import PLANNERS, Planner, PlanningSetup, coverage_stops
+from attend.action.planners.base import Planner, PlanningSetup
+from attend.action.planners.baselines import coverage_stops
 
+#: Cover passes fly at this altitude [m] (footprint 10.8 m x 15.0 m, 3 x 2 stops, tpr 0.92).
+COVER_ALTITUDE_M = 13.0
+#: The search lattice's altitude [m].
+SEARCH_ALTITUDE_M = 14.0
+#: Candidate views [m]: at each detection's centroid, a pair's midpoint, a triple's centroid.
 CENTROID_ALTITUDES_M = (8.0, 10.0)
 PAIR_ALTITUDES_M = (10.0, 12.0)
 TRIPLE_ALTITUDES_M = (12.0, 14.0)
+#: Pairs of detections closer than this [m] get views at their midpoint; a third within
+#: TRIPLE_DISTANCE_M of both makes a triple.
 PAIR_DISTANCE_M = 10.0
 TRIPLE_DISTANCE_M = 9.0
 
@@ -66,7 +65,10 @@ TRIPLE_DISTANCE_M = 9.0
 def detections(belief: OccupancyMap, reading_threshold: float = 0.3, min_cells: int = 2) -> list[np.ndarray]:
     """Cell indices of each detection: connected groups (8-neighbourhood) of at least
     ``min_cells`` cells that were part of a person-sized detection at least once
-    (``OccupancyMap.blob_detection_count``) and whose mean reading is >= ``reading_threshold``."""
+    (``OccupancyMap.blob_detection_count``) and whose mean reading is >= ``reading_threshold``.
+
+    belief: the current map; reading_threshold: least mean reading sum(z / r) / sum(1 / r);
+    min_cells: least cells of a group."""
     marked = (belief.blob_detection_count > 0) & (belief.mean_reading() >= reading_threshold)
     return connected_groups(marked, belief.grid, min_cells)
 
@@ -83,7 +85,11 @@ def confirmation_value(
     groups: list[np.ndarray], margin: float = 0.05,
 ) -> float:
     """Expected advance of the detections' worst cells by one image observing ``observed`` cells
-    (see the module docstring); 0 when no detection is in view."""
+    (see the module docstring); 0 when no detection is in view.
+
+    belief: the current map; observed: indices of the cells in view; noise_variance: r of the
+    image; true_positive_rate: tpr(h) of the image; groups: cell indices of each detection;
+    margin: the worst cells count up to FOUND_THRESHOLD + margin."""
     observed = np.asarray(observed, dtype=int)
     in_view = np.zeros(belief.grid.n_cells, dtype=bool)
     in_view[observed] = True
@@ -115,14 +121,21 @@ def confirmation_value(
 
 class CoverConfirmPlanner(Planner):
     """Cover the field in passes, then confirm the detections (module docstring); ``plan`` returns
-    the route to one view (one image)."""
+    the route to one view (one image).
+
+    setup: the planning setup; seed: seeds the planner (unused: it is deterministic);
+    cover_altitude_m: altitude of the cover passes [m]; cover_passes: how many passes;
+    reading_threshold: least mean reading of a detection's cells; margin: a detection counts as
+    confirmed once its worst cell exceeds FOUND_THRESHOLD + margin; search_below: search instead
+    when no view advances a detection by this much; search_altitude_m: altitude of the search
+    lattice [m]; search_lattice: its views per side."""
 
     name = "cover_confirm"
 
     def __init__(
-        self, setup: PlanningSetup, seed: int = 0, cover_altitude_m: float = 13.0, cover_passes: int = 2,
+        self, setup: PlanningSetup, seed: int = 0, cover_altitude_m: float = COVER_ALTITUDE_M, cover_passes: int = 2,
         reading_threshold: float = 0.3, margin: float = 0.03, search_below: float = 0.005,
-        search_altitude_m: float = 14.0, search_lattice: int = 5,
+        search_altitude_m: float = SEARCH_ALTITUDE_M, search_lattice: int = 5,
     ) -> None:
         low, high = setup.field.altitude_limits_m
         for name, value in (("cover_altitude_m", cover_altitude_m), ("search_altitude_m", search_altitude_m)):
@@ -149,6 +162,7 @@ class CoverConfirmPlanner(Planner):
         super().__init__(setup, seed)
 
     def reset(self, seed: int = 0) -> None:
+        """Start a new mission with every cover stop ahead; seed: reseeds the planner."""
         super().reset(seed)
         self._cover_stops = list(self.cover_pattern())
 
@@ -160,7 +174,9 @@ class CoverConfirmPlanner(Planner):
         return np.concatenate(passes) if passes else np.zeros((0, 3))
 
     def candidate_views(self, belief: OccupancyMap, groups: list[np.ndarray]) -> np.ndarray:
-        """Views (k, 3) m: the search lattice and the detections' centroid, pair and triple views."""
+        """Views (k, 3) m: the search lattice and the detections' centroid, pair and triple views.
+
+        belief: the current map; groups: cell indices of each detection."""
         half = belief.grid.size_m / 2
         ticks = -half + (np.arange(self.search_lattice) + 0.5) * (2 * half / self.search_lattice)
         views = [(x, y, self.search_altitude_m) for x in ticks for y in ticks]
@@ -183,6 +199,10 @@ class CoverConfirmPlanner(Planner):
         return views[~self.setup.inside_obstacle(views)]
 
     def plan(self, belief, pose, remaining_budget_s, time_to_next_image_s=0.0) -> np.ndarray:
+        """Route to the next cover stop, else to the best view (one image).
+
+        belief: the current map; pose: (x, y, z) [m]; remaining_budget_s: flight time left [s]
+        (unused); time_to_next_image_s: time until the camera's next image [s]."""
         pose = np.asarray(pose, dtype=float)
         if self._cover_stops:
             goal = self._cover_stops.pop(0)
@@ -191,7 +211,10 @@ class CoverConfirmPlanner(Planner):
         return np.asarray(detour(pose, goal, self.setup.field.obstacles, self.setup.obstacle_margin_m + 0.5))
 
     def best_view(self, belief: OccupancyMap, pose: np.ndarray, reach_s: float) -> np.ndarray:
-        """The view for the next image: best confirmation, else best search (module docstring)."""
+        """The view for the next image: best confirmation, else best search (module docstring).
+
+        belief: the current map; pose: (x, y, z) [m]; reach_s: only views reachable within this
+        flight time [s] (all when none is)."""
         setup = self.setup
         groups = detections(belief, self.reading_threshold)
         views = self.candidate_views(belief, groups)
@@ -216,5 +239,3 @@ class CoverConfirmPlanner(Planner):
         best = np.lexsort((distance, -values))[0]  # highest value, then the nearest
         return views[best]
 
-
-PLANNERS[CoverConfirmPlanner.name] = CoverConfirmPlanner

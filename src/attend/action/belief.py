@@ -94,7 +94,11 @@ def prior_covariance(cells_per_side: int = 40, prior: GaussianProcessPrior = PAP
 def kalman_update(
     mean: np.ndarray, covariance: np.ndarray, cells: np.ndarray, measurements: np.ndarray, noise_variance: float | np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Full-covariance Kalman update for observations of ``cells`` (returns new mean and P)."""
+    """Full-covariance Kalman update for observations of ``cells`` (returns new mean and P):
+    S = P_AA + R, mean' = mean + P_:A S^-1 (z - mean_A), P' = P - P_:A S^-1 P_A:.
+
+    mean: (n,); covariance: P (n, n); cells: the observed cells A; measurements: z (m,);
+    noise_variance: r, one for all or (m,)."""
     cells = np.asarray(cells)
     if len(cells) == 0:
         return mean.copy(), covariance.copy()
@@ -112,7 +116,9 @@ def kalman_update(
 def kalman_update_diagonal(
     mean: np.ndarray, variance: np.ndarray, cells: np.ndarray, measurements: np.ndarray, noise_variance: float | np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Per-cell Kalman update:  v <- v r / (v + r),  mean <- mean + v / (v + r) (z - mean)."""
+    """Per-cell Kalman update:  v <- v r / (v + r),  mean <- mean + v / (v + r) (z - mean).
+
+    mean, variance: (n,); cells: the observed cells; measurements: z; noise_variance: r."""
     new_mean, new_var = mean.copy(), variance.copy()
     v = variance[cells]
     gain = v / (v + noise_variance)
@@ -185,7 +191,10 @@ class OccupancyMap:
         return float(self.covariance.sum() if self.diagonal else np.trace(self.covariance))
 
     def fuse(self, cells: np.ndarray, measurements: np.ndarray, noise_variance: float) -> None:
-        """Kalman update with one image (in place)."""
+        """Kalman update with one image (in place), also adding its readings to the reading
+        statistics.
+
+        cells: the observed cells; measurements: their readings z; noise_variance: r of the image."""
         update = kalman_update_diagonal if self.diagonal else kalman_update
         self.mean, self.covariance = update(self.mean, self.covariance, cells, measurements, noise_variance)
         cells = np.asarray(cells, dtype=int)
@@ -225,6 +234,8 @@ def observation_gains(
     Full P: restrict to the observed set A of each candidate (padded to a common size) and use
     T = I + D^1/2 P_AA D^1/2 = L L':  tr(W (P - P_post)) = tr(T^-1 D^1/2 (P W P)_AA D^1/2),
     0.5 log det T = sum log diag L. ``weighted_square`` is P W P (precomputed once per replan).
+    covariance: P (n, n), or diag(P) (n,) when ``diagonal``; cell_weights: W = diag(w) (None:
+    W = I); want_information: also return the information (else None).
     Diagonal P: per cell, v - 1 / (1 / v + d).
     """
     precision = np.atleast_2d(cell_precision)

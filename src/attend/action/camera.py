@@ -47,7 +47,7 @@ class Camera:
                 raise ActionInputError(f"{name}: expected a field of view in (0, 180) degrees, got {value!r}")
 
     def footprint_m(self, altitude_m: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Footprint (width_x, width_y) in m: 2 h tan(fov / 2)."""
+        """Footprint (width_x, width_y) in m: 2 h tan(fov / 2); altitude_m: h [m]."""
         h = np.asarray(altitude_m, dtype=float)
         return (
             2 * h * np.tan(np.radians(self.fov_x_deg) / 2),
@@ -55,7 +55,10 @@ class Camera:
         )
 
     def visible_cells(self, poses_m: np.ndarray, grid: Grid, obstacles: Sequence[Obstacle] = ()) -> np.ndarray:
-        """Boolean mask (k, n) of the cells each of k poses (x, y, z) m observes."""
+        """Boolean mask (k, n) of the cells each of k poses observes.
+
+        poses_m: (k, 3) camera poses (x, y, z) [m]; grid: the map's grid; obstacles: boxes that
+        hide the ground behind them."""
         poses = np.atleast_2d(np.asarray(poses_m, dtype=float))
         centres = grid.cell_centres()
         width_x, width_y = self.footprint_m(poses[:, 2])
@@ -111,7 +114,9 @@ def segments_hit_box(start: np.ndarray, end: np.ndarray, bounds: Sequence[float]
 
 
 def noise_variance(altitude_m: float | np.ndarray, rate_per_m: float = 0.05) -> np.ndarray:
-    """Measurement noise variance sigma^2(h) = 1 - exp(-rate h) (dimensionless, h in m)."""
+    """Measurement noise variance sigma^2(h) = 1 - exp(-rate h) (dimensionless).
+
+    altitude_m: h [m]; rate_per_m: rate [1/m]."""
     return 1.0 - np.exp(-rate_per_m * np.asarray(altitude_m, dtype=float))
 
 
@@ -124,7 +129,8 @@ class Detector:
         tpr(h) = fpr(h) + (tpr_max - fpr(h)) * q(h),
         q(h) = max(0, 1 - ((h - h_best) / (h_useless - h_best))^2)  for h >= h_best,
         q(h) = 1 - low_altitude_loss * ((h_best - h) / h_best)^2     for h <  h_best
-    (people only partly in view from very low). False-positive rate per cell
+    (people only partly in view from very low; tpr_max is ``max_true_positive_rate``). False-positive
+    rate per cell (fpr_min, fpr_max: ``min_false_positive_rate``, ``max_false_positive_rate``)
         fpr(h) = fpr_min + (fpr_max - fpr_min) * clip((h - h_best) / (h_useless - h_best), 0, 1)^2.
     detection_unit "person" (default): each person in view is detected as a whole with
     probability tpr(h) * min(1, 2 * visible fraction of the person), and all its visible cells
@@ -132,6 +138,7 @@ class Detector:
     tpr(h). Other cells fire with fpr(h) each.
     Clutter: a Poisson number (mean ``clutter_rate_per_image``) of person-sized false blobs
     (2 x 3 cells) per image at random places in the footprint.
+    Noise: sigma^2(h) = 1 - exp(-noise_rate_per_m h) (:func:`noise_variance`).
     Motion blur: ``motion_blur_per_speed`` b_v [s/m] and ``motion_blur_per_turn_rate`` b_omega
     [s/rad] (>= 0; module docstring): images taken while moving read with precision
     q / sigma^2(h) and true-positive rate fpr + q (tpr - fpr), q = 1 / (1 + b_v v + b_omega omega).
@@ -165,11 +172,13 @@ class Detector:
             raise ActionInputError(f"clutter_rate_per_image: expected >= 0, got {self.clutter_rate_per_image!r}")
 
     def false_positive_rate(self, altitude_m: float | np.ndarray) -> np.ndarray:
+        """fpr(h) per cell (class docstring); altitude_m: h [m]."""
         h = np.asarray(altitude_m, dtype=float)
         ramp = np.clip((h - self.best_altitude_m) / (self.useless_altitude_m - self.best_altitude_m), 0, 1)
         return self.min_false_positive_rate + (self.max_false_positive_rate - self.min_false_positive_rate) * ramp**2
 
     def true_positive_rate(self, altitude_m: float | np.ndarray) -> np.ndarray:
+        """tpr(h) of a sharp image (class docstring); altitude_m: h [m]."""
         h = np.asarray(altitude_m, dtype=float)
         above = np.maximum(0.0, 1 - ((h - self.best_altitude_m) / (self.useless_altitude_m - self.best_altitude_m)) ** 2)
         below = 1 - self.low_altitude_loss * ((self.best_altitude_m - h) / self.best_altitude_m) ** 2
@@ -178,6 +187,7 @@ class Detector:
         return fpr + (self.max_true_positive_rate - fpr) * quality
 
     def noise_variance(self, altitude_m: float | np.ndarray) -> np.ndarray:
+        """sigma^2(h) = 1 - exp(-noise_rate_per_m h); altitude_m: h [m]."""
         return noise_variance(altitude_m, self.noise_rate_per_m)
 
     @property
@@ -186,19 +196,25 @@ class Detector:
         return self.motion_blur_per_speed > 0 or self.motion_blur_per_turn_rate > 0
 
     def blur_factor(self, speed_m_s: float | np.ndarray = 0.0, turn_rate_rad_s: float | np.ndarray = 0.0) -> np.ndarray:
-        """q = 1 / (1 + b_v |v| + b_omega |omega|) in (0, 1] [dimensionless]; 1 when hovering."""
+        """q = 1 / (1 + b_v |v| + b_omega |omega|) in (0, 1] [dimensionless]; 1 when hovering.
+
+        speed_m_s: v [m/s]; turn_rate_rad_s: omega [rad/s]."""
         v = np.abs(np.asarray(speed_m_s, dtype=float))
         w = np.abs(np.asarray(turn_rate_rad_s, dtype=float))
         return 1.0 / (1.0 + self.motion_blur_per_speed * v + self.motion_blur_per_turn_rate * w)
 
     def image_noise_variance(self, altitude_m, speed_m_s=0.0, turn_rate_rad_s=0.0) -> np.ndarray:
-        """Noise variance of an image taken moving: sigma^2(h) / q(v, omega) (sigma^2(h) if sharp)."""
+        """Noise variance of an image taken moving: sigma^2(h) / q(v, omega) (sigma^2(h) if sharp).
+
+        altitude_m: h [m]; speed_m_s: v [m/s]; turn_rate_rad_s: omega [rad/s]."""
         if not self.blurs:
             return self.noise_variance(altitude_m)
         return self.noise_variance(altitude_m) / self.blur_factor(speed_m_s, turn_rate_rad_s)
 
     def image_true_positive_rate(self, altitude_m, speed_m_s=0.0, turn_rate_rad_s=0.0) -> np.ndarray:
-        """True-positive rate of an image taken moving: fpr(h) + q (tpr(h) - fpr(h))."""
+        """True-positive rate of an image taken moving: fpr(h) + q (tpr(h) - fpr(h)).
+
+        altitude_m: h [m]; speed_m_s: v [m/s]; turn_rate_rad_s: omega [rad/s]."""
         if not self.blurs:
             return self.true_positive_rate(altitude_m)
         fpr = self.false_positive_rate(altitude_m)
@@ -207,8 +223,9 @@ class Detector:
 
 @dataclass(frozen=True)
 class Image:
-    """One processed image: pose (x, y, z) m, time s, observed cell indices, measurements z,
-    noise variance sigma^2(h), and the cells of injected or clutter false blobs (for logging)."""
+    """One processed image: pose_m (x, y, z) [m], time_s [s], observed cell indices ``cells``,
+    ``measurements`` z, noise_variance sigma^2(h), and clutter_cells, the cells of injected or
+    clutter false blobs (for logging)."""
 
     pose_m: np.ndarray
     time_s: float
@@ -232,7 +249,11 @@ def take_image(
     """Simulate one image at ``pose_m``: per-cell detections with tpr(h) on person cells and
     fpr(h) elsewhere, plus clutter blobs (and one injected blob when asked). ``speed_m_s`` and
     ``turn_rate_rad_s``: the camera's motion when the image is taken (motion blur of a detector
-    with blur coefficients; no effect on a sharp detector)."""
+    with blur coefficients; no effect on a sharp detector).
+
+    field: the search field (truth, obstacles); camera, detector: the sensor models; pose_m:
+    (x, y, z) [m]; time_s: mission time of the image [s]; rng: the random generator of the
+    detector noise; inject_false_blob: add one false 2 x 3-cell blob."""
     pose = np.asarray(pose_m, dtype=float)
     visible = camera.visible_cells(pose[None], field.grid, field.obstacles)[0]
     cells = np.flatnonzero(visible)

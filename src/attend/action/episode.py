@@ -41,7 +41,8 @@ class EpisodeLog:
     after each image (entry 0 the prior); clutter_cells: false blobs per image; people_total;
     replan_times_s: mission time [s] of every replan (the first at 0); decision_times_s: wall
     time [s] of the replan policy's own decisions per plan; hover_s: flight time [s] spent
-    hovering for planning latency.
+    hovering for planning latency. planner: the planner's name; seed: the mission's seed;
+    budget_s: flight budget [s].
     """
 
     planner: str
@@ -61,6 +62,7 @@ class EpisodeLog:
     hover_s: float = 0.0
 
     def series(self, name: str) -> np.ndarray:
+        """The metric ``name`` per metric entry (prior first)."""
         return np.asarray(self.metrics[name])
 
     @property
@@ -76,7 +78,8 @@ class EpisodeLog:
         return float(self.metric_times_s[hits[0]]) if len(hits) else float("inf")
 
     def value_at(self, name: str, times_s: np.ndarray) -> np.ndarray:
-        """Step-interpolated metric at the given times (value after the last image before t)."""
+        """Step-interpolated metric ``name`` at the times ``times_s`` [s] (value after the last
+        image before t)."""
         index = np.searchsorted(self.metric_times_s, np.asarray(times_s), side="right") - 1
         return self.series(name)[np.clip(index, 0, None)]
 
@@ -85,7 +88,7 @@ class EpisodeLog:
 class PlanContext:
     """What a replan policy sees at a decision: the ``planner``, the ``belief`` (just updated), the
     ``pose`` [m], the rest of the plan ``remaining`` (k, 3) [m], the mission ``time_s``, the time to
-    the next image and the flight time left [s]."""
+    the next image ``time_to_next_image_s`` and the flight time left ``time_left_s`` [s]."""
 
     planner: Planner
     belief: OccupancyMap
@@ -111,18 +114,20 @@ class ReplanPolicy:
         """Start a new mission."""
 
     def waypoints_per_plan(self, planner: Planner) -> int | None:
-        """Waypoints of each plan to fly before replanning (None: all)."""
+        """Waypoints of each plan to fly before replanning (None: all); planner: the mission's planner."""
         return planner.waypoints_per_replan
 
     def deadline(self, plan_start_s: float, first_image_s: float) -> float:
-        """Mission time [s] at which the current plan is cut (inf: no deadline)."""
+        """Mission time [s] at which the current plan is cut (inf: no deadline); plan_start_s:
+        mission time of the plan's start [s]; first_image_s: mission time of its first image [s]."""
         return float("inf")
 
     def start_plan(self, context: PlanContext) -> None:
         """Called after every replan with the new plan in ``context.remaining``."""
 
     def after_image(self, context: PlanContext) -> bool:
-        """Called after every image (the belief already holds it): replan now?"""
+        """Called after every image (the belief already holds it): replan now? context: the
+        decision's :class:`PlanContext`."""
         return False
 
 

@@ -25,7 +25,8 @@ DEFAULT_START_POSE_M = (10.0, 0.0, 7.0)
 
 @dataclass(frozen=True)
 class Obstacle:
-    """An axis-aligned box on the ground: centre (x, y) in m, footprint width/depth and height in m."""
+    """An axis-aligned box on the ground: centre (``x_m``, ``y_m``) [m], footprint ``width_m`` (x) by
+    ``depth_m`` (y) and ``height_m`` [m]."""
 
     x_m: float
     y_m: float
@@ -48,8 +49,8 @@ class Obstacle:
 
 @dataclass(frozen=True)
 class Person:
-    """A person lying on the ground: a rectangle of ``length_m`` x ``width_m`` centred at (x, y) m,
-    long axis at ``heading_rad`` from +x."""
+    """A person lying on the ground: a rectangle of ``length_m`` x ``width_m`` centred at
+    (``x_m``, ``y_m``) [m], long axis at ``heading_rad`` from +x."""
 
     x_m: float
     y_m: float
@@ -100,6 +101,7 @@ class Grid:
         return np.column_stack([ix.ravel(), iy.ravel()])
 
     def contains(self, x_m: float, y_m: float) -> bool:
+        """Whether the point (x_m, y_m) [m] lies in the field."""
         half = self.size_m / 2
         return bool(-half <= x_m <= half and -half <= y_m <= half)
 
@@ -109,7 +111,8 @@ class SearchField:
     """Ground truth of one search mission.
 
     grid: the map grid; people: the people on the ground; obstacles: box obstacles;
-    start_pose_m: (x, y, z) take-off pose in m; altitude_limits_m: (min, max) flight altitude in m.
+    start_pose_m: (x, y, z) take-off pose in m; altitude_limits_m: (min, max) flight altitude in m;
+    person_cells: the cell indices of each person (filled from the people when empty).
     """
 
     grid: Grid
@@ -228,7 +231,11 @@ def make_field(
     """Place ``n_people`` people by seed (uniform position and heading, no overlap with each other
     or with obstacles, ``min_separation_m`` between centres).
 
-    people_region: "all" (whole field) or "lower_half" (y < 0, the seed's Fig. 9 case).
+    seed: seeds the placement; n_people: how many people; obstacles: boxes, or a preset name
+    ("none", "buildings"); people_region: "all" (whole field) or "lower_half" (y < 0, the seed's
+    Fig. 9 case); grid: the map grid (default 40 x 40 cells of 0.75 m); start_pose_m: take-off
+    (x, y, z) [m]; altitude_limits_m: (min, max) flight altitude [m]; min_separation_m: least
+    distance between people's centres [m].
     """
     grid = grid or Grid()
     if isinstance(obstacles, str):

@@ -41,7 +41,7 @@ class FlightModel:
         return 1.0 / self.image_rate_hz
 
     def segment_duration(self, distance_m: np.ndarray) -> np.ndarray:
-        """Rest-to-rest time (s) for segments of the given lengths (m)."""
+        """Rest-to-rest time (s) for segments of the given lengths; distance_m: lengths [m]."""
         d = np.asarray(distance_m, dtype=float)
         v, a = self.speed_m_s, self.acceleration_m_s2
         return np.where(d >= v * v / a, d / v + v / a, 2 * np.sqrt(np.maximum(d, 0) / a))
@@ -84,7 +84,8 @@ class FlightModel:
         hover_for_image: bool = True,
         with_speeds: bool = False,
     ) -> tuple[np.ndarray, ...]:
-        """Images taken on k segments start -> end (arrays (k, 3)), vectorised.
+        """Images taken on k segments start -> end (``start_m``, ``end_m``: arrays (k, 3) [m]),
+        vectorised; time_to_next_image_s: time from each segment's start to its first image [s].
 
         The UAV hovers at the end of a segment until the next image when the segment is shorter
         than the time to that image (``hover_for_image``), so every waypoint reached before its
@@ -124,9 +125,12 @@ class FlightModel:
         self, start_m: np.ndarray, paths_m: np.ndarray, time_to_next_image_s: float, time_left_s: float,
         with_speeds: bool = False,
     ) -> tuple[np.ndarray, ...]:
-        """Images along k paths of w waypoints (k, w, 3) from a common start: poses (k, J, 3),
-        valid (k, J), flight time of each path (k,) and per-segment durations (k, w);
-        ``with_speeds``: also the speed at each image (k, J) [m/s]."""
+        """Images along k paths of w waypoints from a common start: poses (k, J, 3),
+        valid (k, J), flight time of each path (k,) and per-segment durations (k, w).
+
+        start_m: (x, y, z) [m]; paths_m: (k, w, 3) waypoints [m]; time_to_next_image_s: time to
+        the first image [s]; time_left_s: flight time left [s]; with_speeds: also the speed at
+        each image (k, J) [m/s]."""
         paths = np.asarray(paths_m, float)
         k, w, _ = paths.shape
         current = np.broadcast_to(np.asarray(start_m, float), (k, 3))

@@ -16,6 +16,7 @@ from typing import Sequence
 import numpy as np
 import scipy.ndimage
 
+#: A person counts as found when every one of its cells has map mean above this.
 FOUND_THRESHOLD = 0.5
 INTEREST_THRESHOLD = 0.4
 
@@ -28,7 +29,10 @@ def root_squared_error(mean: np.ndarray, truth: np.ndarray) -> float:
 def map_metrics(
     mean: np.ndarray, variance: np.ndarray, truth: np.ndarray, person_cells: Sequence[np.ndarray], shape: tuple[int, int]
 ) -> dict[str, float]:
-    """All per-image metrics of one belief against the ground truth."""
+    """All per-image metrics of one belief against the ground truth (module docstring).
+
+    mean, variance: the map's mean and per-cell variance (n,); truth: occupancy 0/1 (n,);
+    person_cells: the cell indices of each person; shape: the grid's (ny, nx)."""
     rse = root_squared_error(mean, truth)
     interest = mean + np.sqrt(np.maximum(variance, 0)) >= INTEREST_THRESHOLD
     above = mean > FOUND_THRESHOLD

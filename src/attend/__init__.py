@@ -12,7 +12,8 @@ Public API (everything else is private):
 - learning: :func:`identify`, :class:`IdentificationResult`
 - nonlinear perception: :class:`NonlinearDEM` for a :class:`NonlinearSystem`
 - action (UAV search, :mod:`attend.action`): :func:`make_field` / :class:`SearchField`,
-  :class:`OccupancyMap` (precision map), :func:`make_planner`, :func:`run_search` (one mission)
+  :class:`OccupancyMap` (precision map), :func:`make_planner`, :func:`fly` (one mission in code),
+  :func:`run_search` (one mission with its files)
 - rhythm (:mod:`attend.rhythm`): :class:`PrecisionOscillator`, :class:`OscillatorScheduler`,
   :class:`PrecisionDrivenScheduler`, :func:`drive`, :class:`ActiveVisionAgent`
 - errors: :class:`AttendInputError`, :class:`ModelWarning`
@@ -22,7 +23,7 @@ precisions in :mod:`attend.constants`.
 """
 
 from attend._validation import AttendInputError
-from attend.action import OccupancyMap, SearchField, make_field, make_planner, run_search
+from attend.action import OccupancyMap, SearchField, fly, make_field, make_planner, run_search
 from attend.generalized import block_precisions, embed, embedding_weights, shift_operator, smoothness_precision
 from attend.noise import coloured_noise
 from attend.perception.dem import DEMEstimate, DEMObserver, OnlineDEM
@@ -61,6 +62,7 @@ __all__ = [
     "drive",
     "embed",
     "embedding_weights",
+    "fly",
     "identification_system",
     "identify",
     "make_field",

@@ -99,8 +99,8 @@ def _extent(field: SearchField) -> list[float]:
 
 
 #: (metric, axis label with unit) of the per-image metrics drawn over flight time.
-METRIC_LABELS = (("rse", "RSE [occupancy]"), ("trace", "trace(P) [occupancy²]"), ("people_found", "people found"),
-                 ("false_alarm_cells", "false-alarm cells"))
+METRIC_LABELS = (("rse", "RSE [occupancy]"), ("trace", "trace(P) [occupancy²]"), ("people_found", "people found [count]"),
+                 ("false_alarm_cells", "false-alarm cells [count]"))
 
 
 def plot_path_3d(field: SearchField, log: EpisodeLog, path: Path) -> Path:

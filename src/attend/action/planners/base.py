@@ -37,16 +37,21 @@ class PlanningSetup:
     the planners compare against).
     """
 
+    # the mission: field, sensor and flight models
     field: SearchField
     camera: Camera = Camera()
     detector: Detector = Detector()
     flight: FlightModel = FlightModel()
+    # candidate waypoints
     altitude_layers_m: tuple[float, ...] = ALTITUDE_LAYERS_M
     lattice_per_side: int = 4
+    # optimiser: look-ahead and CMA-ES budget
     lookahead_waypoints: int = 3
     cma_evaluations: int = 24
+    # scoring: screening covariance and exact re-scoring
     planning_block_cells: int = 2
     exact_candidates: int = 4
+    # clearance from obstacles, and the prior the mission's map starts from
     obstacle_margin_m: float = 1.0
     map_prior: GaussianProcessPrior = PAPER_PRIOR
 

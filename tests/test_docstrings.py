@@ -26,14 +26,20 @@ MODULES = [
     "attend.perception.kalman",
     "attend.perception.nonlinear",
     "attend.perception.nonlinear_baselines",
+    "attend.rhythm",
+    "attend.rhythm.oscillator",
+    "attend.rhythm.schedule",
+    "attend.rhythm.fixations",
+    "attend.rhythm.learning",
+    "attend.rhythm.replanning",
+    "attend.rhythm.vision",
 ]
 
 #: (module, name) whose docstrings miss arguments, in files maintained elsewhere (action, rhythm,
 #: nonlinear perception)
 KNOWN_GAPS = {
     ("attend", "OccupancyMap"), ("attend", "SearchField"), ("attend", "make_field"),
-    ("attend", "make_planner"), ("attend", "PrecisionOscillator"), ("attend", "OscillatorScheduler"),
-    ("attend", "PrecisionDrivenScheduler"), ("attend", "ActiveVisionAgent"), ("attend", "NonlinearDEM"),
+    ("attend", "make_planner"), ("attend", "NonlinearDEM"),
     ("attend.perception", "NonlinearDEM"),
     ("attend.perception.nonlinear", "NonlinearDEM"), ("attend.perception.nonlinear", "OnlineNonlinearDEM"),
     ("attend.perception.nonlinear_baselines", "white_noise_covariances"),

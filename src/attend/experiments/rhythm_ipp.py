@@ -218,13 +218,18 @@ def plot(result: ExperimentResult, out_dir) -> list[str]:
     decisions) rhythm-ipp_decisions.png from ``result.tables`` into ``out_dir`` (CAPTIONS)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    paths = [_plot_curves(result, out), _plot_costs(result, out)]
+    figures = {"rhythm-ipp_curves.png": _plot_curves(result), "rhythm-ipp_cost.png": _plot_costs(result)}
     if "decisions" in result.tables:
-        paths.append(_plot_decisions(result, out))
-    return [str(p) for p in paths]
+        figures["rhythm-ipp_decisions.png"] = _plot_decisions(result)
+    paths = []
+    for name, fig in figures.items():
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=110)
+        paths.append(str(out / name))
+    return paths
 
 
-def _plot_curves(result: ExperimentResult, out: Path) -> Path:
+def _plot_curves(result: ExperimentResult):
     from attend.plotting import figure
 
     curves, grid_t = result.tables["curves"], np.asarray(result.tables["grid_t"], dtype=float)
@@ -238,13 +243,10 @@ def _plot_curves(result: ExperimentResult, out: Path) -> Path:
     for ax, label, unit in zip(axes, ("RSE", "trace(P)", "people found"), ("[1]", "[1]", "[people]")):
         ax.set(xlabel="flight time [s]", ylabel=f"{label} {unit}", title=f"{label} (mean of {trials} trials)")
     axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    path = out / "rhythm-ipp_curves.png"
-    fig.savefig(path, dpi=110)
-    return path
+    return fig
 
 
-def _plot_costs(result: ExperimentResult, out: Path) -> Path:
+def _plot_costs(result: ExperimentResult):
     from attend.plotting import figure
 
     costs = result.tables["costs"]
@@ -261,13 +263,10 @@ def _plot_costs(result: ExperimentResult, out: Path) -> Path:
         ax.set_xticks(x)
         ax.set_xticklabels(names, rotation=30, ha="right", fontsize=8)
         ax.set(xlabel="replanning policy", ylabel=label, title=label.split(" [")[0] + " (mean, std over trials)")
-    fig.tight_layout()
-    path = out / "rhythm-ipp_cost.png"
-    fig.savefig(path, dpi=110)
-    return path
+    return fig
 
 
-def _plot_decisions(result: ExperimentResult, out: Path) -> Path:
+def _plot_decisions(result: ExperimentResult):
     from attend.plotting import figure
 
     record = result.tables["decisions"]
@@ -285,10 +284,7 @@ def _plot_decisions(result: ExperimentResult, out: Path) -> Path:
     ax.set_ylabel("expected trace(P) reduction per second [1/s]")
     ax.set_title(f"{record['policy']}: decisions of trial seed {record['seed']}")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    path = out / "rhythm-ipp_decisions.png"
-    fig.savefig(path, dpi=110)
-    return path
+    return fig
 
 
 def _verdict(mean: float, sem: float) -> str:

@@ -243,7 +243,12 @@ def plot(result: ExperimentResult, out_dir) -> list[str]:
     ``out_dir`` (CAPTIONS); returns their paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    return [str(_plot_scanpath(result, out)), str(_write_scanpath_gif(result, out)), str(_plot_curves(result, out))]
+    paths = []
+    for name, fig in (("vision_scanpath.png", _plot_scanpath(result)), ("vision.png", _plot_curves(result))):
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=110)
+        paths.append(str(out / name))
+    return [paths[0], str(_write_scanpath_gif(result, out)), paths[1]]
 
 
 def _draw_saccade(axis, scanpath: dict, index: int):
@@ -266,7 +271,7 @@ def _draw_saccade(axis, scanpath: dict, index: int):
     return heat
 
 
-def _plot_scanpath(result: ExperimentResult, out: Path) -> Path:
+def _plot_scanpath(result: ExperimentResult):
     from attend.plotting import figure
 
     scanpath = result.tables["scanpath"]
@@ -280,10 +285,7 @@ def _plot_scanpath(result: ExperimentResult, out: Path) -> Path:
             axis.axis("off")
     fig.suptitle("Epistemic scanpath on scene 0: salience map (expected information gain of each "
                  "fixation) before each saccade; star = chosen target")
-    fig.tight_layout()
-    path = out / "vision_scanpath.png"
-    fig.savefig(path, dpi=110)
-    return path
+    return fig
 
 
 def _write_scanpath_gif(result: ExperimentResult, out: Path) -> Path:
@@ -304,16 +306,13 @@ def _write_scanpath_gif(result: ExperimentResult, out: Path) -> Path:
     return path
 
 
-def _plot_curves(result: ExperimentResult, out: Path) -> Path:
+def _plot_curves(result: ExperimentResult):
     from attend.plotting import figure
 
     fig, axes = figure((15, 8.5), 2, 3)
     _plot_where(axes[0], result)
     _plot_when(axes[1], result)
-    fig.tight_layout()
-    path = out / "vision.png"
-    fig.savefig(path, dpi=110)
-    return path
+    return fig
 
 
 def _plot_where(axes, result: ExperimentResult) -> None:

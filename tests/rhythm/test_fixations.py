@@ -24,15 +24,15 @@ from attend.rhythm import (
 )
 
 
-def OscillatorScheduler(oscillator, time_step=0.0125, action_fraction=0.25, saccadic_suppression=0.1):
+def rhythmic_fixations(oscillator, time_step=0.0125, action_fraction=0.25, saccadic_suppression=0.1):
     return fixation_policy(RhythmicSchedule(oscillator, action_fraction), time_step, saccadic_suppression)
 
 
-def FixedDurationScheduler(fixation, action, time_step=0.0125, perception_multiplier=1.0, saccadic_suppression=0.1):
+def fixed_fixations(fixation, action, time_step=0.0125, perception_multiplier=1.0, saccadic_suppression=0.1):
     return fixation_policy(FixedSchedule(fixation, action, perception_multiplier), time_step, saccadic_suppression)
 
 
-def PrecisionDrivenScheduler(oscillator, time_step=0.0125, action_duration=0.0625, prior_weight=1.0,
+def precision_driven_fixations(oscillator, time_step=0.0125, action_duration=0.0625, prior_weight=1.0,
                              saccadic_suppression=0.1, perception_multiplier=None, **options):
     return fixation_policy(PrecisionDrivenSchedule(oscillator, prior_weight), time_step, saccadic_suppression,
                            saccade_s=action_duration, perception_multiplier=perception_multiplier, **options)
@@ -65,7 +65,7 @@ class DecayingTask:
 
 def test_oscillator_scheduler_acts_in_the_troughs():
     osc = PrecisionOscillator(frequency=4.0, depth=1.0, phase=0.0)
-    scheduler = OscillatorScheduler(osc, time_step=0.001, action_fraction=0.25, saccadic_suppression=0.1)
+    scheduler = rhythmic_fixations(osc, time_step=0.001, action_fraction=0.25, saccadic_suppression=0.1)
     steps = list(scheduler.steps(None, 2000))  # 2 s = 8 cycles
     acting = np.array([s.mode == ACT for s in steps])
     assert acting.mean() == pytest.approx(0.25, abs=5e-3)  # 62.5 steps per trough, rounded
@@ -82,7 +82,7 @@ def test_oscillator_scheduler_acts_in_the_troughs():
 
 def test_rhythmic_mean_perception_and_action_multipliers():
     osc = PrecisionOscillator(frequency=4.0, depth=1.0)
-    scheduler = OscillatorScheduler(osc, action_fraction=0.25)
+    scheduler = rhythmic_fixations(osc, action_fraction=0.25)
     assert isinstance(scheduler, RhythmicFixations)
     t = (np.arange(400000) + 0.5) / 400000 * osc.period
     g = osc.multiplier(t)
@@ -91,7 +91,7 @@ def test_rhythmic_mean_perception_and_action_multipliers():
 
 
 def test_fixed_duration_pattern():
-    scheduler = FixedDurationScheduler(0.05, 0.02, time_step=0.01, perception_multiplier=2.0, saccadic_suppression=0.25)
+    scheduler = fixed_fixations(0.05, 0.02, time_step=0.01, perception_multiplier=2.0, saccadic_suppression=0.25)
     assert isinstance(scheduler, FixedFixations)
     modes = [s.mode for s in scheduler.steps(None, 14)]
     assert modes == [PERCEIVE] * 5 + [ACT] * 2 + [PERCEIVE] * 5 + [ACT] * 2
@@ -102,7 +102,7 @@ def test_fixed_duration_pattern():
 def test_precision_driven_moves_when_staying_stops_paying():
     # G_stay(n) = exp(-n / 4) < G_move / h = 2 / 20 = 0.1 first at n = 10 steps here.
     osc = PrecisionOscillator(frequency=4.0)
-    scheduler = PrecisionDrivenScheduler(osc, time_step=0.0125, action_duration=0.0375, prior_weight=0.0,
+    scheduler = precision_driven_fixations(osc, time_step=0.0125, action_duration=0.0375, prior_weight=0.0,
                                          perception_multiplier=1.0)
     assert isinstance(scheduler, PrecisionDrivenFixations)
     assert scheduler.horizon_steps == 20 and scheduler.action_steps == 3
@@ -118,7 +118,7 @@ def test_precision_driven_prior_pulls_moves_towards_troughs():
     osc = PrecisionOscillator(frequency=4.0, phase=0.0)
     task_times = {}
     for weight in (0.0, 3.0):
-        scheduler = PrecisionDrivenScheduler(osc, time_step=0.0025, action_duration=0.01, prior_weight=weight,
+        scheduler = precision_driven_fixations(osc, time_step=0.0025, action_duration=0.01, prior_weight=weight,
                                              perception_multiplier=1.0)
         task = DecayingTask(tau=20.0, move_gain=scheduler.horizon_steps * 0.3)
         trace = drive(scheduler, task, 2000)
@@ -130,25 +130,25 @@ def test_precision_driven_prior_pulls_moves_towards_troughs():
 
 def test_drive_until_stops_early():
     task = DecayingTask()
-    scheduler = FixedDurationScheduler(0.05, 0.02, time_step=0.01)
+    scheduler = fixed_fixations(0.05, 0.02, time_step=0.01)
     trace = drive(scheduler, task, 100, until=lambda step: step.index == 9)
     assert len(trace.time) == 9 and task.perceived + task.acted == 9
 
 
 @pytest.mark.parametrize("make, field", [
-    (lambda: OscillatorScheduler(PrecisionOscillator(), time_step=0.0), "time_step"),
-    (lambda: OscillatorScheduler(PrecisionOscillator(), action_fraction=1.0), "action_fraction"),
-    (lambda: OscillatorScheduler(PrecisionOscillator(), saccadic_suppression=1.5), "saccadic_suppression"),
-    (lambda: OscillatorScheduler("4 Hz"), "oscillator"),
-    (lambda: FixedDurationScheduler(0.0, 0.05), "perceive_s"),
-    (lambda: FixedDurationScheduler(0.2, -1.0), "act_s"),
-    (lambda: PrecisionDrivenScheduler(PrecisionOscillator(), prior_weight=-1.0), "prior_weight"),
+    (lambda: rhythmic_fixations(PrecisionOscillator(), time_step=0.0), "time_step"),
+    (lambda: rhythmic_fixations(PrecisionOscillator(), action_fraction=1.0), "action_fraction"),
+    (lambda: rhythmic_fixations(PrecisionOscillator(), saccadic_suppression=1.5), "saccadic_suppression"),
+    (lambda: rhythmic_fixations("4 Hz"), "oscillator"),
+    (lambda: fixed_fixations(0.0, 0.05), "perceive_s"),
+    (lambda: fixed_fixations(0.2, -1.0), "act_s"),
+    (lambda: precision_driven_fixations(PrecisionOscillator(), prior_weight=-1.0), "prior_weight"),
     (lambda: PrecisionDrivenSchedule(PrecisionOscillator(), tolerance=0.0), "tolerance"),
     (lambda: fixation_policy("rhythm"), "schedule"),
     (lambda: RhythmicFixations(FixedSchedule(0.1)), "schedule"),
-    (lambda: PrecisionDrivenScheduler(PrecisionOscillator(), horizon_steps=2, action_duration=0.05), "horizon_steps"),
-    (lambda: list(PrecisionDrivenScheduler(PrecisionOscillator()).steps(None, 3)), "task"),
-    (lambda: list(OscillatorScheduler(PrecisionOscillator()).steps(None, 0)), "n_steps"),
+    (lambda: precision_driven_fixations(PrecisionOscillator(), horizon_steps=2, action_duration=0.05), "horizon_steps"),
+    (lambda: list(precision_driven_fixations(PrecisionOscillator()).steps(None, 3)), "task"),
+    (lambda: list(rhythmic_fixations(PrecisionOscillator()).steps(None, 0)), "n_steps"),
 ])
 def test_bad_input_names_the_field(make, field):
     with pytest.raises(AttendInputError, match=field):
@@ -173,7 +173,7 @@ def test_decision_time_delays_the_precision_driven_move():
             self.steps = 0
 
     def first_move(decision_time):
-        scheduler = PrecisionDrivenScheduler(PrecisionOscillator(4.0), 0.0125, 0.05, 0.0, 0.1, 1.0,
+        scheduler = precision_driven_fixations(PrecisionOscillator(4.0), 0.0125, 0.05, 0.0, 0.1, 1.0,
                                              horizon_steps=10, decision_time=decision_time)
         task = Falling()
         for step in scheduler.steps(task, 60):

@@ -1,4 +1,5 @@
-"""Tests of attend.rhythm.learning_schedule and the rhythm-learning experiment's JSON contract."""
+"""Tests of attend.rhythm.learning (a schedule as the prior precision per iteration) and the
+rhythm-learning experiment."""
 
 import json
 

@@ -30,13 +30,19 @@ MODULES = [
     "attend.action.planners",
     "attend.action.episode",
     "attend.action.plots",
+    "attend.rhythm",
+    "attend.rhythm.oscillator",
+    "attend.rhythm.schedule",
+    "attend.rhythm.fixations",
+    "attend.rhythm.learning",
+    "attend.rhythm.replanning",
+    "attend.rhythm.vision",
 ]
 
 #: (module, name) whose docstrings miss arguments, in files maintained elsewhere (action, rhythm,
 #: nonlinear perception)
 KNOWN_GAPS = {
-    ("attend", "PrecisionOscillator"), ("attend", "OscillatorScheduler"),
-    ("attend", "PrecisionDrivenScheduler"), ("attend", "ActiveVisionAgent"), ("attend", "NonlinearDEM"),
+    ("attend", "NonlinearDEM"),
     ("attend.perception", "NonlinearDEM"),
     ("attend.perception.nonlinear", "NonlinearDEM"), ("attend.perception.nonlinear", "OnlineNonlinearDEM"),
     ("attend.perception.nonlinear_baselines", "white_noise_covariances"),

@@ -14,8 +14,9 @@ Public API (everything else is private):
 - action (UAV search, :mod:`attend.action`): :func:`make_field` / :class:`SearchField`,
   :class:`OccupancyMap` (precision map), :func:`make_planner`, :func:`fly` (one mission in code),
   :func:`run_search` (one mission with its files)
-- rhythm (:mod:`attend.rhythm`): :class:`PrecisionOscillator`, :class:`OscillatorScheduler`,
-  :class:`PrecisionDrivenScheduler`, :func:`drive`, :class:`ActiveVisionAgent`
+- rhythm (:mod:`attend.rhythm`): :class:`PrecisionOscillator`, the schedules
+  :class:`RhythmicSchedule`, :class:`PrecisionDrivenSchedule`, :class:`FixedSchedule`,
+  :func:`drive`, :class:`ActiveVisionAgent`
 - errors: :class:`AttendInputError`, :class:`ModelWarning`
 
 The presets also live in :mod:`attend.problems` with the paper's reference problems; named
@@ -31,7 +32,8 @@ from attend.perception.kalman import KalmanEstimator, OnlineKalman, StateEstimat
 from attend.perception.learning import IdentificationResult, identify
 from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem, simulate_nonlinear
 from attend.problems import convolution_model, identification_system, mass_spring_damper, quadrotor_roll
-from attend.rhythm import ActiveVisionAgent, OscillatorScheduler, PrecisionDrivenScheduler, PrecisionOscillator, drive
+from attend.rhythm import (ActiveVisionAgent, FixedSchedule, PrecisionDrivenSchedule, PrecisionOscillator,
+                           RhythmicSchedule, drive)
 from attend.systems import LinearSystem, ModelWarning, Trajectory, simulate
 
 __version__ = "0.1.0"
@@ -41,6 +43,7 @@ __all__ = [
     "AttendInputError",
     "DEMEstimate",
     "DEMObserver",
+    "FixedSchedule",
     "IdentificationResult",
     "KalmanEstimator",
     "LinearSystem",
@@ -50,9 +53,9 @@ __all__ = [
     "OccupancyMap",
     "OnlineDEM",
     "OnlineKalman",
-    "OscillatorScheduler",
-    "PrecisionDrivenScheduler",
+    "PrecisionDrivenSchedule",
     "PrecisionOscillator",
+    "RhythmicSchedule",
     "SearchField",
     "StateEstimate",
     "Trajectory",

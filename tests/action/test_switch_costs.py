@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from attend.action import ActionInputError, Camera, Detector, FlightModel, PlanningSetup, make_field, make_planner
-from attend.rhythm.ipp_schedule import make_schedule, path_gain, run_scheduled_episode
+from attend.rhythm.replanning import fly_scheduled_mission, make_replan_policy, path_gain
 
 # Final (RSE, trace(P)) of seed 1, per-cell belief, 6 CMA-ES evaluations, 5-waypoint look-ahead,
 # computed with the episode code before blur and latency existed (commit 19a6fbb).
@@ -22,7 +22,7 @@ def _episode(policy, seed=1, detector=None, latency=None, cma=6, mode="hover"):
                           cma_evaluations=cma)
     planner = make_planner("precision_gain", setup, seed)
     kwargs = {} if latency is None else dict(planning_latency_s=latency, latency_mode=mode)
-    return run_scheduled_episode(field, planner, make_schedule(policy), 150.0, seed, diagonal=True, **kwargs)
+    return fly_scheduled_mission(field, planner, make_replan_policy(policy), 150.0, seed, diagonal=True, **kwargs)
 
 
 @pytest.mark.parametrize("policy", sorted(BEFORE))

@@ -62,7 +62,7 @@ def test_paired_interval_closed_form():
 
 def test_quick_run_contract(tmp_path):
     result = rt.run(quick=True, out_dir=tmp_path, progress=False)
-    data = json.loads((tmp_path / "rhythm-tradeoff.json").read_text())
+    data = json.loads(result.write(tmp_path).read_text())
     assert data["experiment"] == "rhythm-tradeoff"
     assert {"name", "value", "published", "unit"} <= set(data["metrics"][0])
     assert set(rt.SETTINGS) <= set(data["settings"])
@@ -88,19 +88,14 @@ def test_quick_run_contract(tmp_path):
 # ---- a real Dask cluster ----------------------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def cluster():
+def test_cluster_run_equals_the_local_run():
     distributed = pytest.importorskip("distributed", reason="dask.distributed is not installed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as local_cluster:
-        yield local_cluster
-
-
-def test_cluster_run_equals_the_local_run(cluster):
     local = rt.run(quick=True, **TINY)
-    remote = rt.run(quick=True, cluster=cluster.scheduler_address, **TINY)
-    assert len(local.data["table"]) == 2
-    for a, b in zip(local.data["table"], remote.data["table"]):
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as two_workers:
+        remote = rt.run(quick=True, cluster=two_workers.scheduler_address, **TINY)
+    assert len(local.tables["map"]) == 2
+    for a, b in zip(local.tables["map"], remote.tables["map"]):
         assert a["tuned"] == b["tuned"] and a["winner"] == b["winner"]
         assert a["mean"] == b["mean"]
         assert a["versus_fixed"] == b["versus_fixed"]

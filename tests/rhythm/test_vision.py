@@ -8,22 +8,12 @@ import pytest
 from scipy import integrate, stats
 
 from attend._validation import AttendInputError
-from attend.rhythm import (
-    EpistemicPolicy,
-    FoveatedEye,
-    OscillatorScheduler,
-    PrecisionOscillator,
-    RandomPolicy,
-    Scene,
-    entropy,
-    information_gain,
-    letter_patterns,
-    random_scene,
-    run_episode,
-    salience_map,
-    update_beliefs,
-)
-from attend.rhythm.vision import antithetic_noise, uniform_log_posterior
+from attend.rhythm import PrecisionOscillator, RhythmicSchedule, fixation_policy
+from attend.rhythm import vision as V
+from attend.rhythm.vision import antithetic_noise, entropy, information_gain, update_beliefs, uniform_log_posterior
+
+EpistemicPolicy, FoveatedEye, RandomPolicy, Scene = V.EpistemicPolicy, V.FoveatedEye, V.RandomPolicy, V.Scene
+letter_patterns, random_scene, salience_map = V.letter_patterns, V.random_scene, V.salience_map
 
 
 def test_bayesian_update_matches_brute_force_enumeration():
@@ -129,8 +119,8 @@ def test_acuity_falls_with_eccentricity():
 
 def _episode(policy, seed):
     osc = PrecisionOscillator(4.0, 1.0)
-    scheduler = OscillatorScheduler(osc)
-    return run_episode(random_scene(4, 4, seed=seed), FoveatedEye(0.6, 12.0), policy, scheduler, 0.29,
+    scheduler = fixation_policy(RhythmicSchedule(osc))
+    return V.look(random_scene(4, 4, seed=seed), FoveatedEye(0.6, 12.0), policy, scheduler, 0.29,
                        n_saccades=8, seed=seed, monte_carlo_samples=8)
 
 

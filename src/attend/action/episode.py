@@ -103,7 +103,7 @@ class ReplanPolicy:
     """When the UAV stops following its plan and replans (the hook of :func:`fly`).
 
     This base policy is the plain episode: fly the planner's ``waypoints_per_replan`` waypoints
-    of each plan (all if None), then replan. Subclasses (attend.rhythm.ipp_schedule) override
+    of each plan (all if None), then replan. Subclasses (attend.rhythm.replanning) override
     ``waypoints_per_plan``, ``deadline(plan_start_s, first_image_s)`` (mission time [s] at which
     a plan is cut), ``start_plan(context)`` (after each replan) and ``after_image(context)``
     (after each image but one taken where a plan starts: True to replan now)."""
@@ -320,21 +320,6 @@ class _Mission:
             deadline = policy.deadline(self.elapsed, self.elapsed + self.time_to_next_image)
             _, leftover = self.follow(plan, policy.waypoints_per_plan(self.planner), min(budget_s, deadline), decide=True)
             log.decision_times_s.append(self.deciding)
-
-
-def fly_mission(field, planner: Planner, camera, detector, flight, log: EpisodeLog, policy: ReplanPolicy,
-                **options) -> EpisodeLog:
-    """Transitional: attend.rhythm.ipp_schedule's call of the flight loop, now :func:`fly`
-    (``fly(field, planner, log.budget_s, log.seed, policy, log=log, **options)``). ``camera``,
-    ``detector`` and ``flight`` must be the planner's own (``planner.setup``). Remove once
-    attend.rhythm calls :func:`fly`.
-
-    field, planner, policy, options: as :func:`fly`; camera, detector, flight: the planner's
-    setup's; log: the empty log to fill."""
-    setup = planner.setup
-    if (camera, detector, flight) != (setup.camera, setup.detector, setup.flight):
-        raise ActionInputError("camera, detector, flight: expected the planner's own (planner.setup)")
-    return fly(field, planner, log.budget_s, log.seed, policy, log=log, **options)
 
 
 def belief_after_images(field: SearchField, setup, poses_m: Sequence[Sequence[float]], seed: int = 0,

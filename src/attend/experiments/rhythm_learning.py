@@ -8,7 +8,7 @@ log-precision 8), with informed but imperfect prior means theta_true (1 + 0.2 n)
 
 * fixed: one P_theta for all iterations, over the grid 10^-4 .. 10^8 (as in Fig. 4);
 * rhythmic: P_theta(k) = pi_0 exp(a sin(2 pi f k + phi)) over iterations k
-  (attend.rhythm.learning_schedule), the same schedule at every noise level (it does not know
+  (a :class:`attend.rhythm.RhythmicSchedule` read by attend.rhythm.learning), the same schedule at every noise level (it does not know
   the noise level).
 
 For each noise level the median parameter SSE over seeds of every policy is compared with the
@@ -40,11 +40,12 @@ from pathlib import Path
 
 import numpy as np
 
-from attend.experiments._result import ExperimentResult
+from attend.experiments._result import Claim, ExperimentResult
 from attend.experiments.fig4 import FREE, KNOWN_PRECISION, RUNS_PER_TASK, task_logs
 from attend.perception.learning import PAPER_LEARNER, learn_batch, parameter_vector
-from attend.rhythm.learning_schedule import prior_precision_schedule, rhythmic_prior_precision
+from attend.rhythm.learning import prior_precision_per_entry, prior_precision_sequence
 from attend.rhythm.oscillator import PrecisionOscillator
+from attend.rhythm.schedule import RhythmicSchedule
 from attend.sweep import chunk_slices, run_tasks
 from attend.systems import mass_spring_damper
 
@@ -58,14 +59,16 @@ SETTINGS = dict(dt=0.1, duration=32.0, kernel_width=0.5, process_log_precision=8
 PRIOR_RNG_OFFSET = 2000
 
 
-def schedule_oscillator(settings: dict) -> PrecisionOscillator:
-    """The oscillator of the rhythmic policy from SETTINGS-like keys (time unit: one iteration)."""
-    return PrecisionOscillator(frequency=settings["rhythm_cycles_per_iteration"], depth=settings["rhythm_depth"],
-                               baseline_gain=settings["rhythm_baseline_precision"], phase=settings["rhythm_phase"])
+def rhythmic_schedule(settings: dict) -> RhythmicSchedule:
+    """The rhythmic policy from SETTINGS-like keys ``settings`` (oscillator clock: one iteration)."""
+    return RhythmicSchedule(PrecisionOscillator(
+        frequency=settings["rhythm_cycles_per_iteration"], depth=settings["rhythm_depth"],
+        baseline_multiplier=settings["rhythm_baseline_precision"], phase=settings["rhythm_phase"]))
 
 
 def informed_priors(seeds, spread: float) -> np.ndarray:
-    """Prior means (len(seeds), 8): theta_true (1 + spread n) on theta3, theta4, theta6 (Fig. 5's choice)."""
+    """Prior means (len(seeds), 8): theta_true (1 + spread n) on theta3, theta4, theta6, n drawn
+    from each of ``seeds`` (Fig. 5's choice)."""
     theta = parameter_vector(mass_spring_damper())
     eta = np.tile(theta, (len(seeds), 1))
     for k, seed in enumerate(seeds):
@@ -84,7 +87,7 @@ def learn_schedule_runs(task: dict) -> dict:
     """
     cfg = task["settings"]
     Y, U = task_logs(task)
-    P = prior_precision_schedule(np.asarray(task["schedule"], dtype=float), FREE, KNOWN_PRECISION)
+    P = prior_precision_per_entry(np.asarray(task["schedule"], dtype=float), FREE, KNOWN_PRECISION)
     result = learn_batch(Y, U, cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"],
                          prior_mean=np.asarray(task["prior_mean"], dtype=float), prior_precision=P,
                          embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"],
@@ -96,7 +99,8 @@ def policy_sse(settings: dict, seeds, levels, schedules: np.ndarray, *, cluster=
                runs_per_task: int = RUNS_PER_TASK, desc: str = "rhythm-learning") -> np.ndarray:
     """Parameter SSE (n_policies, n_levels, n_seeds) of each schedule (n_policies, iterations)
     on the logs of every (noise level, seed): sensor log-precision ``levels``, simulation seeds
-    ``seeds`` (prior means from the same seeds)."""
+    ``seeds`` (prior means from the same seeds), on the keys of ``settings``; ``cluster``,
+    ``progress``, ``runs_per_task`` and ``desc`` go to attend.sweep.run_tasks."""
     seeds = np.asarray(seeds, dtype=int)
     levels = np.asarray(levels, dtype=float)
     schedules = np.asarray(schedules, dtype=float)
@@ -127,9 +131,9 @@ def regrets(median_sse: np.ndarray, n_fixed: int) -> tuple[np.ndarray, np.ndarra
     return median_sse / best - 1.0, median_sse - best
 
 
-def _schedules(settings: dict, fixed: np.ndarray, oscillators) -> np.ndarray:
+def _schedules(settings: dict, fixed: np.ndarray, rhythms) -> np.ndarray:
     n_it = settings["iterations"]
-    rows = [np.full(n_it, p) for p in fixed] + [rhythmic_prior_precision(o, n_it) for o in oscillators]
+    rows = [np.full(n_it, p) for p in fixed] + [prior_precision_sequence(r, n_it) for r in rhythms]
     return np.array(rows)
 
 
@@ -138,7 +142,9 @@ def tune(settings: dict | None = None, *, n_seeds: int = 6, n_levels: int = 5, c
     """Choose (pi_0, a, f, phi) of the rhythm by the lowest worst-case relative regret on tuning
     runs: seeds ``tuning_seed_offset + k`` (other noise and prior draws than the evaluation) and
     sensor log-precisions midway between evaluation levels. Returns the best candidate, its
-    tuning regret and the table of all candidates."""
+    tuning regret and the table of all candidates. settings: SETTINGS-like (default SETTINGS);
+    n_seeds, n_levels: tuning seeds and noise levels; candidates: list of dicts of the rhythm
+    keys (default: a grid); progress, cluster: as in :func:`run`."""
     cfg = dict(SETTINGS if settings is None else settings)
     lo, hi = cfg["sensor_log_precision_range"]
     grid = np.linspace(lo, hi, 2 * n_levels + 1)
@@ -150,8 +156,8 @@ def tune(settings: dict | None = None, *, n_seeds: int = 6, n_levels: int = 5, c
                            rhythm_phase=ph)
                       for b in (1e0, 1e1, 1e2, 1e3) for a in (2.0, 4.0, 6.0) for f in (0.1, 0.2)
                       for ph in (0.0, np.pi / 2, np.pi, 3 * np.pi / 2)]
-    oscillators = [schedule_oscillator(dict(cfg, **c)) for c in candidates]
-    sse = policy_sse(cfg, seeds, levels, _schedules(cfg, fixed, oscillators), cluster=cluster, progress=progress,
+    rhythms = [rhythmic_schedule(dict(cfg, **c)) for c in candidates]
+    sse = policy_sse(cfg, seeds, levels, _schedules(cfg, fixed, rhythms), cluster=cluster, progress=progress,
                      desc="rhythm-learning tuning")
     rel, _ = regrets(np.median(sse, axis=2), len(fixed))
     worst = rel.max(axis=1)
@@ -164,12 +170,16 @@ def tune(settings: dict | None = None, *, n_seeds: int = 6, n_levels: int = 5, c
 
 def run(quick: bool = True, out_dir=None, progress: bool = True, cluster=None) -> ExperimentResult:
     """Median SSE vs sensor noise of the rhythmic and of every fixed P_theta, regrets to the best
-    fixed value per noise level, and each policy's worst-case regret (see the module docstring)."""
+    fixed value per noise level, and each policy's worst-case regret (module docstring).
+
+    quick: 6 seeds x 6 noise levels x 13 fixed values (else 20 x 11 x 25); progress: a progress
+    bar; cluster: a Dask scheduler address or client (attend.sweep.run_tasks); out_dir: when
+    given, :func:`plot` draws the figure there."""
     n_seeds, n_levels, n_fixed = (6, 6, 13) if quick else (20, 11, 25)
     cfg = dict(SETTINGS, seeds=n_seeds, noise_levels=n_levels, fixed_prior_precisions=n_fixed)
     levels = np.linspace(*cfg["sensor_log_precision_range"], n_levels)
     fixed = np.logspace(*cfg["fixed_log10_prior_precision_range"], n_fixed)
-    schedule = rhythmic_prior_precision(schedule_oscillator(cfg), cfg["iterations"])
+    schedule = prior_precision_sequence(rhythmic_schedule(cfg), cfg["iterations"])
     schedules = np.vstack([np.repeat(fixed[:, None], cfg["iterations"], axis=1), schedule[None]])
     sse = policy_sse(cfg, np.arange(n_seeds), levels, schedules, cluster=cluster, progress=progress)
     median = np.median(sse, axis=2)
@@ -187,42 +197,70 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, cluster=None) -
     out.add("fixed_policies", n_fixed, "", None)
     out.add("rhythmic_median_sse_lowest_noise", median[-1, 0], "", None)
     out.add("rhythmic_median_sse_highest_noise", median[-1, -1], "", None)
-    out.data.update(sensor_log_precision=levels, fixed_prior_precision=fixed, schedule=schedule, sse=sse,
-                    median_sse=median, relative_regret=rel, absolute_regret=absolute)
+    out.data.update(sse=sse, absolute_regret=absolute)
+    out.tables.update(sensor_log_precision=levels, fixed_prior_precision=fixed, schedule=schedule,
+                      median_sse=median, relative_regret=rel)
     if out_dir is not None:
-        out.figures.append(str(_plot(levels, fixed, schedule, median, rel, Path(out_dir))))
-        out.write(out_dir)
+        out.figures.extend(plot(out, out_dir))
     return out
 
 
-def _plot(levels, fixed, schedule, median, rel, out_dir: Path) -> Path:
+CAPTIONS = {
+    "rhythm-learning.png": (
+        "Rhythmic vs fixed prior parameter precision P_theta in learning the mass-spring-damper. "
+        "a) the rhythmic schedule P_theta(k) over the D/E/M iterations k; b) median parameter SSE "
+        "over seeds against the sensor noise variance, for every fixed P_theta (grey, dark = low) "
+        "and the rhythm (red); dotted: the best fixed value at each noise level (an oracle); "
+        "c) relative regret to that oracle. The rhythm helps if its red curve in c) stays lower "
+        "at its worst than every grey curve at its worst."),
+}
+
+
+def plot(result: ExperimentResult, out_dir) -> list[str]:
+    """rhythm-learning.png from ``result.tables`` (see CAPTIONS) in ``out_dir``; returns its path."""
     from attend.plotting import new_figure
 
+    tables = result.tables
+    levels, fixed = np.asarray(tables["sensor_log_precision"]), np.asarray(tables["fixed_prior_precision"])
+    schedule = np.asarray(tables["schedule"], dtype=float)
+    median = np.asarray(tables["median_sse"], dtype=float)
+    rel = np.asarray(tables["relative_regret"], dtype=float)
     fig, ax = new_figure(out_dir, (15, 4.2), 1, 3)
-    var = np.exp(-levels)
-    n_fixed = len(fixed)
+    var, n_fixed = np.exp(-levels), len(fixed)
     colours = [(0.2 + 0.6 * i / max(n_fixed - 1, 1),) * 3 for i in range(n_fixed)]
     ax[0].semilogy(np.arange(1, len(schedule) + 1), schedule, "r.-")
-    ax[0].set_xlabel("iteration")
-    ax[0].set_ylabel("P_theta of the unknown entries")
-    ax[0].set_title("a) rhythmic schedule")
+    ax[0].set(xlabel="learning iteration k [count]", ylabel="prior precision P_theta of the unknown entries [1]",
+              title="a) rhythmic schedule")
     for i in range(n_fixed):
         ax[1].loglog(var, median[i], "-", color=colours[i], lw=0.8,
                      label=f"fixed {fixed[i]:.0e}" if i in (0, n_fixed // 2, n_fixed - 1) else None)
         ax[2].semilogx(var, rel[i], "-", color=colours[i], lw=0.8)
     ax[1].loglog(var, median[-1], "r-o", lw=2, label="rhythmic")
     ax[1].loglog(var, median[:n_fixed].min(axis=0), "k:", label="best fixed per level")
-    ax[1].set_xlabel("sensor noise variance exp(-lambda_z)")
-    ax[1].set_ylabel("median parameter SSE")
-    ax[1].set_title("b) SSE vs sensor noise")
-    ax[1].legend(fontsize=7)
     ax[2].semilogx(var, rel[-1], "r-o", lw=2, label="rhythmic")
     ax[2].set_yscale("symlog", linthresh=0.1)
-    ax[2].set_xlabel("sensor noise variance exp(-lambda_z)")
-    ax[2].set_ylabel("relative regret to the best fixed P_theta")
-    ax[2].set_title("c) regret (grey: fixed, dark = low P_theta)")
-    ax[2].legend(fontsize=7)
+    for axis, ylabel, title in ((ax[1], "median parameter SSE [1]", "b) SSE vs sensor noise"),
+                                (ax[2], "relative regret to the best fixed P_theta [1]",
+                                 "c) regret (grey: fixed, dark = low P_theta)")):
+        axis.set(xlabel="sensor noise variance exp(-lambda_z) [1]", ylabel=ylabel, title=title)
+        axis.legend(fontsize=7)
     fig.tight_layout()
-    path = out_dir / "rhythm-learning.png"
+    path = Path(out_dir) / "rhythm-learning.png"
     fig.savefig(path, dpi=110)
-    return path
+    return [str(path)]
+
+
+def claims(result: ExperimentResult) -> list[Claim]:
+    """The seed's claim (§4.4, use 1): a rhythmic P_theta has a lower worst-case regret across
+    sensor noise than every fixed P_theta, without knowing the noise level."""
+    value = lambda name: result.metric(name).value  # noqa: E731
+    beaten, n_fixed = int(value("fixed_policies_beaten_on_worst_case_relative_regret")), int(value("fixed_policies"))
+    size = "quick run" if result.settings.get("seeds", 0) < 20 else "full run"
+    measured = (f"{size}: worst-case relative regret {value('rhythmic_worst_case_relative_regret'):.2f} for the "
+                f"rhythm vs {value('best_fixed_worst_case_relative_regret'):.2f} for the best fixed P_theta "
+                f"({value('best_fixed_worst_case_prior_precision'):.0e}); the rhythm beats {beaten} of {n_fixed} "
+                "fixed values. A full run (20 seeds, 11 levels, 25 values; module docstring) measured 0.47 vs 0.32, "
+                "beating 24 of 25: the claim holds in the quick run only")
+    return [Claim("A rhythmic prior parameter precision learns with lower worst-case regret across sensor noise "
+                  "than any fixed prior precision", measured,
+                  "reproduced" if beaten == n_fixed else "does not hold")]

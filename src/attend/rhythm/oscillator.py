@@ -2,8 +2,9 @@
 
     pi(t) = pi_0 * exp(a * sin(2 pi f t + phi))
 
-pi(t)  gain on sensory precision [dimensionless], multiplies the sensor's precision
-pi_0   ``baseline_gain``: the geometric-mean gain over a cycle
+pi(t)  precision multiplier [dimensionless]: multiplies the sensor's precision (not to be
+       confused with the "precision gain" of attend.action, an expected trace reduction)
+pi_0   ``baseline_multiplier``: the geometric-mean multiplier over a cycle
 a      ``depth``: log-amplitude of the modulation (a = 0: no rhythm)
 f      ``frequency`` [Hz] (theta: 3-8 Hz in the brain)
 phi    ``phase`` [rad] at t = 0
@@ -46,15 +47,16 @@ def _fraction(value, field: str) -> float:
 
 @dataclass(frozen=True)
 class PrecisionOscillator:
-    """pi(t) = pi_0 exp(a sin(2 pi f t + phi)): a rhythmic gain on sensory precision.
+    """pi(t) = pi_0 exp(a sin(2 pi f t + phi)): a rhythmic multiplier on sensory precision.
 
-    Parameters: ``frequency`` f [Hz] > 0, ``depth`` a >= 0 [dimensionless], ``baseline_gain``
-    pi_0 > 0 [dimensionless], ``phase`` phi [rad].
+    Parameters: ``frequency`` f [Hz] > 0 (or cycles per iteration when the clock counts
+    iterations), ``depth`` a >= 0 [dimensionless], ``baseline_multiplier`` pi_0 > 0
+    [dimensionless], ``phase`` phi [rad].
     """
 
     frequency: float = 4.0
     depth: float = 1.0
-    baseline_gain: float = 1.0
+    baseline_multiplier: float = 1.0
     phase: float = 0.0
 
     def __post_init__(self) -> None:
@@ -63,7 +65,7 @@ class PrecisionOscillator:
         if depth < 0:
             raise AttendInputError(f"depth: expected a number >= 0 (log-amplitude), got {self.depth!r}")
         object.__setattr__(self, "depth", depth)
-        object.__setattr__(self, "baseline_gain", positive_scalar(self.baseline_gain, "baseline_gain"))
+        object.__setattr__(self, "baseline_multiplier", positive_scalar(self.baseline_multiplier, "baseline_multiplier"))
         object.__setattr__(self, "phase", _finite(self.phase, "phase"))
 
     @property
@@ -75,25 +77,25 @@ class PrecisionOscillator:
         """theta(t) = 2 pi f t + phi [rad], for ``time`` [s] (scalar or array)."""
         return 2.0 * np.pi * self.frequency * np.asarray(time, dtype=float) + self.phase
 
-    def gain(self, time) -> np.ndarray:
-        """pi(t) = pi_0 exp(a sin theta(t)) [dimensionless]."""
-        return self.baseline_gain * np.exp(self.depth * np.sin(self.phase_angle(time)))
+    def multiplier(self, time) -> np.ndarray:
+        """pi(t) = pi_0 exp(a sin theta(t)) [dimensionless] at ``time`` [s] (scalar or array)."""
+        return self.baseline_multiplier * np.exp(self.depth * np.sin(self.phase_angle(time)))
 
-    def log_gain(self, time) -> np.ndarray:
-        """log pi(t) = log pi_0 + a sin theta(t)."""
-        return math.log(self.baseline_gain) + self.depth * np.sin(self.phase_angle(time))
+    def log_multiplier(self, time) -> np.ndarray:
+        """log pi(t) = log pi_0 + a sin theta(t) at ``time`` [s] (scalar or array)."""
+        return math.log(self.baseline_multiplier) + self.depth * np.sin(self.phase_angle(time))
 
     def threshold(self, action_fraction: float) -> float:
-        """pi_threshold = pi_0 exp(-a cos(pi q)): below it lies a fraction q of each cycle."""
+        """pi_threshold = pi_0 exp(-a cos(pi q)): below it lies a fraction q = ``action_fraction`` of each cycle."""
         q = _fraction(action_fraction, "action_fraction")
-        return self.baseline_gain * math.exp(-self.depth * math.cos(math.pi * q))
+        return self.baseline_multiplier * math.exp(-self.depth * math.cos(math.pi * q))
 
     def trough_times(self, start: float, stop: float) -> np.ndarray:
-        """Times t in [start, stop) [s] of the minima of pi: theta(t) = -pi/2 + 2 pi k."""
+        """Times t in [``start``, ``stop``) [s] of the minima of pi: theta(t) = -pi/2 + 2 pi k."""
         return self._times_of_angle(-0.5 * np.pi, start, stop)
 
     def peak_times(self, start: float, stop: float) -> np.ndarray:
-        """Times t in [start, stop) [s] of the maxima of pi: theta(t) = pi/2 + 2 pi k."""
+        """Times t in [``start``, ``stop``) [s] of the maxima of pi: theta(t) = pi/2 + 2 pi k."""
         return self._times_of_angle(0.5 * np.pi, start, stop)
 
     def _times_of_angle(self, angle: float, start: float, stop: float) -> np.ndarray:
@@ -103,8 +105,8 @@ class PrecisionOscillator:
         k = np.arange(first, last)
         return (angle + 2.0 * np.pi * k - self.phase) / omega
 
-    def mean_gain(self) -> float:
+    def mean_multiplier(self) -> float:
         """Time average of pi over a cycle: pi_0 I_0(a) (modified Bessel function of order 0)."""
         from scipy.special import i0
 
-        return float(self.baseline_gain * i0(self.depth))
+        return float(self.baseline_multiplier * i0(self.depth))

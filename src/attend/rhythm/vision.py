@@ -2,14 +2,15 @@
 
 Generative model. A scene is a grid of L = rows x cols locations x_l (grid units); location l
 holds letter c_l in {1..K}, drawn uniformly, with pattern mu_k in R^D (a 5x5 glyph, D = 25,
-intensities 0/1). Fixating location f for a step of length dt [s] at precision gain g gives at
+intensities 0/1). Fixating location f for a step of length dt [s] at precision multiplier g gives at
 every location an observation
 
     y_l = mu_{c_l} + e_l,   e_l ~ N(0, I / lambda_fl),
     lambda_fl = rho * g * dt * exp(-|x_l - x_f|^2 / (2 w^2))
 
 rho ``foveal_precision_rate`` [1/(intensity^2 s)], w ``fovea_width`` [grid units]: acuity falls with
-eccentricity |x_l - x_f|. g comes from the scheduler (suppressed during saccades).
+eccentricity |x_l - x_f|. g comes from the fixation policy (:mod:`attend.rhythm.fixations`;
+suppressed during saccades). :func:`look` runs one scene.
 
 Diminishing returns of dwelling (optional): with ``adaptation_time`` tau_a [s] the precision rate
 decays during a fixation (adaptation, fading of a stabilised image): a step from dwell time tau
@@ -40,7 +41,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from attend._validation import AttendInputError, positive_scalar
-from attend.rhythm.scheduler import ACT, ScheduleTrace, drive
+from attend.rhythm.fixations import ScheduleTrace, drive
+from attend.rhythm.schedule import ACT
 
 GLYPHS: dict[str, tuple[str, ...]] = {
     "E": ("11111", "10000", "11110", "10000", "11111"),
@@ -64,7 +66,7 @@ def _logsumexp(values: np.ndarray, axis: int, keepdims: bool = False) -> np.ndar
 
 
 def letter_patterns(letters: str = "EFTLOC") -> np.ndarray:
-    """Patterns mu_k of the ``letters`` as rows of a (K, 25) array of 0/1 intensities."""
+    """Patterns mu_k of the ``letters`` (at least 2 distinct, from GLYPHS) as rows of a (K, 25) array of 0/1 intensities."""
     if not isinstance(letters, str) or len(letters) < 2 or len(set(letters)) != len(letters):
         raise AttendInputError(f"letters: expected at least 2 distinct letters, got {letters!r}")
     unknown = [c for c in letters if c not in GLYPHS]
@@ -75,7 +77,8 @@ def letter_patterns(letters: str = "EFTLOC") -> np.ndarray:
 
 @dataclass(frozen=True)
 class Scene:
-    """A grid of hidden letters: ``identities`` (rows, cols) indices into ``patterns`` (K, D)."""
+    """A grid of hidden letters: ``identities`` (rows, cols) indices into ``patterns`` (K, D);
+    ``letters``: their names (for display)."""
 
     identities: np.ndarray
     patterns: np.ndarray
@@ -127,7 +130,8 @@ class Scene:
 
 
 def random_scene(rows: int = 4, cols: int = 4, letters: str = "EFTLOC", seed: int = 0) -> Scene:
-    """A scene with letters drawn uniformly and independently at each location (seeded)."""
+    """A ``rows`` x ``cols`` scene with ``letters`` drawn uniformly and independently at each
+    location (``seed``: the draw)."""
     for name, value in (("rows", rows), ("cols", cols)):
         if isinstance(value, bool) or int(value) != value or int(value) < 1:
             raise AttendInputError(f"{name}: expected an integer >= 1, got {value!r}")
@@ -140,7 +144,7 @@ def random_scene(rows: int = 4, cols: int = 4, letters: str = "EFTLOC", seed: in
 class FoveatedEye:
     """Acuity exp(-d^2 / (2 w^2)) with d the eccentricity [grid units]; ``fovea_width`` w > 0
     [grid units]; ``foveal_precision_rate`` rho > 0 [1/(intensity^2 s)]: precision per second of
-    viewing at the fovea at gain 1; ``adaptation_time`` tau_a > 0 [s] (inf: none): the precision
+    viewing at the fovea at precision multiplier 1; ``adaptation_time`` tau_a > 0 [s] (inf: none): the precision
     rate decays as exp(-tau / tau_a) with the dwell time tau of a fixation (module docstring)."""
 
     fovea_width: float = 0.7
@@ -165,44 +169,48 @@ class FoveatedEye:
         return tau * (np.exp(-dwell / tau) - np.exp(-(dwell + duration) / tau))
 
     def acuity(self, locations: np.ndarray) -> np.ndarray:
-        """(F, L) acuity exp(-|x_l - x_f|^2 / (2 w^2)) of every fixation f at every location l."""
+        """(F, L) acuity, for ``locations`` (L, 2) [grid units], exp(-|x_l - x_f|^2 / (2 w^2)) of every fixation f at every location l."""
         squared = np.sum((locations[:, None, :] - locations[None, :, :]) ** 2, axis=-1)
         return np.exp(-squared / (2.0 * self.fovea_width ** 2))
 
     def precisions(self, locations: np.ndarray, fixation: int, dose: float) -> np.ndarray:
-        """(L,) lambda_l = rho * dose * acuity(fixation, l); dose = g * dt [s]."""
+        """(L,) lambda_l = rho * dose * acuity(fixation, l) at ``locations`` (L, 2) when fixating
+        location index ``fixation``; dose = g * dt [s]."""
         squared = np.sum((locations - locations[fixation]) ** 2, axis=-1)
         return self.foveal_precision_rate * dose * np.exp(-squared / (2.0 * self.fovea_width ** 2))
 
 
 def observe(scene: Scene, precisions: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """(L, D) samples y_l = mu_{c_l} + e_l / sqrt(lambda_l), e_l ~ N(0, I) (lambda_l > 0)."""
+    """(L, D) samples y_l = mu_{c_l} + e_l / sqrt(lambda_l), e_l ~ N(0, I) of ``scene`` with
+    ``precisions`` lambda (L,) > 0, drawn from ``rng``."""
     means = scene.patterns[scene.true_labels]
     noise = rng.standard_normal(means.shape)
     return means + noise / np.sqrt(np.maximum(precisions, 1e-300))[:, None]
 
 
 def uniform_log_posterior(n_locations: int, n_patterns: int) -> np.ndarray:
-    """log q_l(k) = -log K for every location."""
+    """log q_l(k) = -log K for each of ``n_locations`` locations, K = ``n_patterns``."""
     return np.full((n_locations, n_patterns), -np.log(n_patterns))
 
 
 def update_beliefs(log_posterior: np.ndarray, observations: np.ndarray, precisions: np.ndarray,
                    patterns: np.ndarray) -> np.ndarray:
-    """Exact Bayes: log q'_l(k) = log q_l(k) - lambda_l/2 |y_l - mu_k|^2 - log Z_l. Shapes (L, K),
-    (L, D), (L,), (K, D)."""
+    """Exact Bayes: log q'_l(k) = log q_l(k) - lambda_l/2 |y_l - mu_k|^2 - log Z_l, for
+    ``log_posterior`` (L, K), ``observations`` y (L, D), ``precisions`` lambda (L,) and
+    ``patterns`` mu (K, D)."""
     squared = np.sum((observations[:, None, :] - patterns[None, :, :]) ** 2, axis=-1)
     unnormalised = log_posterior - 0.5 * precisions[:, None] * squared
     return unnormalised - _logsumexp(unnormalised, axis=1, keepdims=True)
 
 
 def entropy(log_posterior: np.ndarray) -> np.ndarray:
-    """H_l = -sum_k q_l(k) log q_l(k) [nats], shape (L,)."""
+    """H_l = -sum_k q_l(k) log q_l(k) [nats] of ``log_posterior`` (L, K), shape (L,)."""
     return -np.sum(np.exp(log_posterior) * log_posterior, axis=-1)
 
 
 def antithetic_noise(n_samples: int, dimension: int, seed: int = 0) -> np.ndarray:
-    """(2 n, D) standard normal samples e and -e for the Monte-Carlo information gain."""
+    """(2 n, D) standard normal samples e and -e for the Monte-Carlo information gain
+    (n = ``n_samples``, D = ``dimension``, ``seed``: the draw)."""
     if isinstance(n_samples, bool) or int(n_samples) != n_samples or int(n_samples) < 1:
         raise AttendInputError(f"monte_carlo_samples: expected an integer >= 1, got {n_samples!r}")
     half = np.random.default_rng(seed).standard_normal((int(n_samples), dimension))
@@ -214,7 +222,7 @@ def information_gain(log_posterior: np.ndarray, precisions: np.ndarray, patterns
     """I(c_l; y_l | lambda_l) [nats] for log_posterior (L, K) and precisions (..., L) -> (..., L).
 
     I = -sum_c q(c) mean_s logsumexp_k(log q(k) + a_ck(e_s)), a as in the module docstring;
-    ``noise`` (S, D) standard normal samples."""
+    ``patterns`` mu (K, D); ``noise`` (S, D) standard normal samples."""
     lam = np.asarray(precisions, dtype=float)
     batch = lam.ndim - 1                                                  # leading axes before L
     differences = patterns[None, :, :] - patterns[:, None, :]            # [k, c] = mu_c - mu_k
@@ -232,7 +240,9 @@ def salience_map(log_posterior: np.ndarray, locations: np.ndarray, eye: Foveated
                  patterns: np.ndarray, noise: np.ndarray, fixations=None,
                  resolved_entropy: float = 1e-4, negligible_acuity: float = 1e-6) -> np.ndarray:
     """S(f) = sum_l I(c_l; y_l | rho * dose * acuity(f, l)) [nats] for every candidate fixation f
-    (all locations, or the indices ``fixations``); ``dose`` = integral of g dt [s].
+    (all locations, or the indices ``fixations``); ``dose`` = integral of g dt [s]; beliefs
+    ``log_posterior`` (L, K) at ``locations`` (L, 2), seen by ``eye``; ``patterns`` (K, D);
+    ``noise`` (S, D) as in :func:`information_gain`.
 
     I is computed once per (location, distinct eccentricity). Locations with entropy H_l below
     ``resolved_entropy`` [nats] are skipped (I <= H_l, so S changes by less than L times that)
@@ -261,7 +271,7 @@ def salience_map(log_posterior: np.ndarray, locations: np.ndarray, eye: Foveated
 
 
 def static_saliency_map(scene: Scene) -> np.ndarray:
-    """Bottom-up conspicuity (centre-surround contrast of the true image), fixed over time:
+    """Bottom-up conspicuity of ``scene`` (centre-surround contrast of the true image), fixed over time:
     C_l = |mu_{c_l} - mean_{n in N8(l)} mu_{c_n}| (Euclidean, intensities), shape (L,)."""
     rows, cols = scene.shape
     features = scene.patterns[scene.identities]                           # (rows, cols, D)
@@ -284,9 +294,11 @@ class EpistemicPolicy:
     name = "epistemic"
 
     def salience(self, agent: "ActiveVisionAgent") -> np.ndarray:
+        """S(f) [nats] of every fixation for the ``agent``'s planned fixation dose."""
         return agent.salience(agent.fixation_dose)
 
     def choose(self, agent: "ActiveVisionAgent", salience: np.ndarray) -> int:
+        """argmax of ``salience`` (``agent`` is not consulted)."""
         return int(np.argmax(salience))
 
 
@@ -301,9 +313,12 @@ class StaticSaliencyPolicy:
         self.name = "static saliency" + ("" if self.inhibition_of_return else " (no IOR)")
 
     def salience(self, agent: "ActiveVisionAgent") -> np.ndarray:
+        """The fixed conspicuity map of the ``agent``'s scene."""
         return agent.static_saliency
 
     def choose(self, agent: "ActiveVisionAgent", salience: np.ndarray) -> int:
+        """argmax of ``salience`` over the locations the ``agent`` has not visited since the
+        last reset (all, without inhibition of return)."""
         if not self.inhibition_of_return:
             return int(np.argmax(salience))
         visited = agent.visited_since_reset
@@ -320,22 +335,24 @@ class RandomPolicy:
     name = "random"
 
     def salience(self, agent: "ActiveVisionAgent") -> np.ndarray:
+        """Uniform probabilities over the locations other than the ``agent``'s fixation."""
         others = np.ones(agent.scene.n_locations)
         others[agent.fixation] = 0.0
         return others / others.sum()
 
     def choose(self, agent: "ActiveVisionAgent", salience: np.ndarray) -> int:
+        """A draw from the probabilities ``salience`` with the ``agent``'s policy generator."""
         return int(agent.policy_rng.choice(len(salience), p=salience))
 
 
 POLICIES = {"epistemic": EpistemicPolicy, "static": StaticSaliencyPolicy, "random": RandomPolicy}
 
 
-# --- the agent (a ScheduledTask) --------------------------------------------------------------
+# --- the agent (a FixationTask) -----------------------------------------------------------------
 
 @dataclass
 class SaccadeRecord:
-    """One saccade: ``time`` [s], from/to location indices, the salience map used (L,), and the
+    """One saccade: ``time`` [s], ``origin``/``target`` location indices, the salience map used (L,), and the
     summed entropy [nats] and accuracy just before it."""
 
     time: float
@@ -347,12 +364,15 @@ class SaccadeRecord:
 
 
 class ActiveVisionAgent:
-    """A foveated eye with categorical beliefs over the letters of ``scene``; follows
-    :class:`attend.rhythm.scheduler.ScheduledTask` so any scheduler can time its saccades.
+    """A foveated ``eye`` (:class:`FoveatedEye`) with categorical beliefs over the letters of
+    ``scene``; follows :class:`attend.rhythm.fixations.FixationTask` so any fixation policy can
+    time its saccades, and saccades where ``policy`` (:class:`EpistemicPolicy`,
+    :class:`StaticSaliencyPolicy`, :class:`RandomPolicy`) says.
 
     ``fixation_dose`` [s]: expected integral of g dt over one fixation, used to plan the next
-    fixation (salience). ``seed`` seeds the sensor noise, the Monte-Carlo samples and the random
-    policy.
+    fixation (salience). ``initial_fixation``: location index (None: the centre).
+    ``monte_carlo_samples``: antithetic pairs of the information gain. ``seed`` seeds the sensor
+    noise, the Monte-Carlo samples and the random policy.
     """
 
     def __init__(self, scene: Scene, eye: FoveatedEye, policy, fixation_dose: float,
@@ -391,7 +411,8 @@ class ActiveVisionAgent:
         return float(np.mean(np.argmax(self.log_posterior, axis=1) == self.scene.true_labels))
 
     def salience(self, dose: float, fixations=None) -> np.ndarray:
-        """Epistemic salience S(f) [nats] of every fixation for a viewing dose [s]."""
+        """Epistemic salience S(f) [nats] of every fixation (or of the indices ``fixations``) for
+        a viewing ``dose`` [s]."""
         return salience_map(self.log_posterior, self.locations, self.eye, dose, self.scene.patterns,
                             self.noise, fixations)
 
@@ -405,21 +426,28 @@ class ActiveVisionAgent:
         self.entropy_trace.append(self.total_entropy())
         self.accuracy_trace.append(self.accuracy())
 
-    # ScheduledTask
-    def expected_gain_of_staying(self, precision_gain: float, duration: float) -> float:
-        dose = precision_gain * self.eye.dwell_dose(self.dwell, duration)
+    # FixationTask
+    def expected_gain_of_staying(self, precision_multiplier: float, duration: float) -> float:
+        """Expected information gain [nats] of fixating here for ``duration`` [s] more at
+        ``precision_multiplier``."""
+        dose = precision_multiplier * self.eye.dwell_dose(self.dwell, duration)
         return float(self.salience(dose, [self.fixation])[0])
 
-    def expected_gain_of_moving(self, precision_gain: float, duration: float) -> float:
+    def expected_gain_of_moving(self, precision_multiplier: float, duration: float) -> float:
+        """Expected information gain [nats] of a fixation of ``duration`` [s] at the best other
+        location, at ``precision_multiplier``."""
         others = [i for i in range(self.scene.n_locations) if i != self.fixation]
-        return float(self.salience(precision_gain * self.eye.dwell_dose(0.0, duration), others).max())
+        return float(self.salience(precision_multiplier * self.eye.dwell_dose(0.0, duration), others).max())
 
-    def perceive(self, precision_gain: float, duration: float) -> None:
-        self._sample(precision_gain * self.eye.dwell_dose(self.dwell, duration))
+    def perceive(self, precision_multiplier: float, duration: float) -> None:
+        """Fixate for ``duration`` [s] at ``precision_multiplier``: sample and update beliefs."""
+        self._sample(precision_multiplier * self.eye.dwell_dose(self.dwell, duration))
         self.dwell += duration
         self._record(duration)
 
-    def act(self, precision_gain: float, duration: float, onset: bool) -> None:
+    def act(self, precision_multiplier: float, duration: float, onset: bool) -> None:
+        """One saccade step of ``duration`` [s] (data weighted by ``precision_multiplier``); at
+        the ``onset`` of a saccade the policy chooses the target."""
         if onset:
             salience = np.asarray(self.policy.salience(self), dtype=float)
             target = self.policy.choose(self, salience)
@@ -432,7 +460,7 @@ class ActiveVisionAgent:
             self.fixation = target
             self.fixations.append(target)
             self.dwell = 0.0
-        self._sample(precision_gain * duration)  # data taken while moving: suppressed precision
+        self._sample(precision_multiplier * duration)  # data taken while moving: suppressed precision
         self._record(duration)
 
     def revisit_rate(self) -> float:
@@ -441,9 +469,12 @@ class ActiveVisionAgent:
 
 
 @dataclass
-class Episode:
-    """Result of one scene: ``entropy``/``accuracy`` [nats]/[fraction] after n = 0..N saccades
-    (index n: just before saccade n + 1), per-step traces, saccade records and schedule trace."""
+class VisionEpisode:
+    """Result of one scene (:func:`look`): ``entropy``/``accuracy`` [nats]/[fraction] after
+    n = 0..N saccades (index n: just before saccade n + 1), the ``revisit_rate`` of the
+    saccades, the ``fixations`` (location indices), the per-step ``entropy_trace`` and
+    ``accuracy_trace``, the ``saccades`` records, the fixation policy's ``schedule`` trace and
+    its ``time_step`` [s]."""
 
     entropy: np.ndarray
     accuracy: np.ndarray
@@ -456,11 +487,14 @@ class Episode:
     time_step: float = field(default=0.0)
 
 
-def run_episode(scene: Scene, eye: FoveatedEye, policy, scheduler, fixation_dose: float,
-                n_saccades: int | None = None, n_steps: int | None = None, seed: int = 0,
-                monte_carlo_samples: int = 48, initial_fixation: int | None = None) -> Episode:
-    """Run the agent on ``scene`` under ``scheduler`` for ``n_saccades`` saccades (stops just
-    before saccade n_saccades + 1) or ``n_steps`` steps."""
+def look(scene: Scene, eye: FoveatedEye, policy, fixations, fixation_dose: float,
+         n_saccades: int | None = None, n_steps: int | None = None, seed: int = 0,
+         monte_carlo_samples: int = 48, initial_fixation: int | None = None) -> VisionEpisode:
+    """Look at ``scene`` with ``eye``: an :class:`ActiveVisionAgent` choosing targets by
+    ``policy``, timed by the fixation policy ``fixations`` (:func:`attend.rhythm.fixations.
+    fixation_policy`), for ``n_saccades`` saccades (stops just before saccade n_saccades + 1) or
+    ``n_steps`` steps. ``fixation_dose``, ``seed``, ``monte_carlo_samples`` and
+    ``initial_fixation`` go to the agent."""
     if n_saccades is None and n_steps is None:
         raise AttendInputError("n_saccades: give n_saccades or n_steps")
     agent = ActiveVisionAgent(scene, eye, policy, fixation_dose, initial_fixation, monte_carlo_samples, seed)
@@ -470,9 +504,9 @@ def run_episode(scene: Scene, eye: FoveatedEye, policy, scheduler, fixation_dose
         return (n_saccades is not None and step.mode == ACT and step.onset
                 and len(agent.saccades) >= n_saccades)
 
-    trace = drive(scheduler, agent, limit, until=saccade_limit_reached)
+    trace = drive(fixations, agent, limit, until=saccade_limit_reached)
     entropies = [s.entropy for s in agent.saccades] + [agent.total_entropy()]
     accuracies = [s.accuracy for s in agent.saccades] + [agent.accuracy()]
-    return Episode(np.array(entropies), np.array(accuracies), agent.revisit_rate(), agent.fixations,
-                   agent.saccades, np.array(agent.entropy_trace), np.array(agent.accuracy_trace), trace,
-                   scheduler.time_step)
+    return VisionEpisode(np.array(entropies), np.array(accuracies), agent.revisit_rate(), agent.fixations,
+                         agent.saccades, np.array(agent.entropy_trace), np.array(agent.accuracy_trace), trace,
+                         fixations.time_step)

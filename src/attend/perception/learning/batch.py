@@ -93,7 +93,7 @@ def learn_batch(
     prior_precision P_theta (R, n_theta) in the order of :func:`parameter_names` (P_theta = inf
     holds an entry fixed; all runs must fix the same entries); prior_precision may also be a
     schedule (R, max_iterations, n_theta): row i is the P_theta of iteration i + 1 (its E-step
-    and the free energy it maximises; the learning schedules of attend.rhythm.learning_schedule),
+    and the free energy it maximises; the learning schedules of attend.rhythm.learning),
     and a run then converges only once its schedule stays constant; initial theta (R, n_theta)
     (default eta_theta); noise_prior_mean eta_lambda and noise_prior_precision P_lambda,
     (2,) or (R, 2), for [lambda_z, lambda_w] (P_lambda = inf holds lambda fixed at eta_lambda);

@@ -1,15 +1,16 @@
-"""A rhythmic learning schedule: the prior parameter precision P_theta on a precision oscillator.
+"""A schedule in learning: the prior parameter precision P_theta per iteration (seed §4.4).
 
 The seed (§4.4, with Figs. 4-5; spec/rhythm.md, use 1) proposes that during system
 identification the prior parameter precision P^theta alternate between exploration (low: attend
 to the data) and exploitation (high: attend to the prior), so that the learner is neither
 over-exposed to noisy data nor biased by its prior, without knowing the noise level. Here the
-oscillator of :mod:`attend.rhythm.oscillator` runs over learning iterations instead of seconds::
+oscillator of a :class:`attend.rhythm.schedule.RhythmicSchedule` runs over learning iterations
+instead of seconds, its precision multiplier being the prior precision::
 
     P_theta(k) = pi_0 * exp(a * sin(2 pi f k + phi)),   k = 0, 1, ..., n_iterations - 1
 
 k      learning iteration (k = 0 is the first D/E/M iteration of learn_batch)
-pi_0   ``baseline_gain`` of the oscillator: the geometric-mean prior precision over a cycle
+pi_0   ``baseline_multiplier`` of the oscillator: the geometric-mean prior precision over a cycle
 a      ``depth``: log-amplitude (a = 0: the fixed P_theta = pi_0)
 f      ``frequency`` in cycles per iteration (the oscillator's "Hz" with one iteration as the
        time unit)
@@ -27,36 +28,36 @@ import numpy as np
 
 from attend._validation import AttendInputError
 from attend.perception.learning import KNOWN_PRIOR_PRECISION, BatchLearningResult, learn_batch
-from attend.rhythm.oscillator import PrecisionOscillator
+from attend.rhythm.schedule import FixedSchedule, RhythmicSchedule
 
-__all__ = ["rhythmic_prior_precision", "constant_prior_precision", "prior_precision_schedule", "learn_scheduled"]
+__all__ = ["learn_scheduled", "prior_precision_per_entry", "prior_precision_sequence"]
 
 
-def rhythmic_prior_precision(oscillator: PrecisionOscillator, n_iterations: int) -> np.ndarray:
-    """P_theta(k) = pi_0 exp(a sin(2 pi f k + phi)) for k = 0 .. n_iterations - 1 (shape (n_iterations,)).
+def prior_precision_sequence(schedule, n_iterations: int) -> np.ndarray:
+    """P_theta(k) for k = 0 .. n_iterations - 1 (shape (n_iterations,)) of ``schedule``.
 
-    The oscillator's time unit is one learning iteration: ``frequency`` is in cycles per iteration.
+    A :class:`RhythmicSchedule`: P_theta(k) = pi_0 exp(a sin(2 pi f k + phi)), the oscillator's
+    precision multiplier with one learning iteration as its time unit (``frequency`` in cycles
+    per iteration). A :class:`FixedSchedule`: P_theta(k) = ``schedule.multiplier``. (A
+    precision-driven schedule has no learning counterpart here.)
     """
-    if not isinstance(oscillator, PrecisionOscillator):
-        raise AttendInputError("oscillator: expected an attend.rhythm.PrecisionOscillator")
     if int(n_iterations) != n_iterations or n_iterations < 1:
         raise AttendInputError(f"n_iterations: expected a positive integer, got {n_iterations!r}")
-    return np.asarray(oscillator.gain(np.arange(int(n_iterations), dtype=float)), dtype=float)
+    if isinstance(schedule, RhythmicSchedule):
+        return np.asarray(schedule.oscillator.multiplier(np.arange(int(n_iterations), dtype=float)), dtype=float)
+    if isinstance(schedule, FixedSchedule):
+        return np.full(int(n_iterations), schedule.multiplier)
+    raise AttendInputError(f"schedule: expected a RhythmicSchedule or FixedSchedule, got {type(schedule).__name__}")
 
 
-def constant_prior_precision(value: float, n_iterations: int) -> np.ndarray:
-    """The fixed schedule P_theta(k) = value (a rhythm of depth 0)."""
-    return rhythmic_prior_precision(PrecisionOscillator(frequency=1.0, depth=0.0, baseline_gain=value),
-                                    n_iterations)
-
-
-def prior_precision_schedule(free_schedule, free, known_prior_precision: float = KNOWN_PRIOR_PRECISION,
-                             n_runs: int | None = None) -> np.ndarray:
+def prior_precision_per_entry(free_schedule, free, known_prior_precision: float = KNOWN_PRIOR_PRECISION,
+                              n_runs: int | None = None) -> np.ndarray:
     """The full per-iteration P_theta (R, n_iterations, n_theta) for learn_batch.
 
-    free_schedule: P_theta of the free entries per iteration, (n_iterations,) shared by all runs
+    free_schedule: P_theta of the free entries per iteration (:func:`prior_precision_sequence`), (n_iterations,) shared by all runs
     or (R, n_iterations) per run; free: bool mask over theta (order of parameter_names); the other
-    entries get ``known_prior_precision`` (exp(15) by default; inf holds them fixed).
+    entries get ``known_prior_precision`` (exp(15) by default; inf holds them fixed); n_runs:
+    broadcast to R = n_runs runs (None: as given).
     """
     sched = np.asarray(free_schedule, dtype=float)
     free = np.asarray(free, dtype=bool)
@@ -76,14 +77,16 @@ def learn_scheduled(outputs, inputs, dt: float, *, free_schedule, free, prior_me
                     **learn_kwargs) -> BatchLearningResult:
     """learn_batch of R runs with P_theta of the free entries following ``free_schedule``.
 
-    free_schedule (n_iterations,) or (R, n_iterations), e.g. from :func:`rhythmic_prior_precision`;
-    the number of iterations is its length. outputs (R, T, m), inputs (R, T, r), prior_mean
-    eta_theta (R, n_theta); other keywords go to :func:`attend.perception.learning.learn_batch`.
+    free_schedule (n_iterations,) or (R, n_iterations), e.g. from :func:`prior_precision_sequence`;
+    the number of iterations is its length; free: bool mask of the learned entries. outputs
+    (R, T, m), inputs (R, T, r), sampling interval dt [s], prior_mean eta_theta (R, n_theta),
+    n_states, kernel_width and known_prior_precision as in
+    :func:`attend.perception.learning.learn_batch` (which gets the other keywords).
     A constant schedule gives exactly learn_batch with that fixed P_theta.
     """
     outputs = np.asarray(outputs, dtype=float)
     R = outputs.shape[0]
-    P = prior_precision_schedule(free_schedule, free, known_prior_precision, n_runs=R)
+    P = prior_precision_per_entry(free_schedule, free, known_prior_precision, n_runs=R)
     if "max_iterations" in learn_kwargs:
         raise AttendInputError("max_iterations: set by the length of free_schedule")
     return learn_batch(outputs, inputs, dt, n_states=n_states, kernel_width=kernel_width, prior_mean=prior_mean,

@@ -1,4 +1,5 @@
-"""Tests of attend.rhythm.learning_schedule and the rhythm-learning experiment's JSON contract."""
+"""Tests of attend.rhythm.learning (a schedule as the prior precision per iteration) and the
+rhythm-learning experiment."""
 
 import json
 
@@ -7,12 +8,8 @@ import pytest
 
 from attend._validation import AttendInputError
 from attend.perception import learning as L
-from attend.rhythm.learning_schedule import (
-    constant_prior_precision,
-    learn_scheduled,
-    prior_precision_schedule,
-    rhythmic_prior_precision,
-)
+from attend.rhythm import FixedSchedule, RhythmicSchedule
+from attend.rhythm.learning import learn_scheduled, prior_precision_per_entry, prior_precision_sequence
 from attend.rhythm.oscillator import PrecisionOscillator
 from attend.systems import mass_spring_damper, simulate
 
@@ -31,20 +28,20 @@ def _logs(seeds=(0, 1), n=150, sigma=np.exp(-3)):
 
 
 def test_schedule_matches_the_oscillator_closed_form():
-    osc = PrecisionOscillator(frequency=0.1, depth=3.0, baseline_gain=20.0, phase=0.7)
+    osc = PrecisionOscillator(frequency=0.1, depth=3.0, baseline_multiplier=20.0, phase=0.7)
     k = np.arange(25)
     expected = 20.0 * np.exp(3.0 * np.sin(2 * np.pi * 0.1 * k + 0.7))
-    np.testing.assert_allclose(rhythmic_prior_precision(osc, 25), expected, rtol=1e-14)
+    np.testing.assert_allclose(prior_precision_sequence(RhythmicSchedule(osc), 25), expected, rtol=1e-14)
     # geometric mean over whole cycles is pi_0; the extremes are pi_0 exp(+-a)
-    sched = rhythmic_prior_precision(osc, 20)
+    sched = prior_precision_sequence(RhythmicSchedule(osc), 20)
     assert np.exp(np.mean(np.log(sched))) == pytest.approx(20.0, rel=1e-12)
     assert sched.max() <= 20.0 * np.exp(3.0) and sched.min() >= 20.0 * np.exp(-3.0)
-    np.testing.assert_array_equal(constant_prior_precision(5.0, 4), np.full(4, 5.0))
+    np.testing.assert_array_equal(prior_precision_sequence(FixedSchedule(multiplier=5.0), 4), np.full(4, 5.0))
 
 
 def test_full_schedule_puts_the_rhythm_on_the_free_entries_only():
     sched = np.array([1.0, 10.0, 100.0])
-    P = prior_precision_schedule(sched, FREE, known_prior_precision=7.0, n_runs=2)
+    P = prior_precision_per_entry(sched, FREE, known_prior_precision=7.0, n_runs=2)
     assert P.shape == (2, 3, 8)
     np.testing.assert_array_equal(P[:, :, FREE], np.broadcast_to(sched[None, :, None], (2, 3, 3)))
     np.testing.assert_array_equal(P[:, :, ~FREE], 7.0)
@@ -55,7 +52,8 @@ def test_constant_schedule_equals_learn_batch_with_that_fixed_prior_precision():
     kw = dict(n_states=2, kernel_width=0.5, prior_mean=eta, embedding_order=4)
     fixed = L.learn_batch(Y, U, DT, prior_precision=np.where(FREE, 3.0, L.KNOWN_PRIOR_PRECISION)[None],
                           max_iterations=12, **kw)
-    scheduled = learn_scheduled(Y, U, DT, free_schedule=constant_prior_precision(3.0, 12), free=FREE, **kw)
+    constant = prior_precision_sequence(FixedSchedule(multiplier=3.0), 12)
+    scheduled = learn_scheduled(Y, U, DT, free_schedule=constant, free=FREE, **kw)
     for a, b in zip(fixed, scheduled):
         if isinstance(a, tuple):
             for x, y in zip(a, b):
@@ -66,8 +64,8 @@ def test_constant_schedule_equals_learn_batch_with_that_fixed_prior_precision():
 
 def test_rhythmic_schedule_changes_the_learning_and_each_iteration_uses_its_prior_precision():
     Y, U, eta = _logs()
-    osc = PrecisionOscillator(frequency=0.25, depth=5.0, baseline_gain=10.0)
-    sched = rhythmic_prior_precision(osc, 8)
+    osc = PrecisionOscillator(frequency=0.25, depth=5.0, baseline_multiplier=10.0)
+    sched = prior_precision_sequence(RhythmicSchedule(osc), 8)
     res = learn_scheduled(Y, U, DT, free_schedule=sched, free=FREE, prior_mean=eta, n_states=2, kernel_width=0.5,
                           embedding_order=4)
     assert res.iterations.tolist() == [8, 8]  # no early stop while the schedule still moves
@@ -82,12 +80,14 @@ def test_rhythmic_schedule_changes_the_learning_and_each_iteration_uses_its_prio
 def test_bad_schedules_are_rejected():
     Y, U, eta = _logs()
     with pytest.raises(AttendInputError, match="free_schedule"):
-        prior_precision_schedule([1.0, -1.0], FREE)
+        prior_precision_per_entry([1.0, -1.0], FREE)
     with pytest.raises(AttendInputError, match="one row per iteration"):
         L.learn_batch(Y, U, DT, n_states=2, kernel_width=0.5, prior_mean=eta, max_iterations=5,
-                      prior_precision=prior_precision_schedule(np.ones(4), FREE, n_runs=2))
+                      prior_precision=prior_precision_per_entry(np.ones(4), FREE, n_runs=2))
     with pytest.raises(AttendInputError, match="n_iterations"):
-        rhythmic_prior_precision(PrecisionOscillator(), 0)
+        prior_precision_sequence(RhythmicSchedule(PrecisionOscillator()), 0)
+    with pytest.raises(AttendInputError, match="schedule"):
+        prior_precision_sequence(PrecisionOscillator(), 5)
 
 
 def test_experiment_json_contract(tmp_path, monkeypatch):
@@ -96,7 +96,7 @@ def test_experiment_json_contract(tmp_path, monkeypatch):
     small = dict(RL.SETTINGS, iterations=6, duration=16.0)
     monkeypatch.setattr(RL, "SETTINGS", small)
     result = RL.run(quick=True, out_dir=tmp_path, progress=False)
-    data = json.loads((tmp_path / "rhythm-learning.json").read_text())
+    data = json.loads(result.write(tmp_path).read_text())
     assert data["experiment"] == "rhythm-learning"
     names = {m["name"] for m in data["metrics"]}
     assert {"rhythmic_worst_case_relative_regret", "best_fixed_worst_case_relative_regret",
@@ -106,7 +106,7 @@ def test_experiment_json_contract(tmp_path, monkeypatch):
     assert data["settings"]["rhythm_depth"] == RL.SETTINGS["rhythm_depth"]
     assert (tmp_path / "rhythm-learning.png").exists()
     # regrets: every fixed policy is >= 0 and the best fixed per level has regret 0
-    rel = result.data["relative_regret"]
-    n_fixed = len(result.data["fixed_prior_precision"])
+    rel = result.tables["relative_regret"]
+    n_fixed = len(result.tables["fixed_prior_precision"])
     assert np.all(rel[:n_fixed] >= 0) and np.allclose(rel[:n_fixed].min(axis=0), 0)
     assert result.data["sse"].shape == (n_fixed + 1, 6, 6)

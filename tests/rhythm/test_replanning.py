@@ -1,4 +1,5 @@
-"""Tests of attend.rhythm.ipp_schedule and the rhythm-ipp experiment's JSON contract."""
+"""Tests of attend.rhythm.replanning (schedules as replanning policies) and the rhythm-ipp
+experiment's contract."""
 
 import json
 import math
@@ -9,19 +10,26 @@ import pytest
 from attend._validation import AttendInputError
 from attend.action import Camera, Detector, FlightModel, Grid, OccupancyMap, PlanningSetup, make_field, make_planner
 from attend.action.belief import kalman_update
-from attend.action.episode import run_episode
-from attend.rhythm.ipp_schedule import (
-    FixedBudgetSchedule,
-    OscillatorSchedule,
-    PlanContext,
-    PrecisionDrivenSchedule,
-    SegmentSchedule,
-    expected_trace_reduction,
-    make_schedule,
-    replan_decision,
-    run_scheduled_episode,
-)
+from attend.action import fly
+from attend.action.episode import PlanContext
 from attend.rhythm.oscillator import PrecisionOscillator
+from attend.rhythm.replanning import (
+    FixedReplanning,
+    PrecisionDrivenReplanning,
+    RhythmicReplanning,
+    SegmentReplanning,
+    coarse_trace_reduction,
+    expected_trace_reduction,
+    fly_scheduled_mission,
+    make_replan_policy,
+    replan_policy,
+)
+from attend.rhythm.schedule import FixedSchedule, PrecisionDrivenSchedule, RhythmicSchedule
+from attend.rhythm.schedule import switch_decision as replan_decision
+
+
+def precision_policy(oscillator, prior_weight=0.5, tolerance=1.0, switch_cost_s=0.0):
+    return replan_policy(PrecisionDrivenSchedule(oscillator, prior_weight, tolerance), switch_cost_s)
 
 
 def _setup(seed=0, cma=0, cells_per_side=40, cell_size_m=0.75, lookahead=5):
@@ -76,7 +84,8 @@ def test_precision_rule_on_a_toy_belief():
         (stay / 1.3, 15.0, 0.5, True),   # trough (t = 15 s): replan although staying pays 30 % more
         (stay * 1.3, 5.0, 0.5, False),   # peak (t = 5 s): keep flying although a plan pays 30 % more
     ]:
-        schedule = PrecisionDrivenSchedule(oscillator, prior_weight=weight)
+        schedule = precision_policy(oscillator, prior_weight=weight)
+        assert isinstance(schedule, PrecisionDrivenReplanning)
         schedule.plan_rate, schedule.plan_trace = fresh, belief.trace()
         context = PlanContext(planner, belief, pose, pose[None], phase_time, wait, 100.0)
         assert schedule.after_image(context) is expected
@@ -88,10 +97,9 @@ def test_precision_rule_on_a_toy_belief():
 
 def test_segment_schedule_reproduces_the_action_episode_runner():
     field, planner = _setup(seed=1)
-    ours = run_scheduled_episode(field, planner, SegmentSchedule(), budget_s=40.0, seed=1, diagonal=True)
+    ours = fly_scheduled_mission(field, planner, SegmentReplanning(), budget_s=40.0, seed=1, diagonal=True)
     field, planner = _setup(seed=1)
-    reference = run_episode(field, planner, planner.setup.camera, planner.setup.detector, planner.setup.flight,
-                            40.0, 1, diagonal=True, keep_maps=False)
+    reference = fly(field, planner, 40.0, 1, diagonal=True, keep_maps=False)
     np.testing.assert_allclose(ours.series("rse"), reference.series("rse"), rtol=1e-12)
     np.testing.assert_allclose(ours.times_s, reference.times_s)
     assert ours.n_replans == len(reference.planner_times_s)
@@ -100,8 +108,8 @@ def test_segment_schedule_reproduces_the_action_episode_runner():
 @pytest.mark.parametrize("policy", ["fixed_10s", "oscillator", "precision"])
 def test_short_episode_runs_and_logs_replans(policy):
     field, planner = _setup(seed=2)
-    schedule = make_schedule(policy)
-    log = run_scheduled_episode(field, planner, schedule, budget_s=45.0, seed=2, diagonal=True)
+    schedule = make_replan_policy(policy)
+    log = fly_scheduled_mission(field, planner, schedule, budget_s=45.0, seed=2, diagonal=True)
     replans = np.array(log.replan_times_s)
     assert log.n_replans >= 2 and replans[0] == 0.0 and np.all(np.diff(replans) > 0)
     assert len(log.planner_times_s) == log.n_replans == len(log.decision_times_s)
@@ -121,7 +129,7 @@ def test_json_contract(tmp_path):
 
     result = rhythm_ipp.run(quick=True, out_dir=tmp_path, progress=False, trials=1,
                             policies=["segment", "fixed_20s", "precision"])
-    data = json.loads((tmp_path / "rhythm-ipp.json").read_text())
+    data = json.loads(result.write(tmp_path).read_text())
     assert data["experiment"] == "rhythm-ipp"
     names = {m["name"] for m in data["metrics"]}
     for policy in ("segment", "fixed_20s", "precision"):
@@ -138,20 +146,24 @@ def test_json_contract(tmp_path):
 def test_bad_input_names_the_field():
     oscillator = PrecisionOscillator(frequency=0.05)
     with pytest.raises(AttendInputError, match="policy"):
-        make_schedule("sometimes")
-    with pytest.raises(AttendInputError, match="flight_time_s"):
-        FixedBudgetSchedule(-1.0)
+        make_replan_policy("sometimes")
+    with pytest.raises(AttendInputError, match="perceive_s"):
+        replan_policy(FixedSchedule(-1.0))
     with pytest.raises(AttendInputError, match="prior_weight"):
-        PrecisionDrivenSchedule(oscillator, prior_weight=-1.0)
+        precision_policy(oscillator, prior_weight=-1.0)
     with pytest.raises(AttendInputError, match="tolerance"):
-        PrecisionDrivenSchedule(oscillator, tolerance=0.0)
+        precision_policy(oscillator, tolerance=0.0)
     with pytest.raises(AttendInputError, match="oscillator"):
-        OscillatorSchedule("4 Hz")
+        RhythmicSchedule("4 Hz")
+    with pytest.raises(AttendInputError, match="schedule"):
+        RhythmicReplanning(FixedSchedule(10.0))
+    with pytest.raises(AttendInputError, match="schedule"):
+        replan_policy("fixed_20s")
     field, planner = _setup()
     with pytest.raises(AttendInputError, match="budget_s"):
-        run_scheduled_episode(field, planner, SegmentSchedule(), budget_s=0.0)
-    with pytest.raises(AttendInputError, match="schedule"):
-        run_scheduled_episode(field, planner, "segment")
+        fly_scheduled_mission(field, planner, SegmentReplanning(), budget_s=0.0)
+    with pytest.raises(AttendInputError, match="policy"):
+        fly_scheduled_mission(field, planner, "segment")
     with pytest.raises(AttendInputError, match="cell_precision"):
         expected_trace_reduction(OccupancyMap.prior(field.grid, diagonal=True), np.ones(3))
     from attend.experiments import rhythm_ipp
@@ -163,8 +175,6 @@ def test_bad_input_names_the_field():
 
 
 def test_coarse_trace_reduction():
-    from attend.rhythm.ipp_schedule import coarse_trace_reduction
-
     grid = Grid(8, 3.75)
     belief = OccupancyMap.prior(grid)
     d = np.zeros(grid.n_cells)
@@ -178,12 +188,23 @@ def test_coarse_trace_reduction():
 
 def test_precision_rule_discounts_a_fresh_plan_by_the_switch_cost():
     oscillator = PrecisionOscillator(frequency=0.05)
-    free, costly = PrecisionDrivenSchedule(oscillator, 0.0), PrecisionDrivenSchedule(oscillator, 0.0, switch_cost_s=5.0)
+    free, costly = precision_policy(oscillator, 0.0), precision_policy(oscillator, 0.0, switch_cost_s=5.0)
     belief = OccupancyMap.prior(Grid(10, 3.0), diagonal=True)
     for schedule in (free, costly):
         schedule.plan_rate, schedule.plan_trace, schedule.plan_duration = 2.0, 2 * belief.trace(), 15.0
     assert free.fresh_rate(belief) == pytest.approx(1.0)  # the last rate, scaled by the uncertainty left
     assert costly.fresh_rate(belief) == pytest.approx(15.0 / 20.0)  # D / (D + c)
     with pytest.raises(AttendInputError, match="switch_cost_s"):
-        PrecisionDrivenSchedule(oscillator, switch_cost_s=-1.0)
-    assert make_schedule("continuous").waypoints_per_plan(None) is None
+        precision_policy(oscillator, switch_cost_s=-1.0)
+    assert make_replan_policy("continuous").waypoints_per_plan(None) is None
+
+
+def test_each_schedule_kind_becomes_its_replanning_policy():
+    oscillator = PrecisionOscillator(frequency=0.05)
+    fixed = replan_policy(FixedSchedule(20.0))
+    assert isinstance(fixed, FixedReplanning) and fixed.name == "fixed_20s"
+    assert fixed.deadline(3.0, 5.0) == 23.0
+    rhythmic = replan_policy(RhythmicSchedule(oscillator))
+    assert isinstance(rhythmic, RhythmicReplanning)
+    assert rhythmic.deadline(0.0, 2.0) == pytest.approx(15.0)  # the first trough: theta = 3 pi / 2 at 15 s
+    assert make_replan_policy("precision_no_prior").schedule.prior_weight == 0.0

@@ -1,34 +1,34 @@
-"""When to stop flying and update/replan in informative path planning (seed §4.4, Fig. 10).
+"""Replanning policies: a :mod:`schedule <attend.rhythm.schedule>` deciding when the UAV replans
+in informative path planning (seed §4.4, Fig. 10).
 
 The search-and-rescue UAV of :mod:`attend.action` plans a look-ahead path (w waypoints), flies
 it taking images (each image is fused into the map at once), and at some point stops following
-the plan and replans from the current belief. The anchors fix that point by a budget: replan
-after every segment, or after a fixed flight time per plan. Here *schedules* decide it:
+the plan and replans from the current belief. :func:`replan_policy` turns a schedule into that
+decision (an :class:`attend.action.episode.ReplanPolicy`):
 
-* :class:`SegmentSchedule`: replan at every waypoint (the :mod:`attend.action` default).
-* :class:`FixedBudgetSchedule`: replan after ``flight_time_s`` of flight on the plan (the
-  segment being flown is cut there).
-* :class:`OscillatorSchedule`: replan at each trough of a :class:`PrecisionOscillator` on the
-  mission clock (the rhythm alone decides; the first image of a plan is always taken).
-* :class:`PrecisionDrivenSchedule`: the precision dynamics decide, the rhythm is a prior.
-  After every image (belief just updated) it compares
+* :class:`FixedReplanning` (a :class:`FixedSchedule`): replan after ``perceive_s`` of flight on
+  each plan (the segment being flown is cut there);
+* :class:`RhythmicReplanning` (a :class:`RhythmicSchedule`): replan at each trough of the
+  oscillator on the mission clock (the first image of a plan is always taken);
+* :class:`PrecisionDrivenReplanning` (a :class:`PrecisionDrivenSchedule`): after every image
+  (belief just updated) compare
 
       stay rate   s = [tr P - tr P_post(remaining planned path)] / T(remaining path)
       fresh rate  f = r_k * tr P / tr P_k
 
   (r_k: the rate of the plan chosen at the last replan k, evaluated on the belief then, with
-  trace tr P_k; a fresh plan is expected to offer that rate scaled by the uncertainty left),
-  and replans iff  s < rho * f * exp(-kappa * sin theta(t))  (:func:`replan_decision`):
-  rho = ``tolerance``, theta(t) the oscillator phase (troughs, sin theta = -1, lower the bar
-  for replanning by e^kappa; kappa = ``prior_weight``; kappa = 0: precision dynamics alone).
-  The gains are covariance-only (no data needed: :func:`expected_trace_reduction`), scored
-  like the planner's (per-cell belief: exact; full covariance: coarse-grained over 2 x 2
-  blocks, :func:`coarse_trace_reduction`). A plan whose path is used up is always replanned.
+  trace tr P_k) and replan iff  s < rho * f * exp(-kappa * sin theta(t))
+  (:func:`attend.rhythm.schedule.switch_decision`). The gains are precision gains (expected
+  trace reductions, covariance only: :func:`expected_trace_reduction`), scored like the
+  planner's (per-cell belief: exact; full covariance: coarse-grained over 2 x 2 blocks,
+  :func:`coarse_trace_reduction`).
 
-Every schedule also replans when the plan is used up. :func:`run_scheduled_episode` flies one
-mission under a schedule with any :class:`attend.action.Planner` and logs, besides every map
-metric at every image, the replan times, the planner wall time per replan and the wall time
-spent on the schedule's own decisions.
+Two anchors that are no schedule: :class:`SegmentReplanning` (replan at every waypoint, the
+:mod:`attend.action` default) and :class:`ContinuousReplanning` (fly every plan to its end).
+Every policy also replans when the plan is used up. :func:`make_replan_policy` builds one by
+name ("segment", "fixed_20s", "oscillator", "precision", ...); :func:`fly_scheduled_mission` flies
+one mission under a policy and logs, besides every map metric at every image, the replan
+times, the planner wall time per replan and the wall time of the policy's own decisions.
 """
 
 from __future__ import annotations
@@ -43,16 +43,16 @@ import scipy.linalg
 
 from attend._validation import AttendInputError, positive_scalar
 from attend.action.belief import OccupancyMap
-from attend.action.episode import EpisodeLog, PlanContext, ReplanPolicy, fly_mission
+from attend.action.episode import EpisodeLog, PlanContext, ReplanPolicy, fly
 from attend.action.field import Grid
 from attend.action.planners import Planner
 from attend.rhythm.oscillator import PrecisionOscillator, _finite
+from attend.rhythm.schedule import FixedSchedule, PrecisionDrivenSchedule, RhythmicSchedule, switch_decision
 
 __all__ = [
-    "ContinuousSchedule", "FixedBudgetSchedule", "OscillatorSchedule", "PlanContext", "PrecisionDrivenSchedule", "ReplanSchedule",
-    "ScheduledEpisodeLog",
-    "SegmentSchedule", "coarse_trace_reduction", "expected_trace_reduction", "make_schedule", "path_gain", "replan_decision",
-    "run_scheduled_episode",
+    "ContinuousReplanning", "FixedReplanning", "PrecisionDrivenReplanning", "Replanning", "ReplanningLog",
+    "RhythmicReplanning", "SegmentReplanning", "coarse_trace_reduction", "expected_trace_reduction",
+    "fly_scheduled_mission", "make_replan_policy", "path_gain", "replan_policy",
 ]
 
 
@@ -87,7 +87,7 @@ def expected_trace_reduction(belief: OccupancyMap, cell_precision: np.ndarray) -
 
 
 def coarse_trace_reduction(belief: OccupancyMap, cell_precision: np.ndarray, block_cells: int) -> float:
-    """:func:`expected_trace_reduction` on the coarse-grained covariance the planners score with
+    """:func:`expected_trace_reduction` of ``belief`` for ``cell_precision`` (n,) on the coarse-grained covariance the planners score with
     (attend.action.planners): P_b = B P B' over blocks of ``block_cells``^2 cells (B averages a
     block), precision summed per block, gain times the block area. ``block_cells`` = 1 (or a
     per-cell belief): exact."""
@@ -107,7 +107,8 @@ def coarse_trace_reduction(belief: OccupancyMap, cell_precision: np.ndarray, blo
 
 def path_gain(planner: Planner, belief: OccupancyMap, pose: Sequence[float], waypoints: np.ndarray,
               time_to_next_image_s: float, time_left_s: float, block_cells: int | None = None) -> tuple[float, float]:
-    """Expected trace(P) reduction of the images a path would take and its flight time [s].
+    """The precision gain (expected trace(P) reduction of ``belief``) of the images a path would
+    take with ``planner``, and its flight time [s].
 
     The path starts at rest at ``pose`` and visits ``waypoints`` (w, 3) with the planner's
     flight, camera and detector models (images on the mission clock, first one after
@@ -130,23 +131,11 @@ def path_gain(planner: Planner, belief: OccupancyMap, pose: Sequence[float], way
     return coarse_trace_reduction(belief, precision, block), float(total[0])
 
 
-def replan_decision(stay_rate: float, fresh_rate: float, phase_angle: float = 0.0, prior_weight: float = 0.0,
-                    tolerance: float = 1.0) -> bool:
-    """Replan iff  stay_rate < tolerance * fresh_rate * exp(-prior_weight * sin(phase_angle)).
-
-    stay_rate: expected gain per second of the rest of the current plan; fresh_rate: the gain
-    per second a fresh plan is expected to offer (same unit); phase_angle: oscillator phase
-    theta(t) [rad] (its troughs, sin = -1, favour replanning); prior_weight kappa >= 0;
-    tolerance rho > 0."""
-    prior = math.exp(-float(prior_weight) * math.sin(float(phase_angle)))
-    return float(stay_rate) < float(tolerance) * float(fresh_rate) * prior
-
-
 # ----------------------------------------------------------------------------------------------
-# Schedules
+# Policies
 
 
-class ReplanSchedule(ReplanPolicy):
+class Replanning(ReplanPolicy):
     """Decides when the UAV stops following its plan and replans (an
     :class:`attend.action.episode.ReplanPolicy` that flies whole plans).
 
@@ -158,73 +147,73 @@ class ReplanSchedule(ReplanPolicy):
     at_waypoint = False
 
     def waypoints_per_plan(self, planner: Planner) -> int | None:
-        """1 if the schedule replans at every waypoint, else the whole plan (None)."""
+        """1 if the policy replans at every waypoint, else the whole plan (None); ``planner``
+        is not consulted."""
         return 1 if self.at_waypoint else None
 
 
-class ContinuousSchedule(ReplanSchedule):
+class ContinuousReplanning(Replanning):
     """Always moving, always sensing: fly every plan to its end, imaging on the way, then replan."""
 
     name = "continuous"
 
 
-class SegmentSchedule(ReplanSchedule):
+class SegmentReplanning(Replanning):
     """Replan at every waypoint (after every segment)."""
 
     name = "segment"
     at_waypoint = True
 
 
-class FixedBudgetSchedule(ReplanSchedule):
-    """Replan after ``flight_time_s`` [s] of flight on each plan (or when the plan is used up)."""
+class FixedReplanning(Replanning):
+    """Replan after ``schedule.perceive_s`` [s] of flight on each plan (or when the plan is used
+    up). schedule: a :class:`FixedSchedule`."""
 
-    def __init__(self, flight_time_s: float) -> None:
-        self.flight_time_s = positive_scalar(flight_time_s, "flight_time_s", "s")
+    def __init__(self, schedule: FixedSchedule) -> None:
+        if not isinstance(schedule, FixedSchedule):
+            raise AttendInputError(f"schedule: expected a FixedSchedule, got {type(schedule).__name__}")
+        self.flight_time_s = schedule.perceive_s
         self.name = f"fixed_{self.flight_time_s:g}s"
 
     def deadline(self, plan_start_s: float, first_image_s: float) -> float:
+        """``plan_start_s`` + the flight time per plan [s] (``first_image_s`` is not used)."""
         return plan_start_s + self.flight_time_s
 
 
-class OscillatorSchedule(ReplanSchedule):
-    """Replan at the troughs of ``oscillator`` (mission clock, s); a plan always keeps its first
-    image (the first trough at or after it)."""
+class RhythmicReplanning(Replanning):
+    """Replan at the troughs of ``schedule.oscillator`` (mission clock, s); a plan always keeps
+    its first image (the first trough at or after it). schedule: a :class:`RhythmicSchedule`."""
 
     name = "oscillator"
 
-    def __init__(self, oscillator: PrecisionOscillator) -> None:
-        if not isinstance(oscillator, PrecisionOscillator):
-            raise AttendInputError(f"oscillator: expected a PrecisionOscillator, got {type(oscillator).__name__}")
-        self.oscillator = oscillator
+    def __init__(self, schedule: RhythmicSchedule) -> None:
+        if not isinstance(schedule, RhythmicSchedule):
+            raise AttendInputError(f"schedule: expected a RhythmicSchedule, got {type(schedule).__name__}")
+        self.oscillator = schedule.oscillator
 
     def deadline(self, plan_start_s: float, first_image_s: float) -> float:
+        """The first trough at or after max(``plan_start_s``, ``first_image_s``) [s]."""
         start = max(plan_start_s, first_image_s)
         troughs = self.oscillator.trough_times(start, start + 2 * self.oscillator.period)
         return float(troughs[0])
 
 
-class PrecisionDrivenSchedule(ReplanSchedule):
+class PrecisionDrivenReplanning(Replanning):
     """Keep flying while the rest of the plan still pays: replan iff
-    stay rate < tolerance * fresh rate * exp(-prior_weight * sin theta(t)) (module docstring).
+    stay rate < rho * fresh rate * exp(-kappa * sin theta(t)) (module docstring).
 
-    oscillator: the rhythm used as a prior on the timing (its phase theta(t) on the mission
-    clock); prior_weight kappa >= 0; tolerance rho > 0. ``switch_cost_s`` c >= 0: flight time a
-    replan costs (the planning latency, spent hovering): a fresh plan of duration D_k then pays
-    f D_k / (D_k + c) per second of battery (c = 0: the rule above). ``decisions`` logs (time [s],
-    stay rate, fresh rate, replanned) of every decision of the current mission."""
+    schedule: a :class:`PrecisionDrivenSchedule` (oscillator on the mission clock, kappa, rho).
+    ``switch_cost_s`` c >= 0: flight time a replan costs (the planning latency, spent hovering):
+    a fresh plan of duration D_k then pays f D_k / (D_k + c) per second of battery (c = 0: the
+    rule above). ``decisions`` logs (time [s], stay rate, fresh rate, replanned) of every
+    decision of the current mission."""
 
     name = "precision"
 
-    def __init__(self, oscillator: PrecisionOscillator, prior_weight: float = 0.5, tolerance: float = 1.0,
-                 switch_cost_s: float = 0.0) -> None:
-        if not isinstance(oscillator, PrecisionOscillator):
-            raise AttendInputError(f"oscillator: expected a PrecisionOscillator, got {type(oscillator).__name__}")
-        self.oscillator = oscillator
-        weight = _finite(prior_weight, "prior_weight")
-        if weight < 0:
-            raise AttendInputError(f"prior_weight: expected a number >= 0, got {prior_weight!r}")
-        self.prior_weight = weight
-        self.tolerance = positive_scalar(tolerance, "tolerance")
+    def __init__(self, schedule: PrecisionDrivenSchedule, switch_cost_s: float = 0.0) -> None:
+        if not isinstance(schedule, PrecisionDrivenSchedule):
+            raise AttendInputError(f"schedule: expected a PrecisionDrivenSchedule, got {type(schedule).__name__}")
+        self.schedule = schedule
         cost = _finite(switch_cost_s, "switch_cost_s")
         if cost < 0:
             raise AttendInputError(f"switch_cost_s: expected a time >= 0 s, got {switch_cost_s!r}")
@@ -232,12 +221,15 @@ class PrecisionDrivenSchedule(ReplanSchedule):
         self.reset()
 
     def reset(self) -> None:
+        """Forget the last plan and the decisions (a new mission)."""
         self.plan_rate = 0.0
         self.plan_trace = 1.0
         self.plan_duration = 0.0
         self.decisions: list[tuple[float, float, float, bool]] = []
 
     def start_plan(self, context: PlanContext) -> None:
+        """Record the new plan's precision gain rate r_k and trace tr P_k (``context``: the
+        plan, belief and clock)."""
         gain, duration = path_gain(context.planner, context.belief, context.pose, context.remaining,
                                    context.time_to_next_image_s, context.time_left_s)
         self.plan_rate = gain / duration if duration > 0 else 0.0
@@ -245,58 +237,76 @@ class PrecisionDrivenSchedule(ReplanSchedule):
         self.plan_duration = duration
 
     def fresh_rate(self, belief: OccupancyMap) -> float:
-        """r_k tr P / tr P_k: the last plan's rate scaled by the uncertainty left (times
-        D_k / (D_k + c) when a replan costs c seconds)."""
+        """r_k tr P / tr P_k for the current ``belief``: the last plan's rate scaled by the
+        uncertainty left (times D_k / (D_k + c) when a replan costs c seconds)."""
         rate = self.plan_rate * belief.trace() / self.plan_trace
         if self.switch_cost_s > 0:
             rate *= self.plan_duration / (self.plan_duration + self.switch_cost_s)
         return rate
 
     def after_image(self, context: PlanContext) -> bool:
+        """The rule after an image (``context``: the rest of the plan, belief and clock):
+        True to replan now."""
         if len(context.remaining) == 0:
             return True
         gain, duration = path_gain(context.planner, context.belief, context.pose, context.remaining,
                                    context.time_to_next_image_s, context.time_left_s)
         stay = gain / duration if duration > 0 else 0.0
         fresh = self.fresh_rate(context.belief)
-        phase = float(self.oscillator.phase_angle(context.time_s))
-        decision = replan_decision(stay, fresh, phase, self.prior_weight, self.tolerance)
+        phase = float(self.schedule.oscillator.phase_angle(context.time_s))
+        decision = switch_decision(stay, fresh, phase, self.schedule.prior_weight, self.schedule.tolerance)
         self.decisions.append((context.time_s, stay, fresh, decision))
         return decision
 
 
-def make_schedule(policy: str, oscillator_frequency_hz: float = 0.05, oscillator_phase_rad: float = 0.0,
-                  prior_weight: float = 0.5, tolerance: float = 1.0, switch_cost_s: float = 0.0) -> ReplanSchedule:
-    """Schedule by name: "segment", "fixed_<T>s" (e.g. "fixed_20s"), "oscillator", "precision"
-    (with the oscillator prior), "precision_no_prior" (kappa = 0) or "continuous" (always
-    moving: fly each plan to its end). ``switch_cost_s``: the replan cost the precision-driven
-    rules account for."""
+def replan_policy(schedule, switch_cost_s: float = 0.0) -> Replanning:
+    """The replanning policy of ``schedule``: :class:`FixedReplanning`,
+    :class:`RhythmicReplanning` or :class:`PrecisionDrivenReplanning` (``switch_cost_s``: the
+    replan cost its rule accounts for; the other kinds ignore it)."""
+    if isinstance(schedule, FixedSchedule):
+        return FixedReplanning(schedule)
+    if isinstance(schedule, RhythmicSchedule):
+        return RhythmicReplanning(schedule)
+    if isinstance(schedule, PrecisionDrivenSchedule):
+        return PrecisionDrivenReplanning(schedule, switch_cost_s)
+    raise AttendInputError(f"schedule: expected a Rhythmic, Fixed or PrecisionDriven schedule, got {schedule!r}")
+
+
+def _fixed_seconds(policy: str) -> float:
+    try:
+        return float(policy[len("fixed_"):-1])
+    except ValueError:
+        return float("nan")
+
+
+def make_replan_policy(policy: str, oscillator_frequency_hz: float = 0.05, oscillator_phase_rad: float = 0.0,
+                       prior_weight: float = 0.5, tolerance: float = 1.0, switch_cost_s: float = 0.0) -> Replanning:
+    """Replanning policy by name: "segment", "fixed_<T>s" (e.g. "fixed_20s"), "oscillator",
+    "precision" (with the oscillator prior), "precision_no_prior" (kappa = 0) or "continuous"
+    (fly each plan to its end). The oscillator has frequency ``oscillator_frequency_hz`` [Hz]
+    and phase ``oscillator_phase_rad``; ``prior_weight`` kappa, ``tolerance`` rho and
+    ``switch_cost_s`` (the replan cost) go to the precision-driven rules."""
     if not isinstance(policy, str):
         raise AttendInputError(f"policy: expected a policy name, got {policy!r}")
     oscillator = PrecisionOscillator(frequency=oscillator_frequency_hz, phase=oscillator_phase_rad)
     if policy == "segment":
-        return SegmentSchedule()
+        return SegmentReplanning()
     if policy == "continuous":
-        return ContinuousSchedule()
+        return ContinuousReplanning()
     if policy.startswith("fixed_") and policy.endswith("s"):
-        try:
-            seconds = float(policy[len("fixed_"):-1])
-        except ValueError:
-            seconds = float("nan")
+        seconds = _fixed_seconds(policy)
         if math.isfinite(seconds) and seconds > 0:
-            return FixedBudgetSchedule(seconds)
+            return replan_policy(FixedSchedule(seconds))
     if policy == "oscillator":
-        return OscillatorSchedule(oscillator)
-    if policy == "precision":
-        return PrecisionDrivenSchedule(oscillator, prior_weight, tolerance, switch_cost_s)
-    if policy == "precision_no_prior":
-        schedule = PrecisionDrivenSchedule(oscillator, 0.0, tolerance, switch_cost_s)
-        schedule.name = "precision_no_prior"
-        return schedule
+        return replan_policy(RhythmicSchedule(oscillator))
+    if policy in ("precision", "precision_no_prior"):
+        weight = prior_weight if policy == "precision" else 0.0
+        replanning = replan_policy(PrecisionDrivenSchedule(oscillator, weight, tolerance), switch_cost_s)
+        replanning.name = policy
+        return replanning
     raise AttendInputError(
         f"policy: expected 'segment', 'continuous', 'fixed_<seconds>s', 'oscillator', 'precision' or "
-        f"'precision_no_prior', "
-        f"got {policy!r}")
+        f"'precision_no_prior', got {policy!r}")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -304,11 +314,14 @@ def make_schedule(policy: str, oscillator_frequency_hz: float = 0.05, oscillator
 
 
 @dataclass
-class ScheduledEpisodeLog(EpisodeLog):
-    """An :class:`attend.action.EpisodeLog` plus the schedule's record: ``schedule`` name,
+class ReplanningLog(EpisodeLog):
+    """An :class:`attend.action.EpisodeLog` plus the policy's record: ``schedule`` (policy name),
     ``replan_times_s`` (mission time of every replan, the first at 0), ``decision_times_s`` (wall
-    time of the schedule's own computations per plan) and ``decisions`` (precision-driven
-    schedules: (time s, stay rate, fresh rate, replanned) per image)."""
+    time of the policy's own computations per plan) and ``decisions`` (precision-driven
+    policies: (time s, stay rate, fresh rate, replanned) per image).
+
+    The other fields are those of EpisodeLog (planner, seed, budget_s, people_total, times_s,
+    poses_m, metrics, planner_times_s, waypoints_m, means, variances, clutter_cells, hover_s)."""
 
     schedule: str = ""
     decisions: list[tuple[float, float, float, bool]] = dataclass_field(default_factory=list)
@@ -319,28 +332,27 @@ class ScheduledEpisodeLog(EpisodeLog):
         return len(self.replan_times_s)
 
 
-def run_scheduled_episode(field, planner: Planner, schedule: ReplanSchedule, budget_s: float = 150.0, seed: int = 0,
+def fly_scheduled_mission(field, planner: Planner, policy: Replanning, budget_s: float = 150.0, seed: int = 0,
                           diagonal: bool = False, keep_maps: bool = False,
-                          planning_latency_s: float = 0.0, latency_mode: str = "hover") -> ScheduledEpisodeLog:
+                          planning_latency_s: float = 0.0, latency_mode: str = "hover") -> ReplanningLog:
     """Fly one mission of ``budget_s`` s [flight time]: plan, fly the plan taking and fusing
-    images, replan when ``schedule`` says so (or the plan is used up), until the budget is spent.
+    images, replan when ``policy`` (a :class:`Replanning`) says so (or the plan is used up), until the budget is spent.
 
     field: an :class:`attend.action.SearchField`; planner: any :class:`attend.action.Planner`
     (its ``setup`` gives the camera, detector and flight models); seed: detector noise and
     planner seed; diagonal: per-cell (diagonal) map covariance; keep_maps: log the map after
     each image. Planning wall time is not charged against the budget (it is logged); a fixed
     ``planning_latency_s`` per plan is (the UAV hovers meanwhile, or with ``latency_mode`` "fly"
-    keeps flying the old plan, see :func:`attend.action.episode.fly_mission`); motion blur comes with the planner's detector.
-    The schedule is consulted after every image except one taken where a plan starts (before
+    keeps flying the old plan, see :func:`attend.action.fly`); motion blur comes with the planner's detector.
+    The policy is consulted after every image except one taken where a plan starts (before
     it has flown)."""
-    if not isinstance(schedule, ReplanSchedule):
-        raise AttendInputError(f"schedule: expected a ReplanSchedule, got {type(schedule).__name__}")
+    if not isinstance(policy, Replanning):
+        raise AttendInputError(f"policy: expected a Replanning policy, got {type(policy).__name__}")
     if not isinstance(planner, Planner):
         raise AttendInputError(f"planner: expected an attend.action Planner, got {type(planner).__name__}")
     budget_s = positive_scalar(budget_s, "budget_s", "s")
-    setup = planner.setup
-    log = ScheduledEpisodeLog(planner.name, seed, float(budget_s), len(field.people), schedule=schedule.name)
-    fly_mission(field, planner, setup.camera, setup.detector, setup.flight, log, schedule, diagonal=diagonal,
-                keep_maps=keep_maps, planning_latency_s=planning_latency_s, latency_mode=latency_mode)
-    log.decisions = list(getattr(schedule, "decisions", []))
+    log = ReplanningLog(planner.name, seed, float(budget_s), len(field.people), schedule=policy.name)
+    fly(field, planner, log.budget_s, seed, policy, diagonal=diagonal, keep_maps=keep_maps,
+        planning_latency_s=planning_latency_s, latency_mode=latency_mode, log=log)
+    log.decisions = list(getattr(policy, "decisions", []))
     return log

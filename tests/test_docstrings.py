@@ -26,6 +26,13 @@ MODULES = [
     "attend.perception.kalman",
     "attend.perception.nonlinear",
     "attend.perception.nonlinear_baselines",
+    "attend.report",
+    "attend.plotting",
+    "attend.cli",
+    "attend.experiments.fig2",
+    "attend.experiments.fig3",
+    "attend.experiments.fig4",
+    "attend.experiments.fig5",
 ]
 
 #: (module, name) whose docstrings miss arguments, in files maintained elsewhere (action, rhythm,

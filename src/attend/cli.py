@@ -540,7 +540,8 @@ def _one_line(text: str) -> str:
 
 
 def main(argv=None) -> int:
-    """Run the command line; returns the exit status (0 done, 1 internal error, 2 bad input)."""
+    """Run the command line with the arguments ``argv`` (default: sys.argv[1:]); returns the exit
+    status (0 done, 1 internal error, 2 bad input)."""
     parser = _build_parser()
     args = parser.parse_args(argv)
     debug = getattr(args, "debug", False)

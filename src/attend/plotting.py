@@ -13,7 +13,7 @@ import numpy as np
 
 
 def figure(figsize: tuple[float, float], nrows: int = 1, ncols: int = 1, **subplot_options):
-    """A figure with its own Agg canvas and an (nrows, ncols) grid of axes; ``subplot_options``
+    """A figure of size ``figsize`` (inches) with its own Agg canvas and an (nrows, ncols) grid of axes; ``subplot_options``
     (sharex, squeeze, ...) go to ``Figure.subplots``. Returns (figure, axes)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -24,7 +24,7 @@ def figure(figsize: tuple[float, float], nrows: int = 1, ncols: int = 1, **subpl
 
 
 def new_figure(out_dir, figsize: tuple[float, float], nrows: int = 1, ncols: int = 1, **figure_options):
-    """A figure (own Agg canvas, no pyplot state) with an (nrows, ncols) grid of axes; creates
+    """A figure of size ``figsize`` (inches; own Agg canvas, no pyplot state) with an (nrows, ncols) grid of axes; creates
     ``out_dir``. ``figure_options`` go to ``matplotlib.figure.Figure``. Returns (figure, axes) as
     ``Figure.subplots`` does."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg

@@ -36,12 +36,14 @@ def source_hash() -> str:
 
 
 def cache_key(name: str, quick: bool, code_hash: str | None = None) -> str:
+    """The cache key of experiment ``name`` in quick or full mode (``quick``) for the source code of
+    hash ``code_hash`` (default: :func:`source_hash` of this installation): 16 hex digits."""
     text = json.dumps({"experiment": name, "quick": quick, "code": code_hash or source_hash()}, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def cached_result(out_dir: Path, name: str, key: str) -> ExperimentResult | None:
-    """The stored result of ``name`` if its cache key matches and its figures exist."""
+    """The stored result of ``name`` in ``out_dir`` if its cache ``key`` matches and its figures exist."""
     path = Path(out_dir) / f"{name}.json"
     if not path.is_file():
         return None
@@ -108,11 +110,11 @@ def _module(name: str):
 def rebuild(out_dir: str | Path, names: list[str] | None = None) -> list[ExperimentResult]:
     """Rebuild every figure of the results in ``out_dir`` from their JSON alone.
 
-    names: the experiments (default: every known experiment with an ``out_dir/NAME.json``). For each,
-    the module's ``plot(result, out_dir)`` redraws the figures (modules not yet following the
-    contract of :mod:`attend.experiments`, and JSON without tables, keep the figures it lists). Raises AttendInputError naming the file when a JSON is missing or
-    corrupt, or when the folder holds no result at all. Returns the results, figures relative to
-    ``out_dir``."""
+    names: the experiments (default: every known experiment with an ``out_dir/NAME.json``). For
+    each, the module's ``plot(result, out_dir)`` redraws the figures (modules not yet following the
+    contract of :mod:`attend.experiments`, and JSON without tables, keep the figures it lists).
+    Raises AttendInputError naming the file when a JSON is missing or corrupt, or when the folder
+    holds no result at all. Returns the results, figures relative to ``out_dir``."""
     from attend import experiments
 
     out = Path(out_dir)

@@ -43,7 +43,8 @@ SETTINGS = dict(
 
 
 def true_input(time: np.ndarray) -> np.ndarray:
-    """u(t) = exp(-0.25 (t - 12)^2) [N], the push of the paper's mass-spring-damper."""
+    """u(t) = exp(-0.25 (t - 12)^2) [N], the push of the paper's mass-spring-damper, at the sample
+    times ``time`` [s] (N,); returns (N, 1)."""
     return np.exp(-0.25 * (time - 12.0) ** 2)[:, None]
 
 
@@ -124,8 +125,8 @@ CAPTIONS = {
 
 
 def claims(result: ExperimentResult) -> list[Claim]:
-    """The paper's Fig. 2 claims: more orders of motion lower the input error; DEM beats the KF that
-    ignores the input; and how DEM compares to a Kalman smoother that models the input."""
+    """The Fig. 2 claims, judged on ``result``: more orders of motion lower the input error; DEM beats
+    the KF that ignores the input; and how DEM compares to a Kalman smoother that models the input."""
     ratio = result.metric("input SSE ratio p = 6 / p = 0 (median)").value
     dem_state = result.metric("DEM state SSE, p = 6 (median)").value
     dem_input = result.metric("DEM input SSE, p = 6 (median)").value

@@ -108,8 +108,8 @@ _LABELS = ["theta1", "theta2", "theta3 = -k/m", "theta4 = -b/m", "theta5", "thet
 
 
 def claims(result: ExperimentResult) -> list[Claim]:
-    """The paper's Fig. 3 claims: the learned parameters approach the true ones (printed values),
-    the free energy rises, the sensor noise precision is learned."""
+    """The Fig. 3 claims, judged on ``result``: the learned parameters approach the true ones (printed
+    values), the free energy rises, the sensor noise precision is learned."""
     found = []
     for name in ("theta3", "theta4", "theta6"):
         metric = result.metric(f"{name}_seed0")

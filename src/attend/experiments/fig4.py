@@ -101,8 +101,8 @@ _LABELS = ("theta3 = -k/m [1/s^2]", "theta4 = -b/m [1/s]", "theta6 = 1/m [1/kg]"
 
 
 def claims(result: ExperimentResult) -> list[Claim]:
-    """The paper's Fig. 4 claim: a low P_theta (attention on the data) learns the parameters; a high
-    one (attention on the prior) keeps the error of the prior."""
+    """The Fig. 4 claims, judged on ``result``: a low P_theta (attention on the data) learns the
+    parameters; a high one (attention on the prior) keeps the error of the prior."""
     low = result.metric("median_sse_lowest_prior_precision").value
     high = result.metric("median_sse_highest_prior_precision").value
     prior = result.metric("median_sse_of_the_random_prior").value

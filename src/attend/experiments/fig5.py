@@ -106,8 +106,8 @@ CAPTIONS = {
 
 
 def claims(result: ExperimentResult) -> list[Claim]:
-    """The paper's Fig. 5 claims: the over-exposed learner wins at low sensor noise and loses at high
-    noise (the curves cross); the noise precision is learned."""
+    """The Fig. 5 claims, judged on ``result``: the over-exposed learner wins at low sensor noise and
+    loses at high noise (the curves cross); the noise precision is learned."""
     low_over = result.metric("median_sse_over_exposed_lowest_noise").value
     low_biased = result.metric("median_sse_biased_lowest_noise").value
     high_over = result.metric("median_sse_over_exposed_highest_noise").value

@@ -452,3 +452,34 @@ def test_report_help_teaches(capsys):
         main(["search", "--help"])
     text = capsys.readouterr().out
     assert "[s]" in text and "[m/s]" in text and "default" in text
+
+
+def test_estimate_plot_labels_units_and_measured_inputs(tmp_path, monkeypatch):
+    """The --plot figure: every axis with a unit, a band narrower than the signal still visible on
+    its own axis, and measured inputs drawn as measured (not as an estimate)."""
+    import types
+
+    from attend import plotting
+    from attend.cli import DEMO_UNITS
+
+    made = []
+    original = plotting.figure
+
+    def recording(*args, **kwargs):
+        fig, axes = original(*args, **kwargs)
+        made.append(axes)
+        return fig, axes
+
+    monkeypatch.setattr(plotting, "figure", recording)
+    time = np.arange(50) * 0.1
+    system = types.SimpleNamespace(state_names=("phi", "phi_dot"), input_names=("motor_1", "motor_2"))
+    estimate = types.SimpleNamespace(states=np.column_stack([np.sin(time), np.cos(time)]),
+                                     inputs=np.column_stack([np.ones(50), np.zeros(50)]),
+                                     state_std=np.full((50, 2), 1e-5), input_std=np.full((50, 2), 0.1))
+    plotting.plot_estimates(tmp_path / "e.png", time, system, estimate, measured_inputs=[0], units=DEMO_UNITS)
+    axes = made[0]
+    assert all("[" in axis.get_ylabel() for axis in axes[:, 0])
+    assert [line.get_label() for line in axes[2, 0].get_lines()] == ["measured input"]
+    assert [line.get_label() for line in axes[3, 0].get_lines()] == ["estimate"]
+    assert np.allclose(axes[0, 1].get_lines()[0].get_ydata(), 2e-5)  # the band's half-width, own scale
+    assert axes[0, 0].get_ylabel() == "phi [rad]" and (tmp_path / "e.png").stat().st_size > 10_000

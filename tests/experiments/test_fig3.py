@@ -28,20 +28,12 @@ def test_fig3_contract_histories_and_panels(tmp_path):
 
 
 def test_fig3_panel_titles_are_distinct(tmp_path, monkeypatch):
-    from attend import plotting
+    from matplotlib.figure import Figure
 
-    titles = []
-    original = plotting.new_figure
-
-    def recording(*args, **kwargs):
-        fig, axes = original(*args, **kwargs)
-        titles.append(axes)
-        return fig, axes
-
-    monkeypatch.setattr(plotting, "new_figure", recording)
-    rebuilt = ExperimentResult.from_json_dict(json.loads((Path(__file__).parent / "data" /
-                                                          "fig3.json").read_text()))
+    saved = []
+    monkeypatch.setattr(Figure, "savefig", lambda self, *args, **kwargs: saved.append(self))
+    rebuilt = ExperimentResult.from_json_dict(json.loads((Path(__file__).parent / "data" / "fig3.json").read_text()))
     fig3.plot(rebuilt, tmp_path)
-    letters = sorted(axis.get_title().split(")")[0] for axis in titles[0].ravel())
-    assert letters == ["a", "b", "c", "d"]
-    assert all(axis.get_xlabel() and axis.get_ylabel() for axis in titles[0].ravel())
+    panels = saved[0].axes
+    assert sorted(axis.get_title().split(")")[0] for axis in panels) == ["a", "b", "c", "d"]
+    assert all(axis.get_xlabel() and axis.get_ylabel() for axis in panels)

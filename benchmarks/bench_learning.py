@@ -173,7 +173,7 @@ def main():
     line("the same in path mode", f"{(time.perf_counter() - t0) / 5 * 1000:.0f} ms", "-")
     for name, module in (("fig4 sweep (quick: 156 runs, batched)", fig4), ("fig5 sweep (quick: 144 runs, batched)", fig5)):
         t0 = time.perf_counter()
-        module.run(quick=True, out_dir=None, progress=True)
+        module.run(quick=True, progress=True)
         line(name, f"{time.perf_counter() - t0:.1f} s", "< 40 s")
 
 

@@ -57,8 +57,11 @@ def main() -> None:
     times = []
     for _ in range(max(1, args.repeats)):
         started = time.perf_counter()
-        result = quadrotor.run(out_dir=args.out, progress=False, data_dir=path)
+        result = quadrotor.run(progress=False, data_dir=path)
         times.append(time.perf_counter() - started)
+    if args.out:
+        result.figures = quadrotor.plot(result, args.out)
+        result.write(args.out)
 
     print(f"{'metric':32s} {'reproduced':>12s} {'published':>10s} {'rel. diff':>10s}  digits  unit")
     for m in result.metrics:

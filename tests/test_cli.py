@@ -37,9 +37,9 @@ def test_reproduce_writes_json_report_and_uses_the_cache(tmp_path, capsys, monke
     calls = []
     original = fig2.run
 
-    def small_run(quick=True, out_dir=None, progress=True):
+    def small_run(quick=True, progress=True):
         calls.append(quick)
-        return original(quick=quick, out_dir=out_dir, progress=False, seeds=2)
+        return original(quick=quick, progress=False, seeds=2)
 
     monkeypatch.setattr(fig2, "run", small_run)
     assert main(["reproduce", "fig2", "--out", str(tmp_path), "--report", "--no-progress"]) == 0
@@ -131,23 +131,12 @@ def test_search_offers_every_planner():
 
 # --- the user's path never fails silently ------------------------------------------------------
 
+#: A small one-output model with an unknown input (the same TOML as tables written inline).
 MODEL = """
-[model]
-A = [[-0.25, 1.0], [-0.5, -0.25]]
-B = [[1.0], [0.0]]
-C = [[0.125, 0.1633]]
-states = ["phi", "rate"]
-[outputs]
-columns = ["y"]
-[[inputs]]
-name = "u"
-prior_mean = 0.0
-prior_precision = 0.01
-[observer]
-kernel_width = 0.5
-embedding_order = 4
-sensor_precision = 2980.0
-process_precision = 2980.0
+model = {A = [[-0.25, 1.0], [-0.5, -0.25]], B = [[1.0], [0.0]], C = [[0.125, 0.1633]], states = ["phi", "rate"]}
+outputs = {columns = ["y"]}
+inputs = [{name = "u", prior_mean = 0.0, prior_precision = 0.01}]
+observer = {kernel_width = 0.5, embedding_order = 4, sensor_precision = 2980.0, process_precision = 2980.0}
 """
 
 
@@ -399,3 +388,98 @@ def test_identify_readme_example_on_the_whole_bundled_flight(tmp_path, capsys):
     report = capsys.readouterr().out
     assert "converged at iteration" in report and "eigenvalues of the learned A" in report
     assert out.exists()
+
+
+def test_reproduce_runs_contract_and_old_style_experiments_side_by_side(tmp_path, capsys, monkeypatch):
+    """Modules that follow the contract are run, then plotted by the CLI; modules that still take
+    out_dir plot themselves; `attend report` then redraws the contract one from its JSON."""
+    import types
+
+    from attend import experiments, report
+    from attend.experiments._result import ExperimentResult
+    from attend.plotting import figure
+
+    def draw(path):
+        fig, axis = figure((1, 1))
+        axis.plot([0, 1])
+        fig.savefig(path)
+
+    plotted = []
+
+    def new_run(quick=True, progress=True):
+        result = ExperimentResult("new")
+        result.add("value", 2.0, "m")
+        result.tables = {"line": [0.0, 1.0]}
+        return result
+
+    def new_plot(result, out_dir):
+        plotted.append(result.tables["line"])
+        draw(Path(out_dir) / "new.png")
+        return ["new.png"]
+
+    def old_run(quick=True, out_dir=None, progress=True):
+        result = ExperimentResult("old", figures=[str(Path(out_dir) / "old.png")])
+        draw(Path(out_dir) / "old.png")
+        return result
+
+    modules = {"new": types.SimpleNamespace(run=new_run, plot=new_plot, CAPTIONS={"new.png": "a caption"}),
+               "old": types.SimpleNamespace(run=old_run)}
+    monkeypatch.setattr(experiments, "available", lambda: {name: name for name in modules})
+    monkeypatch.setattr(experiments, "load", modules.__getitem__)
+    monkeypatch.setattr(experiments, "EXPERIMENTS", {name: ("", name) for name in modules})
+    monkeypatch.setattr(report, "_module", modules.get)
+    assert main(["reproduce", "all", "--out", str(tmp_path), "--no-progress"]) == 0
+    assert plotted == [[0.0, 1.0]] and (tmp_path / "old.png").is_file()
+    assert json_figures(tmp_path / "new.json") == ["new.png"] and json_figures(tmp_path / "old.json") == ["old.png"]
+    (tmp_path / "new.png").unlink()
+    assert main(["report", str(tmp_path)]) == 0
+    assert plotted == [[0.0, 1.0]] * 2 and (tmp_path / "new.png").is_file()
+    assert "a caption" in (tmp_path / "index.html").read_text()
+
+
+def json_figures(path):
+    import json
+
+    return json.loads(path.read_text())["figures"]
+
+
+def test_report_help_teaches(capsys):
+    with pytest.raises(SystemExit):
+        main(["report", "--help"])
+    text = capsys.readouterr().out
+    assert "DIR" in text and "JSON" in text and "exit status" in text
+    with pytest.raises(SystemExit):
+        main(["search", "--help"])
+    text = capsys.readouterr().out
+    assert "[s]" in text and "[m/s]" in text and "default" in text
+
+
+def test_estimate_plot_labels_units_and_measured_inputs(tmp_path, monkeypatch):
+    """The --plot figure: every axis with a unit, a band narrower than the signal still visible on
+    its own axis, and measured inputs drawn as measured (not as an estimate)."""
+    import types
+
+    from attend import plotting
+    from attend.cli import DEMO_UNITS
+
+    made = []
+    original = plotting.figure
+
+    def recording(*args, **kwargs):
+        fig, axes = original(*args, **kwargs)
+        made.append(axes)
+        return fig, axes
+
+    monkeypatch.setattr(plotting, "figure", recording)
+    time = np.arange(50) * 0.1
+    system = types.SimpleNamespace(state_names=("phi", "phi_dot"), input_names=("motor_1", "motor_2"))
+    estimate = types.SimpleNamespace(states=np.column_stack([np.sin(time), np.cos(time)]),
+                                     inputs=np.column_stack([np.ones(50), np.zeros(50)]),
+                                     state_std=np.full((50, 2), 1e-5), input_std=np.full((50, 2), 0.1))
+    plotting.plot_estimates(tmp_path / "e.png", time, system, estimate, measured_inputs=[0], units=DEMO_UNITS)
+    axes = made[0]
+    assert all("[" in axis.get_ylabel() for axis in axes[:, 0])
+    assert [line.get_label() for line in axes[2, 0].get_lines()] == ["measured input"]
+    assert [line.get_label() for line in axes[3, 0].get_lines()] == ["estimate"]
+    assert np.allclose(axes[0, 1].get_lines()[0].get_ydata(), 2e-5)  # the band's half-width, own scale
+    assert axes[0, 0].get_ylabel() == "phi [rad]" and (tmp_path / "e.png").stat().st_size > 10_000

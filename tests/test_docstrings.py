@@ -37,6 +37,13 @@ MODULES = [
     "attend.rhythm.learning",
     "attend.rhythm.replanning",
     "attend.rhythm.vision",
+    "attend.report",
+    "attend.plotting",
+    "attend.cli",
+    "attend.experiments.fig2",
+    "attend.experiments.fig3",
+    "attend.experiments.fig4",
+    "attend.experiments.fig5",
 ]
 
 #: (module, name) whose docstrings miss arguments, in files maintained elsewhere (action, rhythm,

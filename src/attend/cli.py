@@ -30,7 +30,12 @@ format and a worked example on the bundled quadrotor flight:
 """
 
 
+#: Units of the bundled quadrotor roll model (``attend estimate --demo``), for the figure's axes.
+DEMO_UNITS = {"phi": "rad", "phi_dot": "rad/s", **{f"motor_{m}": "command - mean" for m in range(1, 5)}}
+
+
 def _build_parser() -> argparse.ArgumentParser:
+    """The ``attend`` parser: global options and one sub-parser per command."""
     # --debug is accepted after the command too; SUPPRESS keeps a subcommand from resetting it
     debug_anywhere = argparse.ArgumentParser(add_help=False)
     debug_anywhere.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
@@ -46,6 +51,7 @@ def _build_parser() -> argparse.ArgumentParser:
             "examples:\n"
             "  attend reproduce all --out results       every result of the paper + results/index.html\n"
             "  attend reproduce list                    the experiments\n"
+            "  attend report results                    redraw the figures and index.html from the JSON\n"
             "  attend estimate --demo --out roll.csv    states of a real quadrotor from its log\n"
             "  attend estimate model.toml log.csv       your own robot (formats: README.md)\n"
             "  attend identify model.toml log.csv       learn its parameters and noise precisions\n"
@@ -57,14 +63,20 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--debug", action="store_true", help="show full tracebacks on errors")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
-    add_command = commands.add_parser
 
-    def add_parser(name, **options):
-        return add_command(name, parents=[debug_anywhere], **options)
+    def add_command(name, **options):
+        return commands.add_parser(name, parents=[debug_anywhere], **options)
 
-    commands.add_parser = add_parser
+    _add_estimate(add_command)
+    _add_reproduce(add_command)
+    _add_report(add_command)
+    _add_identify(add_command)
+    _add_search(add_command)
+    return parser
 
-    estimate = commands.add_parser(
+
+def _add_estimate(add_command) -> None:
+    estimate = add_command(
         "estimate",
         help="estimate states and inputs of your own system from a CSV log",
         description="Estimate the states (and unknown inputs) of a model file's system from a CSV log and "
@@ -80,20 +92,27 @@ def _build_parser() -> argparse.ArgumentParser:
                           help="use the bundled quadrotor roll model and flight (exp_21, wind on) instead of MODEL and LOG")
     estimate.add_argument("--out", default="estimates.csv",
                           help="output CSV: t [s], each state and input, and <name>_std columns (default: %(default)s)")
-    estimate.add_argument("--plot", metavar="PNG", help="also plot the estimates with +-2 std bands to this PNG file")
+    estimate.add_argument("--plot", metavar="PNG",
+                          help="also plot the estimates to this PNG file: one row per state and input, the "
+                          "estimate with its +-2 std band (left) and the band's half-width 2 std on its own "
+                          "scale (right); measured inputs are drawn as measured. Default: no plot")
 
-    reproduce = commands.add_parser(
+
+def _add_reproduce(add_command) -> None:
+    reproduce = add_command(
         "reproduce",
         help="reproduce a result of the paper (or all of them)",
         description="Run a reproduction experiment and write OUT/NAME.json (reproduced beside published "
-        "values) and PNG figures. 'all' runs every experiment and writes the self-contained HTML report "
-        "OUT/index.html. Results are cached by configuration: a rerun only redoes what changed.",
+        "values, and the tables its figures are drawn from) and PNG figures. 'all' runs every experiment "
+        "and writes the self-contained HTML report OUT/index.html. Results are cached by configuration: a "
+        "rerun only redoes what changed.",
     )
     reproduce.add_argument("name", help="experiment name, or 'all'; 'attend reproduce list' shows them")
-    reproduce.add_argument("--out", default="results", help="output directory (default: %(default)s)")
+    reproduce.add_argument("--out", default="results", help="output directory, created if missing (default: %(default)s)")
     reproduce.add_argument("--full", action="store_true",
-                           help="paper-size settings (more seeds and trials; slower). Default: quick settings")
-    reproduce.add_argument("--no-progress", action="store_true", help="hide progress bars")
+                           help="paper-size settings (more seeds and trials; minutes to hours). Default: quick "
+                           "settings (seconds to a few minutes per experiment)")
+    reproduce.add_argument("--no-progress", action="store_true", help="hide progress bars (default: shown)")
     reproduce.add_argument("--cluster", metavar="ADDRESS", default=None,
                            help="run the sweeps (fig4, fig5, rhythm-ipp, rhythm-tradeoff) on a running Dask cluster, e.g. tcp://host:8786 "
                            "(needs: pip install 'attend[distributed]'); same numbers as a local run. Default: run here")
@@ -101,7 +120,24 @@ def _build_parser() -> argparse.ArgumentParser:
                            help="rerun even when OUT/NAME.json holds a result for the same code and mode (cache)")
     reproduce.add_argument("--report", action="store_true",
                            help="also write OUT/index.html for a single experiment (always written for 'all')")
-    identify = commands.add_parser(
+
+
+def _add_report(add_command) -> None:
+    report = add_command(
+        "report",
+        help="redraw every figure and DIR/index.html from the JSON results in DIR",
+        description="Rebuild the figures and the HTML report of a results folder from its JSON files alone "
+        "(nothing is recomputed: seconds). The page opens with the paper's claims (measured, published, "
+        "verdict), then each experiment's figures with captions; the full metric table is folded away.",
+        epilog="exit status: 0 written; 2 a JSON is missing or corrupt (the message names the file).",
+    )
+    report.add_argument("dir", metavar="DIR", help="the --out folder of 'attend reproduce' (holds NAME.json files)")
+    report.add_argument("names", nargs="*", metavar="NAME",
+                        help="only these experiments (default: every experiment with a DIR/NAME.json)")
+
+
+def _add_identify(add_command) -> None:
+    identify = add_command(
         "identify",
         help="learn the parameters and noise precisions of your model from a CSV log",
         description="System identification with precision learning (DEM's D, E and M steps): the model "
@@ -124,7 +160,24 @@ def _build_parser() -> argparse.ArgumentParser:
                           help="write the last accepted estimate even when the learning did not converge "
                           "(the exit status is still 3)")
 
-    search = commands.add_parser(
+
+#: What each planner of ``attend search --planner`` does (planners missing here are listed by name).
+PLANNER_HELP = {
+    "precision_gain": "trace(P) reduction per second of flight",
+    "adaptive": "gain weighted by optimistic occupancy and an altitude preference",
+    "efe": "expected free energy (epistemic + preference for observing people)",
+    "efe_confirm": "EFE search at 14 m, then confirmation views at 8 m of the uncertain detections",
+    "cover_confirm": "two coverage passes at 13 m, then the views that most advance the least certain cell of "
+    "every detection (finds the most people)",
+    "lawnmower": "baseline: lawnmower sweep at 10 m",
+    "random": "baseline: random views",
+}
+
+
+def _add_search(add_command) -> None:
+    from attend.action.planners import PLANNERS
+
+    search = add_command(
         "search",
         help="fly one UAV search-and-rescue mission with a precision-map planner",
         description="One search-and-rescue episode on the 30 m x 30 m field (0.75 m cells, 7 people): plan, "
@@ -132,19 +185,17 @@ def _build_parser() -> argparse.ArgumentParser:
         "is spent. Writes metrics JSON, map snapshots (truth, belief, variance), the 3-D flight path, "
         "metrics vs time and an animated GIF.",
     )
-    search.add_argument("--planner", default="efe",
-                        choices=["precision_gain", "adaptive", "efe", "efe_confirm", "cover_confirm", "lawnmower", "random"],
-                        help="precision_gain: trace(P) reduction per second of flight; adaptive: gain weighted by "
-                        "optimistic occupancy and an altitude preference; efe: expected free energy (epistemic + "
-                        "preference for observing people); efe_confirm: EFE search at 14 m, then confirmation "
-                        "views at 8 m of the uncertain detections; cover_confirm: two coverage passes at 13 m, then "
-                        "the views that most advance the least certain cell of every detection (finds the most "
-                        "people); lawnmower (10 m) and random: baselines (default: %(default)s)")
-    search.add_argument("--seed", type=int, default=0, help="seed of the people placement, detector and planner")
+    planners = "; ".join(f"{name}: {PLANNER_HELP[name]}" if name in PLANNER_HELP else name for name in PLANNERS)
+    search.add_argument("--planner", default="efe", choices=list(PLANNERS),
+                        help=f"{planners} (default: %(default)s)")
+    search.add_argument("--seed", type=int, default=0,
+                        help="seed of the people placement, detector and planner (default: %(default)s)")
     search.add_argument("--obstacles", default="none", choices=["none", "buildings"],
-                        help="buildings: a 4x4x26 m tower and a 4x4x13 m block that block flight and hide the ground")
+                        help="buildings: a 4x4x26 m tower and a 4x4x13 m block that block flight and hide the "
+                        "ground (default: %(default)s)")
     search.add_argument("--people", default="all", choices=["all", "lower_half"],
-                        help="where people may lie: anywhere, or only in the half y < 0 (the paper's Fig. 9 case)")
+                        help="where people may lie: anywhere, or only in the half y < 0 (the paper's Fig. 9 case; "
+                        "default: %(default)s)")
     search.add_argument("--budget", type=float, default=150.0, help="flight budget [s] (default: %(default)s)")
     search.add_argument("--speed", type=float, default=5.0, help="flight speed [m/s] (default: %(default)s)")
     search.add_argument("--start", type=float, nargs=3, metavar=("X", "Y", "Z"), default=(10.0, 0.0, 7.0),
@@ -153,13 +204,13 @@ def _build_parser() -> argparse.ArgumentParser:
                         help="camera field of view [degrees], each in (0, 180) (default: 45 60)")
     search.add_argument("--altitude-limits", type=float, nargs=2, metavar=("MIN", "MAX"), default=(2.0, 26.0),
                         help="flight altitude limits [m] (default: 2 26)")
-    search.add_argument("--clutter", type=float, default=0.0, help="mean clutter false positives per image")
+    search.add_argument("--clutter", type=float, default=0.0,
+                        help="mean clutter false positives per image [1/image] (default: %(default)s)")
     search.add_argument("--diagonal", action="store_true",
                         help="fast per-cell (diagonal) Kalman map instead of the full 1600x1600 covariance")
     search.add_argument("--no-gif", action="store_true", help="skip the animated GIF (faster)")
     search.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     search.add_argument("--out", default="search_out", help="output directory (default: %(default)s)")
-    return parser
 
 
 def _output_file(path: str, option: str, example: str) -> Path:
@@ -300,7 +351,8 @@ def _command_estimate(args) -> int:
     if args.plot:
         from attend.plotting import plot_estimates
 
-        path = plot_estimates(args.plot, log.time, model.system, estimate)
+        measured = [j for j, spec in enumerate(model.inputs) if spec.known]
+        path = plot_estimates(args.plot, log.time, model.system, estimate, measured, DEMO_UNITS if args.demo else None)
         print(f"  figure -> {path}")
     return 0
 
@@ -383,10 +435,7 @@ def _command_reproduce(args) -> int:
         started = time.perf_counter()
         module = experiments.load(name)
         try:
-            options = dict(quick=quick, out_dir=out, progress=not args.no_progress)
-            if args.cluster is not None and "cluster" in inspect.signature(module.run).parameters:
-                options["cluster"] = args.cluster
-            result = module.run(**options)
+            result = _run_experiment(module, quick, out, not args.no_progress, args.cluster)
         except Exception as error:  # one failing experiment must not hide the others' results
             if len(names) == 1 or args.debug or (isinstance(error, OSError) and _user_path_problem(error)):
                 raise  # a full disk or a read-only folder stops every experiment
@@ -412,6 +461,43 @@ def _command_reproduce(args) -> int:
         print(f"attend: {len(failures)} experiment(s) failed: {', '.join(name for name, _ in failures)}",
               file=sys.stderr)
         return 2 if all(bad_input for _, bad_input in failures) else 1
+    return 0
+
+
+def _run_experiment(module, quick: bool, out: Path, progress: bool, cluster):
+    """Run one experiment module: ``run`` then ``plot(result, out)`` for modules that follow the
+    contract of :mod:`attend.experiments`; ``run(out_dir=out)`` (which plots itself) for the others.
+    quick: quick settings; out: the output folder; progress: progress bars; cluster: a Dask
+    scheduler address for the modules whose ``run`` takes ``cluster`` (None: run here)."""
+    from attend import experiments
+
+    options = dict(quick=quick, progress=progress)
+    if cluster is not None and "cluster" in inspect.signature(module.run).parameters:
+        options["cluster"] = cluster
+    if experiments.follows_contract(module):
+        result = module.run(**options)
+        result.figures = [str(figure) for figure in module.plot(result, out)]
+        return result
+    return module.run(out_dir=out, **options)
+
+
+def _command_report(args) -> int:
+    from attend import experiments, report
+
+    folder = Path(args.dir)
+    if not folder.is_dir():
+        raise AttendInputError(f"report {folder}: no such folder; expected the --out folder of 'attend reproduce'")
+    known = experiments.available()
+    for name in args.names:
+        if name not in known:
+            raise AttendInputError(f"report: unknown experiment {name!r}; expected one of {', '.join(known)}")
+    started = time.perf_counter()
+    results = report.rebuild(folder, args.names or None)
+    command = "attend " + " ".join(sys.argv[1:]) if sys.argv[1:] else f"attend report {folder}"
+    page = report.write_report(folder, results, known, command, time.perf_counter() - started)
+    for result in results:
+        print(f"{result.experiment}: {', '.join(result.figures) or 'no figures'}")
+    print(f"report -> {page} ({time.perf_counter() - started:.1f} s)")
     return 0
 
 
@@ -454,7 +540,8 @@ def _one_line(text: str) -> str:
 
 
 def main(argv=None) -> int:
-    """Run the command line; returns the exit status (0 done, 1 internal error, 2 bad input)."""
+    """Run the command line with the arguments ``argv`` (default: sys.argv[1:]); returns the exit
+    status (0 done, 1 internal error, 2 bad input)."""
     parser = _build_parser()
     args = parser.parse_args(argv)
     debug = getattr(args, "debug", False)
@@ -462,7 +549,7 @@ def main(argv=None) -> int:
         parser.print_help()
         return 0
     handlers = {"estimate": _command_estimate, "reproduce": _command_reproduce, "search": _command_search,
-                "identify": _command_identify}
+                "identify": _command_identify, "report": _command_report}
     args.debug = debug
     with warnings.catch_warnings():  # the command's warning style, restored when it returns
         warnings.simplefilter("default")

@@ -24,7 +24,9 @@ def result(quadrotor_data, tmp_path_factory):
     """One run of the experiment (about 15 s), shared by the tests of this module."""
     if "result" not in _CACHE:
         out = tmp_path_factory.mktemp("quadrotor")
-        _CACHE["result"] = (quadrotor.run(quick=True, out_dir=out, progress=False, data_dir=quadrotor_data), out)
+        result = quadrotor.run(quick=True, progress=False, data_dir=quadrotor_data)
+        result.figures = quadrotor.plot(result, out)
+        _CACHE["result"] = (result, out)
     return _CACHE["result"]
 
 
@@ -56,7 +58,7 @@ def test_table_values_and_units(result):
     # one SMIKF slice (exp_25_WW_WM_2, slice 1) diverges and is dropped from the wind mean
     used = res.settings["slices_in_mean"]
     assert used["smikf_wind"] == 19 and used["dem_wind"] == used["kf_wind"] == used["sa_ar6_wind"] == 20
-    assert res.data["wind"]["SMIKF"][16] > 1000
+    assert res.tables["wind"]["SMIKF"][16] > 1000
 
 
 def test_attend_default_convention_reported_without_published_value(result):
@@ -66,6 +68,12 @@ def test_attend_default_convention_reported_without_published_value(result):
         assert metric.published is None and np.isfinite(metric.value)
     # centring the windows on their own sample changes the wind result (0.983 vs 0.746)
     assert res.metric("dem_attend_default_sse_wind").value == pytest.approx(0.98340, rel=1e-3)
+
+
+def test_claims_follow_the_published_table(result):
+    claims = quadrotor.claims(result[0])
+    assert [claim.verdict for claim in claims] == ["reproduced"] * len(claims)
+    assert "0.74578" in claims[0].published and "2.753" in claims[0].published
 
 
 def test_json_figures_and_not_reproduced_note(result):
@@ -230,7 +238,7 @@ def test_slice_scaling_and_residual_precision(quadrotor_data):
 
 def test_missing_data_directory_is_a_clear_error(tmp_path):
     with pytest.raises(AttendInputError, match="quadrotor flight logs are missing"):
-        quadrotor.run(out_dir=None, progress=False, data_dir=tmp_path)
+        quadrotor.run(progress=False, data_dir=tmp_path)
 
 
 def test_published_dem_rejects_known_input_observer(quadrotor_data):

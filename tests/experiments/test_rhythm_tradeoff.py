@@ -61,7 +61,8 @@ def test_paired_interval_closed_form():
 
 
 def test_quick_run_contract(tmp_path):
-    result = rt.run(quick=True, out_dir=tmp_path, progress=False)
+    result = rt.run(quick=True, progress=False)
+    result.figures = rt.plot(result, tmp_path)
     data = json.loads(result.write(tmp_path).read_text())
     assert data["experiment"] == "rhythm-tradeoff"
     assert {"name", "value", "published", "unit"} <= set(data["metrics"][0])

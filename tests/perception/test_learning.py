@@ -422,7 +422,7 @@ def test_paper_reproduction_numbers_are_the_published_learners():
     from attend.experiments import fig3
 
     assert L.PAPER_LEARNER == dict(top_order="truncate", overrelax=False, newton=False, scaled=False)
-    got = {m.name: m.value for m in fig3.run(quick=True, out_dir=None, progress=False).metrics}
+    got = {m.name: m.value for m in fig3.run(quick=True, progress=False).metrics}
     expected = {"theta3_seed0": -0.5312380550798431, "theta4_seed0": -0.2138427184277307,
                 "theta3_median_relative_error_path_mode": 0.019351323261938055,
                 "lambda_w_seed0": 15.890143322456774, "free_energy_rise_seed0": 10022.555505288108}

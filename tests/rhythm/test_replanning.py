@@ -127,7 +127,7 @@ def test_short_episode_runs_and_logs_replans(policy):
 def test_json_contract(tmp_path):
     from attend.experiments import rhythm_ipp
 
-    result = rhythm_ipp.run(quick=True, out_dir=tmp_path, progress=False, trials=1,
+    result = rhythm_ipp.run(quick=True, progress=False, trials=1,
                             policies=["segment", "fixed_20s", "precision"])
     data = json.loads(result.write(tmp_path).read_text())
     assert data["experiment"] == "rhythm-ipp"

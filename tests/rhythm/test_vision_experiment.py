@@ -6,7 +6,8 @@ from attend.experiments import vision
 
 
 def test_vision_contract(tmp_path):
-    result = vision.run(quick=True, out_dir=tmp_path, progress=False, scenes=2)
+    result = vision.run(quick=True, progress=False, scenes=2)
+    result.figures = vision.plot(result, tmp_path)
     data = json.loads(result.write(tmp_path).read_text())
     assert data["experiment"] == "vision"
     assert {"name", "value", "published", "unit"} <= set(data["metrics"][0])

@@ -24,7 +24,7 @@ import numpy as np
 
 from attend.constants import KNOWN_PRIOR_PRECISION
 from attend.experiments._msd_sweep import RUNS_PER_TASK, gather_runs, learn_msd_runs, msd_tasks, task_logs
-from attend.experiments._result import ExperimentResult
+from attend.experiments._result import Claim, ExperimentResult
 from attend.perception.learning import parameter_vector
 from attend.problems import MSD_FREE, mass_spring_damper, msd_random_priors
 from attend.sweep import run_tasks
@@ -35,17 +35,19 @@ SETTINGS = dict(dt=0.1, duration=32.0, kernel_width=0.5, noise_log_precision=8.0
 #: the names attend.experiments.rhythm_learning imports from here (the bank now lives in
 #: attend.problems and attend.experiments._msd_sweep)
 FREE, KNOWN_PRECISION = MSD_FREE, KNOWN_PRIOR_PRECISION
-__all__ = ["SETTINGS", "run", "FREE", "KNOWN_PRECISION", "RUNS_PER_TASK", "task_logs"]
+__all__ = ["SETTINGS", "run", "plot", "claims", "CAPTIONS", "FREE", "KNOWN_PRECISION", "RUNS_PER_TASK", "task_logs"]
 
 
-def run(quick: bool = True, out_dir=None, progress: bool = True, *, cluster=None, n_seeds: int | None = None,
+def run(quick: bool = True, progress: bool = True, *, cluster=None, n_seeds: int | None = None,
         n_prior_precisions: int | None = None, runs_per_task: int = RUNS_PER_TASK) -> ExperimentResult:
     """Median parameter SSE vs P_theta over seeds.
 
     The (P_theta, seed) grid is cut into tasks of ``runs_per_task`` runs, each learned with one
     batched call; ``cluster`` (None: here; ``"tcp://host:8786"`` or a ``distributed.Client``)
     says where they run (:func:`attend.sweep.run_tasks`): the numbers are the same either way.
-    ``n_seeds`` and ``n_prior_precisions`` override the quick/full sizes (12 x 13 / 50 x 25).
+    ``n_seeds`` and ``n_prior_precisions`` override the quick/full sizes (12 x 13 / 50 x 25); progress:
+    a progress bar over tasks. ``result.tables`` holds the SSE grid (P_theta x seed), the prior's SSE
+    per seed and seed 0's parameter histories at both ends of the sweep, all :func:`plot` needs.
     """
     default_seeds, default_prec = (12, 13) if quick else (50, 25)
     n_seeds = default_seeds if n_seeds is None else int(n_seeds)
@@ -75,37 +77,76 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, *, cluster=None
     out.add("median_sse_prior_precision_1e4", median[middle], "", None)
     out.add("orders_of_magnitude_swept", np.log10(precisions[-1] / precisions[0]), "decades", None)
     out.data.update(prior_precision=precisions, sse=sse, prior_sse=prior_sse)
-    if out_dir is not None:
-        out.figures.append(str(_plot(runs["parameter_history"], precisions, sse, theta_true, idx_prec, Path(out_dir))))
-        out.write(out_dir)
+    history = runs["parameter_history"]
+    out.tables = dict(
+        sse=sse, prior_sse=prior_sse, theta_true=theta_true[MSD_FREE],
+        # seed 0's parameter history at the lowest and the highest P_theta (panels a and c)
+        extremes=[dict(prior_precision=precisions[which], parameters=history[np.flatnonzero(idx_prec == which)[0]]
+                       [:, MSD_FREE]) for which in (0, n_prec - 1)])
     return out
 
 
-def _plot(parameter_history, precisions, sse, theta_true, idx_prec, out_dir: Path) -> Path:
+CAPTIONS = {
+    "fig4.png": (
+        "Exploration vs exploitation set by the prior parameter precision P_theta (mass-spring-damper, "
+        "theta3 = -k/m [1/s^2], theta4 = -b/m [1/s], theta6 = 1/m [1/kg] unknown, random prior means). "
+        "(a) Over-exposed learner (lowest P_theta): the parameters leave their prior and reach the true "
+        "values (dotted). (c) Biased learner (highest P_theta): they stay at the prior. (b) Parameter SSE "
+        "vs P_theta (median and quartiles over seeds): low for a low P_theta, rising through a band and "
+        "saturating at the error of the random prior."
+    ),
+}
+
+_LABELS = ("theta3 = -k/m [1/s^2]", "theta4 = -b/m [1/s]", "theta6 = 1/m [1/kg]")
+
+
+def claims(result: ExperimentResult) -> list[Claim]:
+    """The Fig. 4 claims, judged on ``result``: a low P_theta (attention on the data) learns the
+    parameters; a high one (attention on the prior) keeps the error of the prior."""
+    low = result.metric("median_sse_lowest_prior_precision").value
+    high = result.metric("median_sse_highest_prior_precision").value
+    prior = result.metric("median_sse_of_the_random_prior").value
+    return [
+        Claim("A low prior parameter precision (over-exposed) learns the parameters; a high one (biased) "
+              "stays at the prior (Fig. 4)",
+              f"median parameter SSE {low:.3g} at the lowest P_theta vs {high:.3g} at the highest "
+              f"(prior error {prior:.3g})",
+              "reproduced" if low < 0.01 * high else "does not hold", "low -> high SSE (figure only)"),
+        Claim("At the highest P_theta the learner keeps the error of its random prior",
+              f"median SSE {high:.4g} vs prior {prior:.4g}",
+              "reproduced" if abs(high - prior) <= 0.01 * prior else "differs", "saturates (figure only)"),
+    ]
+
+
+def plot(result: ExperimentResult, out_dir) -> list[str]:
+    """fig4.png from ``result.tables`` alone: (a) and (c) seed 0's parameters per iteration at the
+    lowest and highest P_theta, (b) SSE vs P_theta. out_dir: the folder (created). Returns the names."""
     from attend.plotting import new_figure
 
+    tables = result.tables
+    precisions = np.asarray(result.settings["prior_precisions"], dtype=float)
+    sse = np.asarray(tables["sse"], dtype=float)
+    theta_true = np.asarray(tables["theta_true"], dtype=float)
     fig, axes = new_figure(out_dir, (13, 4), 1, 3)
-    labels = ["theta3 = -k/m", "theta4 = -b/m", "theta6 = 1/m"]
-    for ax, which, title in ((axes[0], 0, "a) over-exposed (lowest P_theta)"),
-                             (axes[2], len(precisions) - 1, "c) biased (highest P_theta)")):
-        run = np.flatnonzero(idx_prec == which)[0]
-        history = parameter_history[run][:, MSD_FREE]
+    for ax, extreme, title in ((axes[0], tables["extremes"][0], "a) over-exposed (lowest P_theta)"),
+                               (axes[2], tables["extremes"][1], "c) biased (highest P_theta)")):
+        history = np.asarray(extreme["parameters"], dtype=float)
         for j in range(3):
-            line, = ax.plot(history[:, j], label=labels[j])
-            ax.axhline(theta_true[MSD_FREE][j], color=line.get_color(), ls=":", lw=1)
+            line, = ax.plot(history[:, j], label=_LABELS[j])
+            ax.axhline(theta_true[j], color=line.get_color(), ls=":", lw=1)
         ax.set_xlabel("iteration")
-        ax.set_ylabel("parameter")
-        ax.set_title(f"{title}: P_theta = {precisions[which]:.0e}")
+        ax.set_ylabel("parameter value [unit in legend]")
+        ax.set_title(f"{title}: P_theta = {extreme['prior_precision']:.0e}")
         ax.legend(fontsize=7)
     ax = axes[1]
     q1, q2, q3 = np.percentile(sse, [25, 50, 75], axis=1)
     ax.fill_between(precisions, q1, q3, alpha=0.3, label="quartiles")
     ax.loglog(precisions, q2, "o-", label="median SSE")
-    ax.set_xlabel("prior parameter precision P_theta")
-    ax.set_ylabel("parameter SSE")
+    ax.set_xlabel("prior parameter precision P_theta [1/unit of theta^2]")
+    ax.set_ylabel("parameter SSE [(1/s^2)^2 + (1/s)^2 + (1/kg)^2]")
     ax.set_title("b) SSE vs P_theta")
     ax.legend(fontsize=7)
     fig.tight_layout()
-    path = out_dir / "fig4.png"
+    path = Path(out_dir) / "fig4.png"
     fig.savefig(path, dpi=110)
-    return path
+    return [path.name]

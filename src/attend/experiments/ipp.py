@@ -129,12 +129,11 @@ def false_positive_episode(
     return field, fly(field, make_planner(planner, setup, seed), budget_s, seed, inject_false_detection_images=(0,))
 
 
-def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentResult:
+def run(quick: bool = True, progress: bool = True) -> ExperimentResult:
     """Run the experiment: computes only, everything the figures need in ``result.tables``.
 
     quick: 2 trials per planner and CMA-ES with 12 evaluations (full: 25 trials, 24 evaluations);
-    out_dir: transitional, for callers that expect ``run`` to write: when given, the figures
-    (:func:`plot`) and ``out_dir/ipp.json`` are written; progress: a tqdm bar over the missions.
+    progress: a tqdm bar over the missions.
     Trials run in up to 2 worker processes."""
     import os
 
@@ -167,9 +166,6 @@ def run(quick: bool = True, out_dir=None, progress: bool = True) -> ExperimentRe
         "curves": curve_table(logs),
         "false_positive_maps": map_snapshots(fp_field, fp_log, FALSE_POSITIVE_SNAPSHOTS_S, decimals=MAP_DECIMALS),
     }
-    if out_dir is not None:
-        result.figures.extend(str(p) for p in plot(result, out_dir))
-        result.write(out_dir)
     return result
 
 

@@ -62,6 +62,7 @@ import numpy as np
 
 from attend._validation import AttendInputError
 from attend.constants import KNOWN_INPUT_PRECISION
+from attend.experiments._quadrotor_plots import CAPTIONS, claims, figure_tables, figures
 from attend.experiments._result import ExperimentResult
 from attend.generalized import embedding_weights
 from attend.io import Log, read_log
@@ -89,6 +90,8 @@ __all__ = [
     "sse",
     "run",
     "plot",
+    "claims",
+    "CAPTIONS",
 ]
 
 #: Sample time of the OptiTrack logs [s] (120 Hz).
@@ -510,13 +513,14 @@ def _table_mean(values: np.ndarray, drop_divergent: bool) -> tuple[float, int]:
     return float(np.mean(values[keep])), int(keep.sum())
 
 
-def run(quick: bool = True, out_dir=None, progress: bool = True, data_dir=None) -> ExperimentResult:
+def run(quick: bool = True, progress: bool = True, data_dir=None) -> ExperimentResult:
     """Reproduce the published quadrotor numbers (a few seconds).
 
     Everything is computed in either mode (``quick`` has no effect: the full run takes a few
     seconds), including the DEM p sweep without wind (not published: reported with published
     None). data_dir: the directory of the flight CSVs (default :func:`default_data_dir`).
-    progress: one line per flight on stderr. Writes PNG figures to ``out_dir`` if given.
+    progress: one line per flight on stderr. ``result.tables`` holds the per-slice SSEs, an
+    example slice and the motor-1 traces, all :func:`plot` needs.
     """
     started = time.perf_counter()
     path = _data_dir(data_dir)
@@ -535,6 +539,34 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, data_dir=None) 
     inputs = _input_benchmark(logs, say)
 
     result = ExperimentResult("quadrotor")
+    used = _add_metrics(result, wind, no_wind, inputs, orders)
+    result.settings = {
+        "paper": "Bos, Anil Meera, Benders & Wisse, ICRA 2022 (arXiv 2109.12052)", "data_dir": str(path),
+        "wind_flights": list(WIND_FLIGHTS), "no_wind_flights": list(NO_WIND_FLIGHTS),
+        "slice_edges_1based": list(SLICE_EDGES), "dt_s": DT, "kernel_width_s": KERNEL_WIDTH,
+        "embedding_order": EMBEDDING_ORDER, "input_order": INPUT_ORDER, "sensor_variance_rad2": SENSOR_VARIANCE,
+        "known_input_precision": "exp(32)", "precision_convention": "max", "trim_samples": TRIM,
+        "divergence_threshold": DIVERGENCE_THRESHOLD, "slices_in_mean": used, "metrics_note": METRICS_NOTE,
+        "not_reproduced": NOT_REPRODUCED, "quick": quick,
+    }
+    result.tables = figure_tables(wind, no_wind, inputs, DT)
+    result.settings["seconds"] = round(time.perf_counter() - started, 2)
+    return result
+
+
+METRICS_NOTE = (
+    "phi_dot SSE = sum of squared errors over samples 10..N-11 of a 240-sample slice, mean over "
+    "4 flights x 5 slices (with wind: slices with SSE >= 100 dropped); dem_sse_wind_pK: mean over "
+    "slices then flights, no threshold; motor-1 SSE on the scaled, mean-removed command "
+    "(divided by max-min of all four motors over samples 400..1600). dem_* use the published "
+    "protocol (embedding about sample k-1, order-0 edges from sample k, start X0 = [0; prior]); "
+    "dem_attend_default_* use DEMObserver.estimate (centred windows, order-0 edges, static-MAP "
+    "start) with the same matrices."
+)
+
+
+def _add_metrics(result: ExperimentResult, wind: dict, no_wind: dict, inputs: dict, orders) -> dict:
+    """Add the table, p-sweep, motor-1 and attend-default metrics; returns the slices used per mean."""
     used = {}
     for condition, per_slice in (("wind", wind), ("no_wind", no_wind)):
         for method, label in (("DEM", "dem"), ("KF", "kf"), ("SA", "sa_ar6"), ("SMIKF", "smikf")):
@@ -553,47 +585,12 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, data_dir=None) 
     sweep = no_wind["DEM_vs_p"].reshape(len(NO_WIND_FLIGHTS), -1, len(orders)).mean(axis=1).mean(axis=0)
     for p, value in zip(orders, sweep):
         result.add(f"dem_sse_no_wind_p{p}", value, PHI_DOT_SSE_UNIT, None)
-
-    result.settings = {
-        "paper": "Bos, Anil Meera, Benders & Wisse, ICRA 2022 (arXiv 2109.12052)",
-        "data_dir": str(path),
-        "wind_flights": list(WIND_FLIGHTS),
-        "no_wind_flights": list(NO_WIND_FLIGHTS),
-        "slice_edges_1based": list(SLICE_EDGES),
-        "dt_s": DT,
-        "kernel_width_s": KERNEL_WIDTH,
-        "embedding_order": EMBEDDING_ORDER,
-        "input_order": INPUT_ORDER,
-        "sensor_variance_rad2": SENSOR_VARIANCE,
-        "known_input_precision": "exp(32)",
-        "precision_convention": "max",
-        "trim_samples": TRIM,
-        "divergence_threshold": DIVERGENCE_THRESHOLD,
-        "slices_in_mean": used,
-        "metrics_note": (
-            "phi_dot SSE = sum of squared errors over samples 10..N-11 of a 240-sample slice, mean over "
-            "4 flights x 5 slices (with wind: slices with SSE >= 100 dropped); dem_sse_wind_pK: mean over "
-            "slices then flights, no threshold; motor-1 SSE on the scaled, mean-removed command "
-            "(divided by max-min of all four motors over samples 400..1600). dem_* use the published "
-            "protocol (embedding about sample k-1, order-0 edges from sample k, start X0 = [0; prior]); "
-            "dem_attend_default_* use DEMObserver.estimate (centred windows, order-0 edges, static-MAP "
-            "start) with the same matrices."
-        ),
-        "not_reproduced": NOT_REPRODUCED,
-        "quick": quick,
-        "seconds": round(time.perf_counter() - started, 2),
-    }
-    result.data = {"wind": wind, "no_wind": no_wind, "inputs": inputs}
-    if out_dir is not None:
-        result.figures = plot(result, out_dir)
-    result.settings["seconds"] = round(time.perf_counter() - started, 2)
-    return result
+    return used
 
 
 def plot(result: ExperimentResult, out_dir) -> list[str]:
-    """Figures (PNG in out_dir): per-slice SSE bars (DEM vs KF), SSE vs p, an example slice,
-    and the motor-1 estimates (:mod:`attend.experiments._quadrotor_plots`). Returns the file names."""
-    from attend.experiments._quadrotor_plots import figures
-
+    """Figures (PNG in out_dir) from the result alone: per-slice SSE bars (DEM vs KF), SSE vs p,
+    an example slice, and the motor-1 estimates (:mod:`attend.experiments._quadrotor_plots`).
+    out_dir: the folder (created). Returns the file names."""
     return figures(result, out_dir, published_vs_p=PUBLISHED["dem_vs_p_wind"], wind_flights=WIND_FLIGHTS,
                    sse_unit=PHI_DOT_SSE_UNIT)

@@ -95,15 +95,14 @@ def _check(quick, trials, policies) -> tuple[int, list[str]]:
     return int(trials), policies
 
 
-def run(quick: bool = True, out_dir=None, progress: bool = True, cluster=None, trials: int | None = None,
+def run(quick: bool = True, progress: bool = True, cluster=None, trials: int | None = None,
         policies=None) -> ExperimentResult:
     """Fly every policy on the same seeded trials and compare them at equal flight time.
 
     quick: 8 trials, per-cell covariance, 6 CMA-ES evaluations per replan (< 90 s on 2 cores);
     otherwise 25 trials, full covariance, 24 evaluations. trials, policies: override the number
     of trials and the policy list (names as in SETTINGS["policies"]). progress: a progress bar;
-    cluster: a Dask scheduler address or client (see attend.sweep.run_tasks); out_dir: when
-    given, :func:`plot` draws the figures there."""
+    cluster: a Dask scheduler address or client (see attend.sweep.run_tasks)."""
     trials, policies = _check(quick, trials, policies)
     start = time.perf_counter()
     mode = "quick" if quick else "full"
@@ -124,8 +123,6 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, cluster=None, t
     result.data = dict(runs=runs, summary=summary, comparison=comparison, grid_t=grid_t,
                        best_fixed=comparison and next(iter(comparison.values()))["best_fixed"])
     result.tables.update(_tables(runs, summary, grid_t, cfg))
-    if out_dir is not None:
-        result.figures.extend(plot(result, out_dir))
     return result
 
 

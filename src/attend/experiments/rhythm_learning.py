@@ -168,13 +168,12 @@ def tune(settings: dict | None = None, *, n_seeds: int = 6, n_levels: int = 5, c
                 levels=levels.tolist(), seeds=seeds.tolist())
 
 
-def run(quick: bool = True, out_dir=None, progress: bool = True, cluster=None) -> ExperimentResult:
+def run(quick: bool = True, progress: bool = True, cluster=None) -> ExperimentResult:
     """Median SSE vs sensor noise of the rhythmic and of every fixed P_theta, regrets to the best
     fixed value per noise level, and each policy's worst-case regret (module docstring).
 
     quick: 6 seeds x 6 noise levels x 13 fixed values (else 20 x 11 x 25); progress: a progress
-    bar; cluster: a Dask scheduler address or client (attend.sweep.run_tasks); out_dir: when
-    given, :func:`plot` draws the figure there."""
+    bar; cluster: a Dask scheduler address or client (attend.sweep.run_tasks)."""
     n_seeds, n_levels, n_fixed = (6, 6, 13) if quick else (20, 11, 25)
     cfg = dict(SETTINGS, seeds=n_seeds, noise_levels=n_levels, fixed_prior_precisions=n_fixed)
     levels = np.linspace(*cfg["sensor_log_precision_range"], n_levels)
@@ -200,8 +199,6 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, cluster=None) -
     out.data.update(sse=sse, absolute_regret=absolute)
     out.tables.update(sensor_log_precision=levels, fixed_prior_precision=fixed, schedule=schedule,
                       median_sse=median, relative_regret=rel)
-    if out_dir is not None:
-        out.figures.extend(plot(out, out_dir))
     return out
 
 

@@ -283,7 +283,7 @@ def _check(quick, trials, tuning) -> None:
             raise AttendInputError(f"{name}: expected an integer >= 2, got {value!r}")
 
 
-def run(quick: bool = True, out_dir=None, progress: bool = True, cluster=None, trials: int | None = None,
+def run(quick: bool = True, progress: bool = True, cluster=None, trials: int | None = None,
         tuning_seeds: int | None = None, settings_per_family: int | None = None,
         points: list[int] | None = None) -> ExperimentResult:
     """Tune every schedule family on the tuning seeds, then compare the tuned families on the
@@ -292,8 +292,7 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, cluster=None, t
     quick: 2 + 2 settings, 2 parameter settings per family, 2 tuning / 3 trial seeds (< 60 s);
     otherwise the full grid, 6 per family, 8 tuning / 25 trial seeds. trials, tuning_seeds,
     settings_per_family, points (indices into the grid of the mode) override them. progress: a
-    progress bar; cluster: a Dask scheduler address or client (see attend.sweep.run_tasks);
-    out_dir: when given, :func:`plot` draws ``rhythm-tradeoff.png`` there."""
+    progress bar; cluster: a Dask scheduler address or client (see attend.sweep.run_tasks)."""
     _check(quick, trials, tuning_seeds)
     start = time.perf_counter()
     mode = "quick" if quick else "full"
@@ -329,8 +328,6 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, cluster=None, t
     result.settings["trial_seed_list"] = trial
     result.data = dict(table=table)
     result.tables["map"] = [{k: v for k, v in row.items() if k != "index"} for row in table]
-    if out_dir is not None:
-        result.figures.extend(plot(result, out_dir))
     return result
 
 

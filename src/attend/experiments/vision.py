@@ -83,10 +83,9 @@ def revisit_rate_while_uncertain(episode, entropy_level: float = 1.0) -> float:
     return float(np.mean(landings)) if landings else float("nan")
 
 
-def run(quick: bool = True, out_dir=None, progress: bool = True, scenes: int | None = None) -> ExperimentResult:
+def run(quick: bool = True, progress: bool = True, scenes: int | None = None) -> ExperimentResult:
     """Both parts (module docstring). quick: 16 scenes, 20 saccades (else 100, 30); scenes:
-    override the number of scenes; progress: progress bars; out_dir: when given, :func:`plot`
-    draws the figures (PNG, GIF) there."""
+    override the number of scenes; progress: progress bars."""
     cfg = dict(SETTINGS, **(QUICK if quick else FULL))
     if scenes is not None:
         cfg["scenes"] = scenes
@@ -105,8 +104,6 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, scenes: int | N
     _where_to_look(result, cfg, eye, rhythm, fixation_dose, progress)
     _when_to_look(result, cfg, eye, _timing_policies(cfg, oscillator, rhythm, perception, suppression),
                   fixation_dose, progress)
-    if out_dir is not None:
-        result.figures.extend(plot(result, out_dir))
     return result
 
 

@@ -7,6 +7,7 @@
 %       and of the unknown input), and out.json: samples, wall and CPU seconds, Octave version.
 % One sample is one bin (attend's dt = 1 s), so f, s and the precisions carry over unscaled.
 % Only the D-step runs: parameters and precisions fixed.
+crash_dumps_octave_core(false);                 % no octave-workspace file on exit
 addpath(spm_root); addpath(fullfile(spm_root, 'toolbox', 'DEM'));
 addpath(fullfile(fileparts(mfilename('fullpath')), 'stubs'), '-begin');   % headless: no figures
 if ~exist('kernel_width', 'var'), kernel_width = 0.5; end   % [bins]

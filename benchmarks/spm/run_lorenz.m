@@ -7,6 +7,7 @@
 %       and out.json: samples, wall and CPU seconds, samples per CPU second, Octave version.
 % SPM works in time bins: f is attend's f [1/s] times dt, W is attend's Pi_w [s^2] / dt^2,
 % E.s is attend's kernel_width / dt. Only the D-step runs: parameters and precisions fixed.
+crash_dumps_octave_core(false);                 % no octave-workspace file on exit
 addpath(spm_root); addpath(fullfile(spm_root, 'toolbox', 'DEM'));
 addpath(fullfile(fileparts(mfilename('fullpath')), 'stubs'), '-begin');   % headless: no figures
 if ~exist('dt', 'var'), dt = 0.01; end                 % attend's sample time [s]

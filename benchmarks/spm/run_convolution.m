@@ -15,6 +15,7 @@ if ~exist('order', 'var'), order = 6; end
 if ~exist('log_precision', 'var'), log_precision = 8; end   % Pi_z = Pi_w = exp(8)
 if ~exist('prior_log_precision', 'var'), prior_log_precision = -8; end
 if ~exist('linear', 'var'), linear = 1; end
+if ~exist('input_order', 'var'), input_order = order; end   % E.d (attend's input_order)
 D = dlmread(data, ',');
 Y = D(:, 1:4)';
 N = size(Y, 2);
@@ -25,7 +26,7 @@ C = [0.125 0.1633; 0.125 0.0676; 0.125 -0.0676; 0.125 -0.1633];
 M = struct();
 M(1).E.s = kernel_width;
 M(1).E.n = order;
-M(1).E.d = order;                      % input orders = state orders (attend's input_order = p)
+M(1).E.d = input_order;                % default E.d = E.n (attend's input_order = p)
 M(1).E.nD = 1;
 M(1).E.nE = 1; M(1).E.nM = 1; M(1).E.nN = 1;
 M(1).E.linear = linear;                % 1: SPM's linear model (derivatives once)

@@ -90,17 +90,18 @@ def convolution_estimator() -> DEMObserver:
 
 def spm_style_flow(system: NonlinearSystem, outputs, dt: float, kernel_width: float, sensor_precision: float,
                    process_precision: float, start, embedding_order: int = EMBEDDING_ORDER,
-                   input_prior_precision: float = 0.0, *, move_data: bool = True, top_error_zero: bool = True,
-                   report_before_step: bool = True) -> tuple[np.ndarray, np.ndarray]:
+                   input_prior_precision: float = 0.0, input_order: int | None = None, *, move_data: bool = True,
+                   top_error_zero: bool = True, report_before_step: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """spm_DEM's D-step re-derived in Python: a diagnostic that reproduces the stored SPM outputs,
     each flag switching one SPM convention to attend's. Returns the order-0 estimates of the
-    states (N, n) and of the unknown inputs (N, r) (input prior mean 0, E.d = E.n).
+    states (N, n) and of the unknown inputs (N, r) (input prior mean 0).
 
     system: f, g (attend's units); outputs: (N, m); dt: sample time [s]; kernel_width: s [s];
     sensor_precision, process_precision, input_prior_precision: Pi_z, Pi_w, P_v (scalars times I);
-    start: order-0 states of the first bin (SPM's M(1).x); embedding_order: E.n = E.d.
+    start: order-0 states of the first bin (SPM's M(1).x); embedding_order: E.n; input_order:
+    E.d <= E.n (default E.n): v has E.d + 1 orders, the higher ones pinned at 0 in the errors.
     Units are SPM's bins: x^(i) per bin^i, f_bin = dt f, Pi_w,bin = Pi_w / dt^2, s_bin = s / dt.
-    Per bin k, with u = [x~; v~] (p + 1 orders each) and y~ the clamped embedding of y at k:
+    Per bin k, with u = [x~; v~] and y~ the clamped embedding of y at k:
     e_y^(i) = y^(i) - g^(i), e_v^(i) = v^(i), e_x^(i) = x^(i+1) - f^(i) (order 0: g(x, v), f(x, v);
     order i: gx x^(i) + gv v^(i), fx x^(i) + fv v^(i)), the top order's e_x set to 0
     (``top_error_zero``, SPM; attend keeps -f^(p)); precisions kron(S(s_bin), Pi).
@@ -111,6 +112,7 @@ def spm_style_flow(system: NonlinearSystem, outputs, dt: float, kernel_width: fl
     reached from bin k - 1; attend reports the state after the update with bin k's data.
     """
     n, r, m, orders = system.n_states, system.n_inputs, system.n_outputs, embedding_order + 1
+    v_orders = orders if input_order is None else min(input_order, embedding_order) + 1
     S = smoothness_precision(orders, kernel_width / dt)
     blocks = [np.kron(S, sensor_precision * np.eye(m)), np.kron(S, input_prior_precision * np.eye(r)),
               np.kron(S, process_precision / dt**2 * np.eye(n))]
@@ -121,18 +123,20 @@ def spm_style_flow(system: NonlinearSystem, outputs, dt: float, kernel_width: fl
         Pi[offset: offset + len(block), offset: offset + len(block)] = block
         offset += len(block)
     I = np.eye(orders)
-    D_u = np.zeros((orders * (n + r),) * 2)
+    D_u = np.zeros((orders * n + v_orders * r,) * 2)
     D_u[: orders * n, : orders * n] = shift_operator(orders, n)
-    D_u[orders * n:, orders * n:] = shift_operator(orders, r)
+    D_u[orders * n:, orders * n:] = shift_operator(v_orders, r)
+    I_v = np.eye(orders, v_orders)
     Dy = shift_operator(orders, m)
     embedded = embed(np.asarray(outputs, float), orders, 1.0, edges="clamp")
     dE_dy = np.zeros((size, orders * m))
     dE_dy[: orders * m] = np.eye(orders * m)
-    u = np.zeros(orders * (n + r))
+    u = np.zeros(orders * n + v_orders * r)
     u[:n] = start
     states, inputs = [], []
     for y_tilde in embedded:
-        x, v = u[: orders * n].reshape(orders, n), u[orders * n:].reshape(orders, r)
+        x, v = u[: orders * n].reshape(orders, n), np.zeros((orders, r))
+        v[:v_orders] = u[orders * n:].reshape(v_orders, r)
         fx, fv, gx, gv = system.jacobians(x[0], v[0])
         fx, fv = dt * fx, dt * fv
         f_tilde, g_tilde = x @ fx.T + v @ fv.T, x @ gx.T + v @ gv.T
@@ -141,9 +145,9 @@ def spm_style_flow(system: NonlinearSystem, outputs, dt: float, kernel_width: fl
         if top_error_zero:
             e_x[-1] = 0.0
         error = np.concatenate([y_tilde - g_tilde.ravel(), v.ravel(), e_x.ravel()])
-        dE_du = np.block([[-np.kron(I, gx), -np.kron(I, gv)],
-                          [np.zeros((orders * r, orders * n)), np.eye(orders * r)],
-                          [shift_operator(orders, n) - np.kron(I, fx), -np.kron(I, fv)]])
+        dE_du = np.block([[-np.kron(I, gx), -np.kron(I_v, gv)],
+                          [np.zeros((orders * r, orders * n)), np.kron(I_v, np.eye(r))],
+                          [shift_operator(orders, n) - np.kron(I, fx), -np.kron(I_v, fv)]])
         gradient = -dE_du.T @ Pi @ error
         jacobian = -dE_du.T @ Pi @ dE_du + D_u
         if report_before_step:
@@ -284,6 +288,36 @@ def decompose() -> None:
                 print(row)
 
 
+def check_input_order() -> None:
+    """SPM with E.d = 2 < E.n = 6 and a strong input prior (P_v = 1; convolution seed 0, stored as
+    convolution_d2_seed0_spm.csv): spm_style_flow reproduces it, and with attend's conventions it
+    reproduces attend's DEMObserver with precision_convention="max" (not "size")."""
+    spm_path = REFERENCE / "convolution_d2_seed0_spm.csv"
+    if not spm_path.exists():
+        return
+    spm = np.loadtxt(spm_path, delimiter=",")
+    data = np.loadtxt(REFERENCE / "convolution_seed0_data.csv", delimiter=",")
+    c, outputs = CONVOLUTION, data[:, :4]
+    arguments = (c["dt"], c["kernel_width"], np.exp(c["log_precision"]), np.exp(c["log_precision"]), np.zeros(2),
+                 EMBEDDING_ORDER, 1.0)
+    system = convolution_as_nonlinear()
+    flow_x, flow_u = spm_style_flow(system, outputs, *arguments, input_order=2)
+    print("\n== E.d = 2 < E.n = 6, P_v = 1 (convolution seed 0; SSE over all samples)")
+    print(f"spm_style_flow (SPM's conventions) vs spm_DEM: x {np.sum((flow_x - spm[:, :2]) ** 2):.2g}, "
+          f"u {np.sum((flow_u - spm[:, 2:]) ** 2):.2g}")
+    flow_x, flow_u = spm_style_flow(system, outputs, *arguments, input_order=2, move_data=False,
+                                    top_error_zero=False, report_before_step=False)
+    for convention in ("max", "size"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            estimate = DEMObserver(convolution_model(), c["dt"], c["kernel_width"], np.exp(c["log_precision"]),
+                                   np.exp(c["log_precision"]), 1.0, embedding_order=EMBEDDING_ORDER, input_order=2,
+                                   edges="clamp", initial_state=np.zeros(2), allow_unstable=True,
+                                   precision_convention=convention).estimate(outputs)
+        print(f"spm_style_flow (attend's conventions) vs DEMObserver(precision_convention={convention!r}): "
+              f"x {np.sum((flow_x - estimate.states) ** 2):.2g}, u {np.sum((flow_u - estimate.inputs) ** 2):.2g}")
+
+
 def main() -> None:
     """Command line: --export rewrites the data; otherwise compare with the stored SPM outputs."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -298,6 +332,7 @@ def main() -> None:
         compare(case)
     if args.decompose:
         decompose()
+        check_input_order()
 
 
 if __name__ == "__main__":

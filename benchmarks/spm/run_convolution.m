@@ -9,7 +9,8 @@
 % Only the D-step runs: parameters and precisions fixed.
 crash_dumps_octave_core(false);                 % no octave-workspace file on exit
 addpath(spm_root); addpath(fullfile(spm_root, 'toolbox', 'DEM'));
-addpath(fullfile(fileparts(mfilename('fullpath')), 'stubs'), '-begin');   % headless: no figures
+here = fileparts(mfilename('fullpath'));
+addpath(here); addpath(fullfile(here, 'stubs'), '-begin');   % run_spm_dem; headless: no figures
 if ~exist('kernel_width', 'var'), kernel_width = 0.5; end   % [bins]
 if ~exist('order', 'var'), order = 6; end
 if ~exist('log_precision', 'var'), log_precision = 8; end   % Pi_z = Pi_w = exp(8)
@@ -18,7 +19,6 @@ if ~exist('linear', 'var'), linear = 1; end
 if ~exist('input_order', 'var'), input_order = order; end   % E.d (attend's input_order)
 D = dlmread(data, ',');
 Y = D(:, 1:4)';
-N = size(Y, 2);
 
 A = [-0.25 1; -0.5 -0.25];
 B = [1; 0];
@@ -38,15 +38,4 @@ M(1).V = exp(log_precision);           % Pi_z
 M(1).W = exp(log_precision);           % Pi_w
 M(2).v = 0;                            % the unknown input, prior mean 0
 M(2).V = exp(prior_log_precision);     % its prior precision P_v
-DEM.M = M;
-DEM.Y = Y;
-DEM.U = zeros(1, N);
-tic; cpu0 = cputime;
-DEM = spm_DEM(DEM);
-elapsed = toc; cpu = cputime - cpu0;
-dlmwrite(out, [full(DEM.qU.x{1})' full(DEM.qU.v{2})'], 'delimiter', ',', 'precision', '%.17g');
-fid = fopen([out '.json'], 'w');
-fprintf(fid, '{"samples": %d, "wall_seconds": %.4f, "cpu_seconds": %.4f, "samples_per_second": %.2f, "octave": "%s", "E_linear": %d}\n', ...
-        N, elapsed, cpu, N / cpu, OCTAVE_VERSION, linear);
-fclose(fid);
-printf('%d samples in %.2f s CPU (%.1f samples/s; wall %.2f s)\n', N, cpu, N / cpu, elapsed);
+run_spm_dem(M, Y, out, true);

@@ -1,6 +1,6 @@
 % SPM reference for attend's Lorenz case: spm_DEM's D-step on data simulated by attend.
 %
-%   octave --no-gui --eval "spm_root='/work/spm12'; data='in.csv'; out='out.csv'; run_lorenz"
+%   octave --no-gui --eval "spm_root='/work/spm12'; data='in.csv'; out='out.csv'; run('run_lorenz.m')"
 %
 % data: CSV, one row per sample: y1 y2 y3 (outputs) x1 x2 x3 (true states, unused here).
 % out:  CSV, one row per sample: qU.x{1}' (SPM's conditional mean of the states at that bin),
@@ -9,7 +9,8 @@
 % E.s is attend's kernel_width / dt. Only the D-step runs: parameters and precisions fixed.
 crash_dumps_octave_core(false);                 % no octave-workspace file on exit
 addpath(spm_root); addpath(fullfile(spm_root, 'toolbox', 'DEM'));
-addpath(fullfile(fileparts(mfilename('fullpath')), 'stubs'), '-begin');   % headless: no figures
+here = fileparts(mfilename('fullpath'));
+addpath(here); addpath(fullfile(here, 'stubs'), '-begin');   % run_spm_dem; headless: no figures
 if ~exist('dt', 'var'), dt = 0.01; end                 % attend's sample time [s]
 if ~exist('kernel_width', 'var'), kernel_width = 0.02; end
 if ~exist('process_std', 'var'), process_std = 20; end % [state unit / s]
@@ -17,7 +18,6 @@ if ~exist('measurement_std', 'var'), measurement_std = 1; end
 if ~exist('order', 'var'), order = 6; end
 D = dlmread(data, ',');
 Y = D(:, 1:3)';
-N = size(Y, 2);
 
 lorenz_dt = @(x, v, P) dt * [P(1)*(x(2) - x(1)); x(1)*(P(2) - x(3)) - x(2); x(1)*x(2) - P(3)*x(3)];
 M = struct();
@@ -37,15 +37,4 @@ M(1).V = eye(3) / measurement_std^2;   % Pi_z: fixed precision, no hyperparamete
 M(1).W = eye(3) / (process_std * dt)^2; % Pi_w in bins: w_bin = dt * w
 M(2).v = 0;                            % an autonomous system: one dummy cause pinned at 0
 M(2).V = exp(16);
-DEM.M = M;
-DEM.Y = Y;
-DEM.U = zeros(1, N);
-tic; cpu0 = cputime;
-DEM = spm_DEM(DEM);
-elapsed = toc; cpu = cputime - cpu0;
-dlmwrite(out, full(DEM.qU.x{1})', 'delimiter', ',', 'precision', '%.17g');
-fid = fopen([out '.json'], 'w');
-fprintf(fid, '{"samples": %d, "wall_seconds": %.4f, "cpu_seconds": %.4f, "samples_per_second": %.2f, "octave": "%s", "E_linear": %d}\n', ...
-        N, elapsed, cpu, N / cpu, OCTAVE_VERSION, linear);
-fclose(fid);
-printf('%d samples in %.2f s CPU (%.1f samples/s; wall %.2f s)\n', N, cpu, N / cpu, elapsed);
+run_spm_dem(M, Y, out, false);

@@ -4,9 +4,10 @@
 set -e
 here=$(cd "$(dirname "$0")" && pwd)
 root=${SPM_ROOT:-/work/spm12}
-linear=${SPM_LINEAR:-0}
-for data in "$here"/reference/lorenz_seed*_data.csv; do
-    out=${data%_data.csv}_spm.csv
-    octave --no-gui --quiet --eval "spm_root='$root'; data='$data'; out='$out'; linear=$linear; run('$here/run_lorenz.m')" 2>&1 \
-        | grep -v -e "^warning" -e "called from" -e "^ *spm_\|^ *run" -e "^ans" -e "^$" -e "preparing to exit" || true
+for case in lorenz convolution; do
+    for data in "$here"/reference/${case}_seed*_data.csv; do
+        out=${data%_data.csv}_spm.csv
+        octave --no-gui --quiet --eval "spm_root='$root'; data='$data'; out='$out'; run('$here/run_$case.m')" 2>&1 \
+            | grep "samples in" || true
+    done
 done

@@ -1,6 +1,6 @@
 """attend's DEM against SPM's spm_DEM on the same data (issue 15: agree within 5 % SSE).
 
-    PYTHONPATH=src python benchmarks/bench_spm.py [--decompose]   # compare with the stored SPM outputs
+    PYTHONPATH=src python benchmarks/bench_spm.py [--decompose] [--sweep 20]   # against the stored SPM outputs
     PYTHONPATH=src python benchmarks/bench_spm.py --export        # rewrite the data SPM is run on
 
 Two cases, 5 seeds each, data simulated by attend and stored in benchmarks/spm/reference/:
@@ -17,7 +17,8 @@ which SPM and Octave). This script needs no Octave: it runs attend on the stored
 per seed, the SSE of SPM and attend against the truth, their ratio (target: within 5 %) and the
 SSE between the two estimates, over samples p + 2 .. N - p - 1 (1-based; the reproductions' trim).
 ``--decompose`` attributes the differences to SPM's integration conventions with
-:func:`spm_style_flow`, a Python re-derivation of spm_DEM's D-step. Conventions: docs/spm.md.
+:func:`spm_style_flow`, a Python re-derivation of spm_DEM's D-step; ``--sweep N`` compares the
+two integrations on N fresh seeds per case with it. Conventions: docs/spm.md.
 """
 
 from __future__ import annotations
@@ -50,24 +51,29 @@ def convolution_input(time_points: np.ndarray) -> np.ndarray:
     return np.exp(-0.25 * (time_points - 12.0) ** 2)[:, None]
 
 
-def export() -> None:
-    """Write <case>_seed<k>_data.csv for both cases (columns: outputs, true states, true input)."""
-    cfg = lorenz.SETTINGS
-    system = lorenz.build_system(cfg)
-    REFERENCE.mkdir(parents=True, exist_ok=True)
-    for seed in SEEDS:
-        log = simulate_nonlinear(system, LORENZ_SAMPLES, cfg["dt"], kernel_width=cfg["kernel_width"],
+def simulated_data(case: str, seed: int) -> np.ndarray:
+    """One data set of ``case`` ("lorenz" or "convolution") as stored: outputs, true states (and
+    the true input), one row per sample."""
+    if case == "lorenz":
+        cfg = lorenz.SETTINGS
+        log = simulate_nonlinear(lorenz.build_system(cfg), LORENZ_SAMPLES, cfg["dt"], kernel_width=cfg["kernel_width"],
                                  process_std=cfg["process_std"], measurement_std=cfg["measurement_std"],
                                  initial_state=cfg["initial_state"], seed=seed)
-        np.savetxt(REFERENCE / f"lorenz_seed{seed}_data.csv", np.hstack([log.outputs, log.states]),
-                   delimiter=",", fmt="%.17g")
-        c = CONVOLUTION
-        u = convolution_input(np.arange(c["samples"]) * c["dt"])
-        std = np.exp(-c["log_precision"] / 2)
-        log = simulate(convolution_model(), u, c["dt"], kernel_width=c["kernel_width"], process_std=std,
-                       measurement_std=std, seed=seed)
-        np.savetxt(REFERENCE / f"convolution_seed{seed}_data.csv", np.hstack([log.outputs, log.states, log.inputs]),
-                   delimiter=",", fmt="%.17g")
+        return np.hstack([log.outputs, log.states])
+    c = CONVOLUTION
+    u = convolution_input(np.arange(c["samples"]) * c["dt"])
+    std = np.exp(-c["log_precision"] / 2)
+    log = simulate(convolution_model(), u, c["dt"], kernel_width=c["kernel_width"], process_std=std,
+                   measurement_std=std, seed=seed)
+    return np.hstack([log.outputs, log.states, log.inputs])
+
+
+def export() -> None:
+    """Write <case>_seed<k>_data.csv for both cases (columns: outputs, true states, true input)."""
+    REFERENCE.mkdir(parents=True, exist_ok=True)
+    for case in ("lorenz", "convolution"):
+        for seed in SEEDS:
+            np.savetxt(REFERENCE / f"{case}_seed{seed}_data.csv", simulated_data(case, seed), delimiter=",", fmt="%.17g")
     print(f"wrote {2 * len(SEEDS)} data files to {REFERENCE}")
 
 
@@ -318,12 +324,36 @@ def check_input_order() -> None:
               f"x {np.sum((flow_x - estimate.states) ** 2):.2g}, u {np.sum((flow_u - estimate.inputs) ** 2):.2g}")
 
 
+def sweep(seeds: int) -> None:
+    """Which integration is more accurate, on ``seeds`` fresh data sets per case (no Octave:
+    spm_style_flow with SPM's conventions stands for spm_DEM, which it reproduces): the median
+    and range of attend's SSE over SPM's, states and input."""
+    print(f"\n== {seeds} seeds per case: attend SSE / SPM-convention SSE (spm_style_flow)")
+    for case in ("lorenz", "convolution"):
+        state_ratio, input_ratio = [], []
+        for seed in range(seeds):
+            data = simulated_data(case, seed)
+            system, outputs, arguments = _flow_settings(case, data)
+            n, m = system.n_states, system.n_outputs
+            spm_x, spm_u = spm_style_flow(system, outputs, *arguments)
+            ours_x, ours_u, _ = _run_attend(case, data)
+            state_ratio.append(sse(ours_x, data[:, m: m + n]) / sse(spm_x, data[:, m: m + n]))
+            if system.n_inputs:
+                input_ratio.append(sse(ours_u, data[:, m + n:]) / sse(spm_u, data[:, m + n:]))
+        for label, ratios in (("states", state_ratio), ("input", input_ratio)):
+            if ratios:
+                print(f"{case:>11} {label:6s} median {np.median(ratios):.3f}  range {min(ratios):.3f}-{max(ratios):.3f}  "
+                      f"attend better on {sum(r < 1 for r in ratios)} of {len(ratios)}")
+
+
 def main() -> None:
     """Command line: --export rewrites the data; otherwise compare with the stored SPM outputs."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--export", action="store_true", help="write the simulated data SPM is run on")
     parser.add_argument("--decompose", action="store_true",
                         help="also attribute the differences to SPM's conventions (spm_style_flow)")
+    parser.add_argument("--sweep", type=int, default=0, metavar="SEEDS",
+                        help="also compare the two integrations on this many fresh seeds (no Octave needed)")
     args = parser.parse_args()
     if args.export:
         export()
@@ -333,6 +363,8 @@ def main() -> None:
     if args.decompose:
         decompose()
         check_input_order()
+    if args.sweep:
+        sweep(args.sweep)
 
 
 if __name__ == "__main__":

@@ -141,20 +141,17 @@ def test_online_filter_equals_batch_filter():
 
 def test_steady_gains_do_not_change_the_result(monkeypatch):
     """The steady-state shortcut equals the fully time-varying recursion."""
-    import attend.perception.kalman as kalman
+    import attend.perception.kalman_recursions as recursions
 
-    rng = np.random.default_rng(4)
-    system = random_system(rng, 2, 1, 1)
     dt, N = 0.1, 600
-    u = rng.normal(size=(N, 1))
-    log = attend.simulate(system, u, dt, kernel_width=0.3, process_std=0.1, measurement_std=0.05, seed=0)
+    system, u, log = random_log(4, (2, 1, 1), dt, N, kernel_width=0.3, process_std=0.1, measurement_std=0.05, seed=0)
     estimator = KalmanEstimator(system, dt, sensor_precision=400, process_precision=100, kernel_width=0.3)
     shortcut = estimator.estimate(log.outputs, u), estimator.filter(log.outputs, u)
     model = estimator._model
-    schedule = kalman._gain_schedule(model["T"], model["Q"], model["H"], estimator._initial(log.outputs)[1], N,
-                                     model["steady_predicted"])
+    schedule = recursions._gain_schedule(model["T"], model["Q"], model["H"], estimator._initial(log.outputs)[1], N,
+                                         model["steady_predicted"])
     assert schedule.steady < N // 2  # the shortcut is really taken
-    monkeypatch.setattr(kalman, "STEADY_TOLERANCE", -1.0)  # never steady: every step time-varying
+    monkeypatch.setattr(recursions, "STEADY_TOLERANCE", -1.0)  # never steady: every step time-varying
     exact = estimator.estimate(log.outputs, u), estimator.filter(log.outputs, u)
     scale = np.abs(exact[0].states).max()
     for fast, slow in zip(shortcut, exact):

@@ -41,7 +41,6 @@ from attend.noise import (
     white_state_space,
 )
 from attend.perception.kalman_recursions import (
-    STEADY_TOLERANCE,  # noqa: F401 (importable from attend.perception.kalman as before)
     _filter_variances,
     _filtered_means,
     _gain_schedule,

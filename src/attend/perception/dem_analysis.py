@@ -44,7 +44,7 @@ LOW_NODES = 1024
 #: or when the outputs do not change its conditional variance (see DEMObserver.analysis).
 UNOBSERVABLE_RATIO = 100.0
 #: Unknown inputs with at least this prior precision (std <= 1e-5 input units) count as given
-#: (measured inputs passed as unknowns, as io.py and the quadrotor benchmark do): not flagged.
+#: (measured inputs passed as unknowns, as attend.io and the quadrotor benchmark do): not flagged.
 PINNED_INPUT_PRECISION = 1e10
 
 

@@ -36,6 +36,7 @@ for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import json  # noqa: E402
 import time  # noqa: E402
+import timeit  # noqa: E402
 import warnings  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
 
@@ -674,12 +675,8 @@ def report(records: list[dict], summary: dict, elapsed: float) -> list[str]:
 # --- speed ---------------------------------------------------------------------------------
 
 def _best(function, repeats=3) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
+    """The shortest of ``repeats`` timed calls of ``function`` [s] (timeit: perf_counter, GC paused)."""
+    return min(timeit.repeat(function, number=1, repeat=repeats))
 
 
 def speed_system(n: int, seed: int = 0) -> LinearSystem:

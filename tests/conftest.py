@@ -18,3 +18,15 @@ def quadrotor_data() -> Path:
     if not QUADROTOR_DATA.is_dir():
         pytest.skip(f"quadrotor flight data not found at {QUADROTOR_DATA} (set ATTEND_SHARED)")
     return QUADROTOR_DATA
+
+
+def model_file_text(*sections) -> str:
+    """The text of a model file (TOML) from (header, {key: value}) pairs, e.g.
+    ("[observer]", {"kernel_width": 0.5}) or ("[[inputs]]", {...}): one ``key = value`` line per entry,
+    values written as JSON (which TOML reads alike for numbers, strings in double quotes and lists),
+    a blank line between sections. Tests edit the text with str.replace, so it is plain and stable."""
+    import json
+
+    tables = [header + "\n" + "".join(f"{key} = {json.dumps(value)}\n" for key, value in table.items())
+              for header, table in sections]
+    return "\n" + "\n".join(tables)

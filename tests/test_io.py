@@ -6,29 +6,16 @@ import pytest
 from attend import io
 from attend._validation import AttendInputError
 from attend.data import demo_paths
+from conftest import model_file_text
 
-MODEL = """
-[model]
-A = [[-0.25, 1.0], [-0.5, -0.25]]
-B = [[1.0], [0.0]]
-C = [[0.125, 0.1633], [0.125, -0.1633]]
-dt = 0.1
-
-[outputs]
-columns = ["y1", "y2"]
-
-[[inputs]]
-name = "u"
-prior_mean = 0.0
-prior_precision = 0.01
-
-[observer]
-kernel_width = 0.5
-embedding_order = 4
-input_order = 2
-sensor_precision = 2980.0
-process_precision = 2980.0
-"""
+MODEL = model_file_text(
+    ("[model]", {"A": [[-0.25, 1.0], [-0.5, -0.25]], "B": [[1.0], [0.0]], "C": [[0.125, 0.1633], [0.125, -0.1633]],
+                 "dt": 0.1}),
+    ("[outputs]", {"columns": ["y1", "y2"]}),
+    ("[[inputs]]", {"name": "u", "prior_mean": 0.0, "prior_precision": 0.01}),
+    ("[observer]", {"kernel_width": 0.5, "embedding_order": 4, "input_order": 2, "sensor_precision": 2980.0,
+                    "process_precision": 2980.0}),
+)
 
 
 def _write(tmp_path, model=MODEL, rows=None, header="t,y1,y2"):
@@ -41,6 +28,14 @@ def _write(tmp_path, model=MODEL, rows=None, header="t,y1,y2"):
     text = header + "\n" + "\n".join(",".join(f"{v:.10g}" for v in row) for row in rows)
     log_path.write_text(text + "\n")
     return model_path, log_path
+
+
+def _refused(tmp_path, model_text: str, message: str) -> None:
+    """Reading the model text, or estimating with it on the default log, fails with ``message``."""
+    model_path, log_path = _write(tmp_path, model_text)
+    with pytest.raises(AttendInputError, match=message):
+        model = io.read_model(model_path)
+        io.estimate_from_files(model, io.read_log(log_path))
 
 
 def test_round_trip_estimate(tmp_path):
@@ -93,10 +88,7 @@ def test_demo_matches_shared_flight(quadrotor_data):
     ],
 )
 def test_bad_model_files_name_the_field(tmp_path, edit, message):
-    model_path, log_path = _write(tmp_path, edit(MODEL))
-    with pytest.raises(AttendInputError, match=message):
-        model = io.read_model(model_path)
-        io.estimate_from_files(model, io.read_log(log_path))
+    _refused(tmp_path, edit(MODEL), message)
 
 
 def test_bad_logs_name_the_problem(tmp_path):
@@ -164,10 +156,7 @@ def test_bad_logs_name_the_problem(tmp_path):
     ],
 )
 def test_model_files_are_strict_and_speak_in_their_own_keys(tmp_path, edit, message):
-    model_path, log_path = _write(tmp_path, edit(MODEL))
-    with pytest.raises(AttendInputError, match=message):
-        model = io.read_model(model_path)
-        io.estimate_from_files(model, io.read_log(log_path))
+    _refused(tmp_path, edit(MODEL), message)
 
 
 def test_log_errors_name_the_file_line_and_column(tmp_path):

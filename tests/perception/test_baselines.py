@@ -15,14 +15,19 @@ DT = 0.1
 SEEDS = 60
 
 
+def _stable_system(rng, n, r, m, margin):
+    """A random system (A, B, C drawn from rng in that order) whose slowest pole is at -margin 1/s."""
+    A = rng.normal(size=(n, n))
+    A -= (np.max(np.linalg.eigvals(A).real) + margin) * np.eye(n)
+    return LinearSystem(A, rng.normal(size=(n, r)), rng.normal(size=(m, n)))
+
+
 @pytest.fixture(scope="module")
 def problem():
     """A random stable 3-state, 2-input, 2-output system with random data and a full R."""
     rng = np.random.default_rng(1)
     n, r, m, N = 3, 2, 2, 40
-    A = rng.normal(size=(n, n))
-    A -= (np.max(np.linalg.eigvals(A).real) + 0.5) * np.eye(n)
-    system = LinearSystem(A, rng.normal(size=(n, r)), rng.normal(size=(m, n)))
+    system = _stable_system(rng, n, r, m, 0.5)
     return dict(
         system=system, u=rng.normal(size=(N, r)), y=rng.normal(size=(N, m)),
         Q=np.diag([0.1, 0.2, 0.05]), R=np.array([[0.3, 0.1], [0.1, 0.2]]),
@@ -150,9 +155,7 @@ def test_coloured_noise_correlation_matches_the_sampler():
 def test_exact_posterior_equals_rts_in_the_white_noise_limit():
     rng = np.random.default_rng(4)
     n, r, m, N = 3, 2, 2, 30
-    A = rng.normal(size=(n, n))
-    A -= (np.max(np.linalg.eigvals(A).real) + 0.3) * np.eye(n)
-    system = LinearSystem(A, rng.normal(size=(n, r)), rng.normal(size=(m, n)))
+    system = _stable_system(rng, n, r, m, 0.3)
     u = rng.normal(size=(N, r))
     process_std, measurement_std, initial_std = [0.5, 1.0, 2.0], [0.3, 0.1], [0.2, 0.4, 0.1]
     x0 = np.array([0.3, -0.2, 0.1])

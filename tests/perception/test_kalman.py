@@ -20,6 +20,15 @@ def random_system(rng, n, m, r):
             return attend.LinearSystem(A, B, C)
 
 
+def random_log(rng_seed, sizes, dt, N, **noise):
+    """random_system(rng, *sizes) (n, m, r) with rng = default_rng(rng_seed), standard normal inputs
+    (N, r) from the same rng, and attend.simulate's log of it (noise: its keyword arguments)."""
+    rng = np.random.default_rng(rng_seed)
+    system = random_system(rng, *sizes)
+    u = rng.normal(size=(N, sizes[2]))
+    return system, u, attend.simulate(system, u, dt, **noise)
+
+
 def gp_inputs(rng, N, r, dt, width, mean, std):
     t = np.arange(N) * dt
     K = np.exp(-((t[:, None] - t[None, :]) ** 2) / (4 * width**2))
@@ -59,11 +68,8 @@ def test_known_inputs_reach_the_exact_posterior(seed, process_ratio, sensor_rati
 
 def test_white_noise_smoother_equals_the_rts_smoother():
     """With both widths 0 the model is the white-noise one: the classic RTS smoother."""
-    rng = np.random.default_rng(5)
-    system = random_system(rng, 3, 1, 2)
     dt, N = 0.05, 200
-    u = rng.normal(size=(N, 2))
-    log = attend.simulate(system, u, dt, kernel_width=0.0, process_std=0.1, measurement_std=0.05, seed=1)
+    system, u, log = random_log(5, (3, 1, 2), dt, N, kernel_width=0.0, process_std=0.1, measurement_std=0.05, seed=1)
     estimator = KalmanEstimator(system, dt, sensor_precision=0.05**-2, process_precision=0.1**-2, kernel_width=0.0,
                                 initial_state=np.zeros(3), initial_state_std=0.5)
     ours = estimator.estimate(log.outputs, u)
@@ -123,11 +129,8 @@ def test_reported_std_is_calibrated_over_many_runs():
 
 
 def test_online_filter_equals_batch_filter():
-    rng = np.random.default_rng(2)
-    system = random_system(rng, 2, 1, 1)
     dt, N = 0.1, 150
-    u = rng.normal(size=(N, 1))
-    log = attend.simulate(system, u, dt, kernel_width=0.2, process_std=0.1, measurement_std=0.05, seed=0)
+    system, u, log = random_log(2, (2, 1, 1), dt, N, kernel_width=0.2, process_std=0.1, measurement_std=0.05, seed=0)
     estimator = KalmanEstimator(system, dt, sensor_precision=400, process_precision=100, kernel_width=0.2)
     batch = estimator.filter(log.outputs, u)
     online = estimator.online()
@@ -138,20 +141,17 @@ def test_online_filter_equals_batch_filter():
 
 def test_steady_gains_do_not_change_the_result(monkeypatch):
     """The steady-state shortcut equals the fully time-varying recursion."""
-    import attend.perception.kalman as kalman
+    import attend.perception.kalman_recursions as recursions
 
-    rng = np.random.default_rng(4)
-    system = random_system(rng, 2, 1, 1)
     dt, N = 0.1, 600
-    u = rng.normal(size=(N, 1))
-    log = attend.simulate(system, u, dt, kernel_width=0.3, process_std=0.1, measurement_std=0.05, seed=0)
+    system, u, log = random_log(4, (2, 1, 1), dt, N, kernel_width=0.3, process_std=0.1, measurement_std=0.05, seed=0)
     estimator = KalmanEstimator(system, dt, sensor_precision=400, process_precision=100, kernel_width=0.3)
     shortcut = estimator.estimate(log.outputs, u), estimator.filter(log.outputs, u)
     model = estimator._model
-    schedule = kalman._gain_schedule(model["T"], model["Q"], model["H"], estimator._initial(log.outputs)[1], N,
-                                     model["steady_predicted"])
+    schedule = recursions._gain_schedule(model["T"], model["Q"], model["H"], estimator._initial(log.outputs)[1], N,
+                                         model["steady_predicted"])
     assert schedule.steady < N // 2  # the shortcut is really taken
-    monkeypatch.setattr(kalman, "STEADY_TOLERANCE", -1.0)  # never steady: every step time-varying
+    monkeypatch.setattr(recursions, "STEADY_TOLERANCE", -1.0)  # never steady: every step time-varying
     exact = estimator.estimate(log.outputs, u), estimator.filter(log.outputs, u)
     scale = np.abs(exact[0].states).max()
     for fast, slow in zip(shortcut, exact):

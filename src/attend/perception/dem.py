@@ -32,26 +32,27 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-from scipy.linalg import expm
 
 from attend._threads import with_single_blas_thread
 from attend._validation import (
     AttendInputError,
     as_matrix,
-    numeric_array,
     order,
     positive_scalar,
     precision_matrix,
     require_finite,
 )
-from attend.generalized import block_precisions, embedding_weights, shift_operator, smoothness_condition
+from attend.generalized import smoothness_condition
 from attend.perception.dem_analysis import (
     derivative_scales,
-    marginal_variances,
+    PINNED_INPUT_PRECISION,
+    UNOBSERVABLE_RATIO,  # noqa: F401 (importable from attend.perception.dem as before)
+    observer_error_std,
     start_influence,
     start_time_constant,
-    steady_state_error_variance,
 )
+from attend.perception.dem_flow import flow_matrices, start_state
+from attend.perception.dem_online import OnlineDEM
 from attend.perception.recurrence import linear_recurrence
 from attend.systems import LinearSystem, ModelWarning, as_linear_system
 
@@ -63,13 +64,6 @@ AUTO_MAX_CONDITION = 1e8
 #: embedding_order="auto" accepts an order only if its start time constant (see DEMAnalysis) is at
 #: most this many sample times / kernel widths (or twice the best among the stable orders).
 AUTO_START_WIDTHS = 50
-#: A state / input is "unobservable" when its steady-state error variance exceeds this multiple of
-#: its prior (stationary) variance (the estimate is far worse than ignoring the data), is unbounded,
-#: or when the outputs do not change its conditional variance (see DEMObserver.analysis).
-UNOBSERVABLE_RATIO = 100.0
-#: Unknown inputs with at least this prior precision (std <= 1e-5 input units) count as given
-#: (measured inputs passed as unknowns, as io.py and the quadrotor benchmark do): not flagged.
-PINNED_INPUT_PRECISION = 1e10
 #: A log is too short for the observer ("drifting") when 5 start time constants exceed its length.
 DRIFT_FACTOR = 5.0
 
@@ -344,95 +338,7 @@ class DEMObserver:
         return dict(self._matrices)
 
     def _build(self, p: int) -> dict[str, np.ndarray]:
-        A, B, C = self.system.A, self.system.B, self.system.C
-        n, r, m = self.system.n_states, self.system.n_inputs, self.system.n_outputs
-        d = self.input_order
-        S_p, S_d = block_precisions(p, d, self.process_kernel_width, self.precision_convention)
-        S_pz = S_p if self.sensor_kernel_width == self.process_kernel_width else \
-            block_precisions(p, d, self.sensor_kernel_width, self.precision_convention)[0]
-        if self.input_kernel_width != self.process_kernel_width:
-            S_d = block_precisions(p, d, self.input_kernel_width, self.precision_convention)[1]
-        Ct = np.kron(np.eye(p + 1), C)
-        At = np.kron(np.eye(p + 1), A)
-        Bt = np.kron(np.eye(p + 1, d + 1), B)
-        Dx = shift_operator(p + 1, n)
-        Dv = shift_operator(d + 1, r)
-        Vy = np.kron(S_pz, self.sensor_precision)
-        W = np.kron(S_p, self.process_precision)
-        Vv = np.kron(S_d, self.input_prior_precision)
-        motion = Dx - At
-        Pxx = Ct.T @ Vy @ Ct + motion.T @ W @ motion
-        if self.known_inputs:
-            A_obs = Dx - Pxx
-            B_obs = np.hstack([Ct.T @ Vy, motion.T @ W @ Bt])  # drives: [y~; u~]
-            Pi_X = Pxx
-        else:
-            Pxv = -motion.T @ W @ Bt
-            Pvv = Vv + Bt.T @ W @ Bt
-            Pi_X = np.block([[Pxx, Pxv], [Pxv.T, Pvv]])
-            D_X = np.zeros_like(Pi_X)
-            D_X[: n * (p + 1), : n * (p + 1)] = Dx
-            D_X[n * (p + 1):, n * (p + 1):] = Dv
-            A_obs = D_X - Pi_X
-            B_obs = np.block([
-                [Ct.T @ Vy, np.zeros((n * (p + 1), r * (d + 1)))],
-                [np.zeros((r * (d + 1), m * (p + 1))), Vv],
-            ])  # drives: [y~; eta~]
-        size, width = A_obs.shape[0], B_obs.shape[1]
-        block = np.zeros((size + width, size + width))
-        block[:size, :size] = A_obs * self.dt
-        block[:size, size:] = B_obs * self.dt
-        with np.errstate(over="ignore", invalid="ignore"):
-            exponential = expm(block)
-        transition, gain = exponential[:size, :size], exponential[:size, size:]
-        if not np.all(np.isfinite(exponential)):
-            suspect = ("kernel_width" if self.kernel_width > 50 * self.dt
-                       else "sensor_precision, process_precision, input_prior_precision")
-            raise AttendInputError(
-                f"{suspect}: the observer's flow matrix could not be discretised (overflow) with kernel_width = "
-                f"{self.kernel_width:g} s, dt = {self.dt:g} s, p = {self.embedding_order}, d = {self.input_order} "
-                "(derivative order i is weighted by about kernel_width^(2i)); expected a kernel_width of a few "
-                "sample times, smaller precisions or lower embedding orders"
-            )
-        radius = float(np.max(np.abs(np.linalg.eigvals(transition))))
-        window_gain, offsets = self._fold_embedding(gain, p)
-        window_B_obs, _ = self._fold_embedding(B_obs, p)
-        order0 = np.r_[0:m, m * (p + 1): m * (p + 1) + r]  # columns of y and eta/u at order 0
-        try:
-            covariance = np.linalg.inv(Pi_X)
-        except np.linalg.LinAlgError:
-            covariance = np.linalg.pinv(Pi_X)
-        return dict(
-            Ct=Ct, At=At, Bt=Bt, Dx=Dx, Dv=Dv, Vy=Vy, W=W, Vv=Vv, S_p=S_p, S_d=S_d,
-            A_obs=A_obs, B_obs=B_obs, Pi_X=Pi_X, Sigma_X=covariance, S_pz=S_pz, radius=radius,
-            transition=transition, gain=gain, window_gain=window_gain, window_B_obs=window_B_obs,
-            offsets=offsets, order0_gain=gain[:, order0], order0_B_obs=B_obs[:, order0],
-        )
-
-    def _fold_embedding(self, gain: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray]:
-        """Fold the embedding weights into Gamma: drive[k] = sum_i G_i [y; u][k + offset_i].
-
-        Returns G stacked as (size, n_offsets * (m + r)) over the raw window (offsets ascending)
-        and the offsets relative to k.
-        """
-        m, r = self.system.n_outputs, self.system.n_inputs
-        d = self.input_order
-        Ey = embedding_weights(p + 1, self.dt)  # (p+1 orders, p+1 samples)
-        Eu = embedding_weights(d + 1, self.dt)
-        first = -max((p + 1) // 2, (d + 1) // 2)
-        last = max(self._after(p + 1), self._after(d + 1))
-        offsets = np.arange(first, last + 1)
-        width = m + r
-        folded = np.zeros((gain.shape[0], len(offsets) * width))
-        gain_y = gain[:, : m * (p + 1)].reshape(gain.shape[0], p + 1, m)
-        gain_u = gain[:, m * (p + 1):].reshape(gain.shape[0], d + 1, r)
-        for i in range(p + 1):  # sample i of the y window sits at offset i - (p + 1) // 2
-            column = (i - (p + 1) // 2 - first) * width
-            folded[:, column: column + m] += np.einsum("sjc,j->sc", gain_y, Ey[:, i])
-        for i in range(d + 1):
-            column = (i - (d + 1) // 2 - first) * width + m
-            folded[:, column: column + r] += np.einsum("sjc,j->sc", gain_u, Eu[:, i])
-        return folded, offsets + self.window_offset
+        return flow_matrices(self, p)
 
     # --- estimation ------------------------------------------------------------------------
 
@@ -476,52 +382,8 @@ class DEMObserver:
         return np.hstack([y, u])
 
     def _start_state(self, signals: np.ndarray, row: int, edge: bool) -> np.ndarray:
-        """Where the flow starts at row ``row``: order 0 from that row's own sample, every higher
-        order at its prior mean.
-
-        Order 0 is the static MAP of the sample [y; eta] (or [y; u]) given the prior: it
-        minimises |y - C x|^2_Pi_z + |v - eta|^2_P_v + |A x + B v|^2_Pi_w (the motion error at
-        order 0 with x' at its prior mean 0), by least squares with the minimum-norm deviation
-        from the prior where the data do not decide (so unobservable states start at 0, inputs
-        at eta); the constructor's ``initial_state`` replaces the states' part (the inputs then
-        take their MAP given it). Higher orders: 0 for the states; for unknown inputs the
-        derivatives of eta embedded from its window (0 at an order-0 edge row). Starting the
-        higher orders from the data instead (finite differences of noisy samples, or the static
-        MAP of the whole window) puts large values into the least precise coordinates, which a
-        slow observer mode then carries through the log.
-        """
-        system = self.system
-        n, r, m = system.n_states, system.n_inputs, system.n_outputs
-        A, B, C = system.A, system.B, system.C
-        Pz, Pw, Pv = self.sensor_precision, self.process_precision, self.input_prior_precision
-        sample = self._centre_samples(signals, np.array([row]))[0]
-        y, u = sample[:m], sample[m:]
-        p, d = self.embedding_order, self.input_order
-        X = np.zeros(self._matrices["transition"].shape[0])
-        if self.known_inputs:
-            if self.initial_state is not None:
-                X[:n] = self.initial_state
-            else:
-                normal = C.T @ Pz @ C + A.T @ Pw @ A
-                X[:n] = np.linalg.lstsq(normal, C.T @ Pz @ y - A.T @ Pw @ B @ u, rcond=1e-12)[0]
-            return X
-        if self.initial_state is not None:  # inputs: MAP given the states
-            x = self.initial_state
-            dv = np.linalg.lstsq(Pv + B.T @ Pw @ B, -B.T @ Pw @ (A @ x + B @ u), rcond=1e-12)[0]
-        else:  # deviations (dx, dv) from the prior means (0, eta)
-            normal = np.block([[C.T @ Pz @ C + A.T @ Pw @ A, A.T @ Pw @ B], [B.T @ Pw @ A, Pv + B.T @ Pw @ B]])
-            rhs = np.concatenate([C.T @ Pz @ y - A.T @ Pw @ B @ u, -B.T @ Pw @ B @ u])
-            deviation = np.linalg.lstsq(normal, rhs, rcond=1e-12)[0]
-            x, dv = deviation[:n], deviation[n:]
-        n_x = n * (p + 1)
-        X[:n] = x
-        if not edge:
-            centre = row + self.window_offset
-            window = signals[np.clip(np.arange(centre - (d + 1) // 2, centre - (d + 1) // 2 + d + 1),
-                                     0, signals.shape[0] - 1), m:]
-            X[n_x:] = (embedding_weights(d + 1, self.dt) @ window).reshape(-1)  # eta~, order-major
-        X[n_x: n_x + r] = u + dv
-        return X
+        """Where the flow starts at row ``row`` (see :func:`attend.perception.dem_flow.start_state`)."""
+        return start_state(self, signals, row, edge)
 
     def _edge_rows(self, n_samples: int, start: int, stop: int) -> np.ndarray:
         """Rows in [start, stop) whose embedding window reaches past the log (relative indices)."""
@@ -670,23 +532,6 @@ class DEMObserver:
             self._cache["start_time_constant"] = self._start_time_constant(self._matrices, self.embedding_order)
         return self._cache["start_time_constant"]
 
-    def _not_informed_by_outputs(self) -> np.ndarray:
-        """Generalised observability given the precisions: order-0 coordinate i is not informed
-        by the outputs when its conditional variance, diag(inv(Pi_X)), is the same (to 0.1 %) with
-        the sensory term C~' Vy C~ removed from Pi_X (or is unbounded either way)."""
-        mats = self._matrices
-        rows_x, rows_v = self._readout(self.embedding_order)
-        indices = np.concatenate([rows_x, rows_v])
-        Pi_X = mats["Pi_X"]
-        without = Pi_X.copy()
-        n_x = mats["Ct"].shape[1]
-        without[:n_x, :n_x] -= mats["Ct"].T @ mats["Vy"] @ mats["Ct"]
-        scale = np.clip(np.diag(Pi_X), 1e-300, None)
-        with_data = marginal_variances(Pi_X, indices, scale)
-        no_data = marginal_variances(without, indices, scale)
-        with np.errstate(invalid="ignore"):
-            return ~np.isfinite(with_data) | (with_data >= 0.999 * no_data)
-
     @with_single_blas_thread
     def analysis(self) -> DEMAnalysis:
         """Stability, start transient, conditioning and steady-state error std of this observer
@@ -708,25 +553,7 @@ class DEMObserver:
             state_std, input_std = np.full(n, np.nan), np.full(r, 0.0 if self.known_inputs else np.nan)
             unobservable = ()
         else:
-            rows_x, rows_v = self._readout(p)
-            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-                error_x, error_v, prior_x, prior_v = steady_state_error_variance(
-                    mats["transition"], mats["window_gain"], mats["offsets"], rows_x, rows_v,
-                    A=system.A, B=system.B, C=system.C, dt=self.dt,
-                    process_precision=self.process_precision, sensor_precision=self.sensor_precision,
-                    input_prior_precision=self.input_prior_precision,
-                    process_width=self.process_kernel_width, sensor_width=self.sensor_kernel_width,
-                    input_width=self.input_kernel_width, known_inputs=self.known_inputs,
-                )
-            errors = np.concatenate([error_x, error_v if not self.known_inputs else []])
-            priors = np.concatenate([prior_x, prior_v if not self.known_inputs else []])
-            with np.errstate(invalid="ignore", over="ignore"):
-                structural = self._not_informed_by_outputs()
-                if not self.known_inputs:  # measured inputs passed as pinned unknowns are given
-                    structural[n:] &= np.diag(self.input_prior_precision) < PINNED_INPUT_PRECISION
-                uninformed = ~np.isfinite(errors) | (errors > UNOBSERVABLE_RATIO * priors) | structural
-            unobservable = tuple(name for name, bad in zip(names, uninformed) if bad)
-            std = np.where(uninformed, np.nan, np.sqrt(np.where(uninformed, 0.0, errors)))
+            std, priors, unobservable = observer_error_std(self, names)
             self._cache["prior_std"] = np.sqrt(priors)
             state_std = std[:n]
             input_std = std[n:] if not self.known_inputs else np.zeros(r)
@@ -764,80 +591,3 @@ class DEMObserver:
     def online(self) -> "OnlineDEM":
         """A fixed-memory observer fed one sample at a time (see :class:`OnlineDEM`)."""
         return OnlineDEM(self)
-
-
-class OnlineDEM:
-    """Sample-by-sample DEM: fixed-size state, output delayed by ``observer.delay`` samples.
-
-    ``step(y, u)`` takes sample k (outputs, and the measured input or input prior) and returns
-    (states, inputs) at sample k - delay once enough samples have arrived (None before).
-    ``finish()`` returns the last ``delay`` estimates by repeating the final sample, as the
-    batch mode does at the end of a log; batch and online results agree sample by sample.
-    Memory does not grow with the length of the stream.
-    """
-
-    def __init__(self, observer: DEMObserver):
-        self.observer = observer
-        mats = observer._matrices
-        self._transition = mats["transition"]
-        self._gain = mats["window_gain"]
-        offsets = mats["offsets"]
-        self._before = int(-offsets[0])
-        self._window = len(offsets)
-        self._width = observer.system.n_outputs + observer.system.n_inputs
-        self._buffer = np.zeros((self._window, self._width))
-        self._count = 0
-        self._state: np.ndarray | None = None
-        self._n = observer.system.n_states
-        self._n_x = self._n * (observer.embedding_order + 1)
-        self._r = observer.system.n_inputs
-        self._order0 = observer.edges == "order0"
-
-    def _advance(self, edge: bool) -> tuple[np.ndarray, np.ndarray]:
-        mats = self.observer._matrices
-        if edge:
-            data = self._buffer[self._before]
-            drive = mats["order0_gain"] @ data
-        else:
-            data = self._buffer.reshape(-1)
-            drive = self._gain @ data
-        if self._state is None:
-            self._state = self.observer._start_state(self._buffer, self._before, edge)
-        self._state = self._transition @ self._state + drive
-        states = self._state[: self._n].copy()
-        if self.observer.known_inputs:
-            inputs = self._buffer[self._before, -self._r:].copy()
-        else:
-            inputs = self._state[self._n_x: self._n_x + self._r].copy()
-        return states, inputs
-
-    def step(self, output, input_value=None):
-        """Feed sample k (output: the outputs (m,); input_value: the input or input prior (r,),
-        default 0); return (states, inputs) of sample k - delay, or None while the first window fills."""
-        output = np.ravel(numeric_array(output, "step: output"))
-        input_value = np.zeros(self._r) if input_value is None else np.ravel(numeric_array(input_value, "step: input_value"))
-        sample = np.concatenate([output, input_value])
-        if sample.shape[0] != self._width:
-            raise AttendInputError(f"step: expected {self._width - self._r} outputs and {self._r} inputs")
-        require_finite(sample, "step sample")
-        if self._count == 0:
-            # samples before the first one are the first one repeated (as in batch mode)
-            self._buffer[:] = sample
-        else:
-            self._buffer[:-1] = self._buffer[1:]
-            self._buffer[-1] = sample
-        self._count += 1
-        lead = self._window - 1 - self._before  # future samples needed by the window
-        if self._count <= lead:
-            return None
-        row = self._count - 1 - lead
-        return self._advance(edge=self._order0 and row < self._before)
-
-    def finish(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        """Flush the estimates still waiting for future samples (end samples repeated)."""
-        lead = self._window - 1 - self._before
-        out = []
-        for _ in range(min(lead, self._count)):
-            self._buffer[:-1] = self._buffer[1:].copy()
-            out.append(self._advance(edge=self._order0))
-        return out

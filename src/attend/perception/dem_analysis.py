@@ -39,6 +39,14 @@ from attend.noise import gaussian_kernel
 UNIFORM_NODES = 2048
 LOW_NODES = 1024
 
+#: A state / input is "unobservable" when its steady-state error variance exceeds this multiple of
+#: its prior (stationary) variance (the estimate is far worse than ignoring the data), is unbounded,
+#: or when the outputs do not change its conditional variance (see DEMObserver.analysis).
+UNOBSERVABLE_RATIO = 100.0
+#: Unknown inputs with at least this prior precision (std <= 1e-5 input units) count as given
+#: (measured inputs passed as unknowns, as attend.io and the quadrotor benchmark do): not flagged.
+PINNED_INPUT_PRECISION = 1e10
+
 
 def kernel_spectrum(omegas: np.ndarray, dt: float, kernel_width: float) -> np.ndarray:
     """Power spectrum of attend.noise.coloured_noise at unit variance: |DTFT(h)|^2 for the
@@ -199,13 +207,9 @@ def steady_state_error_variance(transition, window_gain, offsets, rows_x, rows_v
     """
     from attend.systems import zero_order_hold
 
-    n, r, m = A.shape[0], B.shape[1], C.shape[0]
-    size = transition.shape[0]
+    n, r = A.shape[0], B.shape[1]
     Ad, Bd = zero_order_hold(A, B, dt)
     plant_poles = np.linalg.eigvals(Ad)
-    r_v = len(rows_v)  # 0 with known inputs
-    error_x, error_v = np.zeros(n), np.zeros(r_v)
-    prior_x, prior_v = np.zeros(n), np.zeros(r_v)
     if np.any(np.abs(plant_poles) > 1 + 1e-9):
         infinite = np.full(n, np.inf)
         return infinite, np.full(r, 0.0 if known_inputs else np.inf), infinite, np.full(r, 0.0 if known_inputs else np.inf)
@@ -216,54 +220,15 @@ def steady_state_error_variance(transition, window_gain, offsets, rows_x, rows_v
     for angle in on_circle:
         grid = grid[np.abs(grid - angle) > 1e-9]
     weights = trapezoid_weights(grid)
-
-    Lw, Uw = split_covariance(process_precision)
-    Lz, _ = split_covariance(sensor_precision)  # a sensor of precision 0 gets gain 0 from DEM
-    if known_inputs:
-        Lu, Uu = np.zeros((r, 0)), np.zeros((r, 0))
-    else:
-        Lu, Uu = split_covariance(input_prior_precision)
-    gains = window_gain.reshape(size, len(offsets), -1)[:, :, :m]  # (size, n_offsets, m)
-    identity_x, identity_v = np.eye(n), np.eye(r)
-
-    def integrand(omegas):
-        """Per-frequency (error_x, error_v, prior_x, prior_v, unbounded_x, unbounded_v), unweighted."""
-        z = np.exp(1j * omegas)
-        G = np.einsum("soc,ko->ksc", gains, np.exp(1j * np.outer(omegas, offsets)))
-        H = np.linalg.solve(np.eye(size)[None] - transition[None] / z[:, None, None], G)
-        RxHy, RvHy = H[:, rows_x, :], H[:, rows_v, :]
-        P = np.linalg.solve(z[:, None, None] * identity_x[None] - Ad[None], np.broadcast_to(identity_x, (len(z), n, n)))
-        Sw = kernel_spectrum(omegas, dt, process_width)
-        Sz = kernel_spectrum(omegas, dt, sensor_width)
-        through_y = np.einsum("kim,mj->kij", RxHy, C) - identity_x  # R_x H_y C - I
-        v_through_y = np.einsum("kim,mj->kij", RvHy, C)
-        power = lambda E, L: np.sum(np.abs(E @ L) ** 2, axis=-1)  # noqa: E731
-        Pw = P * dt
-        ex = power(through_y @ Pw, Lw) * Sw[:, None] + power(RxHy, Lz) * Sz[:, None]
-        ev = power(v_through_y @ Pw, Lw) * Sw[:, None] + power(RvHy, Lz) * Sz[:, None]
-        px = power(Pw, Lw) * Sw[:, None]
-        pv = np.zeros((len(z), r_v))
-        ux = power(through_y @ Pw, Uw) * Sw[:, None]
-        uv = power(v_through_y @ Pw, Uw) * Sw[:, None]
-        upx = power(Pw, Uw) * Sw[:, None]
-        if not known_inputs:
-            Su = process_spectrum(omegas, dt, input_width)
-            PB = P @ Bd
-            ex_u = through_y @ PB
-            ev_u = v_through_y @ PB - identity_v
-            ex += power(ex_u, Lu) * Su[:, None]
-            ev += power(ev_u, Lu) * Su[:, None]
-            px += power(PB, Lu) * Su[:, None]
-            pv += np.sum(Lu**2, axis=1)[None, :] * Su[:, None]
-            ux += power(ex_u, Uu) * Su[:, None]
-            uv += power(ev_u, Uu) * Su[:, None]
-            upx += power(PB, Uu) * Su[:, None]
-        return ex, ev, px, pv, ux, uv, upx
-
+    spectra = _ErrorSpectra(transition, window_gain, offsets, rows_x, rows_v, Ad, Bd, C, dt,
+                            process_precision, sensor_precision, input_prior_precision,
+                            process_width, sensor_width, input_width, known_inputs)
+    r_v = len(rows_v)  # 0 with known inputs
+    error_x, error_v, prior_x, prior_v = np.zeros(n), np.zeros(r_v), np.zeros(n), np.zeros(r_v)
     unbounded_x, unbounded_v, unbounded_prior = np.zeros(n), np.zeros(r_v), np.zeros(n)
     for start in range(0, len(grid), chunk):
         omegas, w = grid[start: start + chunk], weights[start: start + chunk]
-        ex, ev, px, pv, ux, uv, upx = integrand(omegas)
+        ex, ev, px, pv, ux, uv, upx = spectra(omegas)
         error_x += w @ ex
         error_v += w @ ev
         prior_x += w @ px
@@ -275,19 +240,81 @@ def steady_state_error_variance(transition, window_gain, offsets, rows_x, rows_v
     error_x[unbounded_x > 1e-12 * np.maximum(unbounded_prior, 1e-300)] = np.inf
     error_v[unbounded_v > 1e-12] = np.inf
     prior_x[unbounded_prior > 0] = np.inf
-    if Uu.shape[1]:
-        prior_v[np.sum(Uu**2, axis=1) > 1e-12] = np.inf
+    if spectra.Uu.shape[1]:
+        prior_v[np.sum(spectra.Uu**2, axis=1) > 1e-12] = np.inf
     # a plant pole on the unit circle: the variance is unbounded where the integrand grows like
     # 1 / distance^2 towards the pole (the filter does not cancel it)
     for angle in on_circle:
         side = -1.0 if angle > np.pi / 2 else 1.0
-        near = [a[0] for a in integrand(np.array([angle + side * 1e-5]))[:4]]
-        nearer = [a[0] for a in integrand(np.array([angle + side * 1e-6]))[:4]]
+        near = [a[0] for a in spectra(np.array([angle + side * 1e-5]))[:4]]
+        nearer = [a[0] for a in spectra(np.array([angle + side * 1e-6]))[:4]]
         for variance, a, b in zip((error_x, error_v, prior_x, prior_v), near, nearer):
             variance[b > 10 * np.maximum(a, 1e-300)] = np.inf
     if known_inputs:
         return error_x, np.zeros(r), prior_x, np.zeros(r)
     return error_x, error_v, prior_x, prior_v
+
+
+class _ErrorSpectra:
+    """The integrand of :func:`steady_state_error_variance`: per frequency, the power spectra of the
+    error and of the prior of the order-0 states and inputs (the arguments as there; Ad, Bd the
+    plant's zero-order hold)."""
+
+    def __init__(self, transition, window_gain, offsets, rows_x, rows_v, Ad, Bd, C, dt,
+                 process_precision, sensor_precision, input_prior_precision,
+                 process_width, sensor_width, input_width, known_inputs):
+        n, r, m = Ad.shape[0], Bd.shape[1], C.shape[0]
+        size = transition.shape[0]
+        self.transition, self.offsets, self.rows_x, self.rows_v = transition, offsets, rows_x, rows_v
+        self.Ad, self.Bd, self.C, self.dt, self.known_inputs = Ad, Bd, C, dt, known_inputs
+        self.process_width, self.sensor_width, self.input_width = process_width, sensor_width, input_width
+        self.Lw, self.Uw = split_covariance(process_precision)
+        self.Lz, _ = split_covariance(sensor_precision)  # a sensor of precision 0 gets gain 0 from DEM
+        if known_inputs:
+            self.Lu, self.Uu = np.zeros((r, 0)), np.zeros((r, 0))
+        else:
+            self.Lu, self.Uu = split_covariance(input_prior_precision)
+        self.gains = window_gain.reshape(size, len(offsets), -1)[:, :, :m]  # (size, n_offsets, m)
+        self.identity_x, self.identity_v = np.eye(n), np.eye(r)
+
+    def __call__(self, omegas):
+        """Per-frequency (error_x, error_v, prior_x, prior_v, unbounded_x, unbounded_v,
+        unbounded_prior), unweighted."""
+        dt, identity_x, identity_v = self.dt, self.identity_x, self.identity_v
+        Lw, Uw, Lz, Lu, Uu = self.Lw, self.Uw, self.Lz, self.Lu, self.Uu
+        size, n = self.transition.shape[0], self.Ad.shape[0]
+        z = np.exp(1j * omegas)
+        G = np.einsum("soc,ko->ksc", self.gains, np.exp(1j * np.outer(omegas, self.offsets)))
+        H = np.linalg.solve(np.eye(size)[None] - self.transition[None] / z[:, None, None], G)
+        RxHy, RvHy = H[:, self.rows_x, :], H[:, self.rows_v, :]
+        P = np.linalg.solve(z[:, None, None] * identity_x[None] - self.Ad[None],
+                            np.broadcast_to(identity_x, (len(z), n, n)))
+        Sw = kernel_spectrum(omegas, dt, self.process_width)
+        Sz = kernel_spectrum(omegas, dt, self.sensor_width)
+        through_y = np.einsum("kim,mj->kij", RxHy, self.C) - identity_x  # R_x H_y C - I
+        v_through_y = np.einsum("kim,mj->kij", RvHy, self.C)
+        power = lambda E, L: np.sum(np.abs(E @ L) ** 2, axis=-1)  # noqa: E731
+        Pw = P * dt
+        ex = power(through_y @ Pw, Lw) * Sw[:, None] + power(RxHy, Lz) * Sz[:, None]
+        ev = power(v_through_y @ Pw, Lw) * Sw[:, None] + power(RvHy, Lz) * Sz[:, None]
+        px = power(Pw, Lw) * Sw[:, None]
+        pv = np.zeros((len(z), len(self.rows_v)))
+        ux = power(through_y @ Pw, Uw) * Sw[:, None]
+        uv = power(v_through_y @ Pw, Uw) * Sw[:, None]
+        upx = power(Pw, Uw) * Sw[:, None]
+        if not self.known_inputs:
+            Su = process_spectrum(omegas, dt, self.input_width)
+            PB = P @ self.Bd
+            ex_u = through_y @ PB
+            ev_u = v_through_y @ PB - identity_v
+            ex += power(ex_u, Lu) * Su[:, None]
+            ev += power(ev_u, Lu) * Su[:, None]
+            px += power(PB, Lu) * Su[:, None]
+            pv += np.sum(Lu**2, axis=1)[None, :] * Su[:, None]
+            ux += power(ex_u, Uu) * Su[:, None]
+            uv += power(ev_u, Uu) * Su[:, None]
+            upx += power(PB, Uu) * Su[:, None]
+        return ex, ev, px, pv, ux, uv, upx
 
 
 def marginal_variances(precision: np.ndarray, indices: np.ndarray, scale: np.ndarray) -> np.ndarray:
@@ -301,3 +328,57 @@ def marginal_variances(precision: np.ndarray, indices: np.ndarray, scale: np.nda
     null_weight = np.sum(rows[:, ~keep] ** 2, axis=1)
     variance = np.sum(rows[:, keep] ** 2 / values[keep], axis=1) / scale[indices]
     return np.where(null_weight > 1e-8, np.inf, variance)
+
+
+def not_informed_by_outputs(observer) -> np.ndarray:
+    """Generalised observability given the precisions: order-0 coordinate i is not informed
+    by the outputs when its conditional variance, diag(inv(Pi_X)), is the same (to 0.1 %) with
+    the sensory term C~' Vy C~ removed from Pi_X (or is unbounded either way).
+
+    observer: the DEMObserver; returns one flag per order-0 state and unknown input.
+    """
+    mats = observer._matrices
+    rows_x, rows_v = observer._readout(observer.embedding_order)
+    indices = np.concatenate([rows_x, rows_v])
+    Pi_X = mats["Pi_X"]
+    without = Pi_X.copy()
+    n_x = mats["Ct"].shape[1]
+    without[:n_x, :n_x] -= mats["Ct"].T @ mats["Vy"] @ mats["Ct"]
+    scale = np.clip(np.diag(Pi_X), 1e-300, None)
+    with_data = marginal_variances(Pi_X, indices, scale)
+    no_data = marginal_variances(without, indices, scale)
+    with np.errstate(invalid="ignore"):
+        return ~np.isfinite(with_data) | (with_data >= 0.999 * no_data)
+
+
+def observer_error_std(observer, names) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """Steady-state error std of a stable DEM observer's order-0 states and unknown inputs
+    (:func:`steady_state_error_variance`), NaN where the outputs do not inform them.
+
+    A quantity is uninformed when its error variance is unbounded or above UNOBSERVABLE_RATIO
+    times its prior variance, or :func:`not_informed_by_outputs` flags it (inputs with prior
+    precision >= PINNED_INPUT_PRECISION count as given). observer: the DEMObserver; names: the
+    names of the states and unknown inputs, in order. Returns (std, prior variances, names of
+    the uninformed ones).
+    """
+    mats, system, n = observer._matrices, observer.system, observer.system.n_states
+    rows_x, rows_v = observer._readout(observer.embedding_order)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        error_x, error_v, prior_x, prior_v = steady_state_error_variance(
+            mats["transition"], mats["window_gain"], mats["offsets"], rows_x, rows_v,
+            A=system.A, B=system.B, C=system.C, dt=observer.dt,
+            process_precision=observer.process_precision, sensor_precision=observer.sensor_precision,
+            input_prior_precision=observer.input_prior_precision,
+            process_width=observer.process_kernel_width, sensor_width=observer.sensor_kernel_width,
+            input_width=observer.input_kernel_width, known_inputs=observer.known_inputs,
+        )
+    errors = np.concatenate([error_x, error_v if not observer.known_inputs else []])
+    priors = np.concatenate([prior_x, prior_v if not observer.known_inputs else []])
+    with np.errstate(invalid="ignore", over="ignore"):
+        structural = not_informed_by_outputs(observer)
+        if not observer.known_inputs:  # measured inputs passed as pinned unknowns are given
+            structural[n:] &= np.diag(observer.input_prior_precision) < PINNED_INPUT_PRECISION
+        uninformed = ~np.isfinite(errors) | (errors > UNOBSERVABLE_RATIO * priors) | structural
+    unobservable = tuple(name for name, bad in zip(names, uninformed) if bad)
+    std = np.where(uninformed, np.nan, np.sqrt(np.where(uninformed, 0.0, errors)))
+    return std, priors, unobservable

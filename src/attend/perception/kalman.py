@@ -29,7 +29,6 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve
 
 from attend._threads import single_blas_thread, with_single_blas_thread
 from attend._validation import AttendInputError, as_matrix, positive_scalar, precision_matrix, require_finite
@@ -41,7 +40,16 @@ from attend.noise import (
     sampled_autocorrelation,
     white_state_space,
 )
-from attend.perception.recurrence import linear_recurrence
+from attend.perception.kalman_recursions import (
+    _filter_variances,
+    _filtered_means,
+    _gain_schedule,
+    _gain_stream,
+    _predicted_means,
+    _smoothed_means,
+    _smoother_variances,
+    _steady_predicted_covariance,
+)
 from attend.systems import LinearSystem, ModelWarning
 
 __all__ = ["KalmanEstimator", "StateEstimate", "OnlineKalman"]
@@ -209,7 +217,6 @@ class KalmanEstimator:
         for name, channels, model in blocks[1:]:
             block = slices[name]
             T[block, block] = np.kron(np.eye(channels), model.transition)
-            width = block.stop - block.start
             noise_in[block, column: column + channels] = np.kron(np.eye(channels), model.noise_input[:, None])
             column += channels
             readout[name] = np.kron(np.eye(channels), model.output[None, :])  # (channels, width)
@@ -388,283 +395,6 @@ def unobservable_directions(A: np.ndarray, C: np.ndarray, tolerance: float = 1e-
         return np.zeros((size, 0))
     complement = np.linalg.svd(np.eye(size) - basis @ basis.T)[0][:, : size - basis.shape[1]]
     return complement
-
-
-# --- the recursions --------------------------------------------------------------------------
-#
-# Filter (sample k): a_p[k] = T a_f[k-1] + b[k-1], nu[k] = y[k] - H a_p[k], a_f[k] = a_p[k] + K[k] nu[k].
-# Smoother in the Bryson-Frazier form (no inverse of the predicted covariance, which the nearly
-# deterministic noise states make ill-conditioned):
-#     lam[k] = H' inv(S[k]) nu[k] + (I - K[k] H)' T' lam[k+1],      lam[N] = 0
-#     a_s[k] = a_p[k] + P_p[k] lam[k]
-#     Lam[k] = H' inv(S[k]) H + (I - K[k] H)' T' Lam[k+1] T (I - K[k] H),   P_s[k] = P_p[k] - P_p[k] Lam[k] P_p[k]
-
-STEADY_TOLERANCE = 1e-6
-"""Relative change of the gain (and of the smoother's Lam) below which the recursion is steady.
-
-The noise models' white floor (1e-8 of each noise's variance) makes the covariances
-ill-conditioned enough that rounding moves the gain by ~1e-7 relative from step to step, so the
-test cannot be much tighter; the estimates move by about this relative amount."""
-
-
-class _GainSchedule(NamedTuple):
-    """Gains and covariances of samples 0..steady; from ``steady`` on they are constant."""
-
-    gains: np.ndarray          # (steady + 1, dim, m): K[k]
-    innovation_weights: np.ndarray  # (steady + 1, dim, m): H' inv(S[k])
-    predicted: np.ndarray      # (steady + 1, dim, dim): P_p[k] (P_p[0] = the prior)
-    steady: int                # first sample whose gain is the steady gain (or the last sample)
-
-
-def _steady_predicted_covariance(T, Q, H) -> np.ndarray | None:
-    """P_p of the steady filter from the discrete algebraic Riccati equation, or None.
-
-    The measurement noise lives in the state (R = 0); a white measurement variance of 1e-14 of
-    the predicted outputs' scale makes the equation regular without changing the result.
-    """
-    from scipy.linalg import solve_discrete_are
-
-    scale = max(float(np.max(np.abs(np.diag(H @ Q @ H.T)))), float(np.max(np.abs(np.diag(Q)))), 1e-300)
-    try:
-        with np.errstate(all="ignore"):
-            P = solve_discrete_are(T.T, H.T, Q, 1e-14 * scale * np.eye(H.shape[0]))
-    except (np.linalg.LinAlgError, ValueError):
-        return None
-    if not np.all(np.isfinite(P)):
-        return None
-    # polish: iterate the filter's own recursion (Joseph form, as _gain_stream) to its fixed point,
-    # which the regularised solver misses by up to ~1e-5 when the noise models are ill-conditioned
-    identity = np.eye(T.shape[0])
-    best = np.inf
-    stalled = 0
-    for _ in range(500):
-        P = 0.5 * (P + P.T)
-        try:
-            K = cho_solve(cho_factor(H @ P @ H.T, lower=True), H @ P).T
-        except np.linalg.LinAlgError:
-            return None
-        A = identity - K @ H
-        new = T @ (A @ P @ A.T) @ T.T + Q
-        change = np.max(np.abs(new - P)) / max(np.max(np.abs(np.diag(new))), 1e-300)
-        P = new
-        if change < 1e-13:
-            break
-        stalled = stalled + 1 if change >= 0.5 * best else 0
-        best = min(best, change)
-        if stalled >= 10:  # at the rounding floor
-            break
-    return 0.5 * (P + P.T)
-
-
-class _Plateau:
-    """Detects a recursion that has stopped converging: its relative distance to the limit is
-    below 1e-4 and has not fallen by 10 % in ``window`` steps (rounding noise: going on would
-    not get closer). A slow but steady convergence (halving time < ~1300 steps) is not a plateau."""
-
-    def __init__(self, window: int = 200):
-        self.window, self.best, self.since = window, np.inf, 0
-
-    def reached(self, distance: float) -> bool:
-        if distance < 0.9 * self.best:
-            self.best, self.since = distance, 0
-        else:
-            self.since += 1
-        return self.best < 1e-4 and self.since >= self.window
-
-
-def _blockwise_distance(K, steady_gain, blocks) -> float:
-    """max over row blocks (plant, each noise model) of max|K_b - K_b,steady| / max|K_b,steady|:
-    each block on its own scale, so the small plant gains are not judged against the noise gains."""
-    floor = 1e-12 * max(np.max(np.abs(steady_gain)), 1e-300)
-    worst = 0.0
-    for block in blocks:
-        reference = steady_gain[block]
-        if reference.size:
-            worst = max(worst, np.max(np.abs(K[block] - reference)) / max(np.max(np.abs(reference)), floor))
-    return worst
-
-
-def _innovation_weight(H, P) -> np.ndarray:
-    """H' inv(H P H'), with a Cholesky factor; rounding can leave S = H P H' a hair short of
-    positive definite after a diffuse start collapses (variances falling by 1e10 in one update),
-    so a white variance of 1e-12 .. 1e-8 of its mean diagonal is added before giving up."""
-    S = H @ P @ H.T
-    S = 0.5 * (S + S.T)
-    scale = max(float(np.mean(np.abs(np.diag(S)))), 1e-300)
-    for jitter in (0.0, 1e-12, 1e-10, 1e-8):
-        try:
-            return cho_solve(cho_factor(S + jitter * scale * np.eye(len(S)), lower=True), H).T
-        except np.linalg.LinAlgError:
-            continue
-    raise AttendInputError("sensor_precision: the predicted outputs' covariance is singular; check "
-                           "sensor_precision and C")
-
-
-def _gain_stream(T, Q, H, P0, steady_predicted=None, blocks=None, patience: int = 3):
-    """Yield (K[k], H' inv(S[k]), P_p[k], steady) for k = 0, 1, ...
-
-    The covariance recursion runs until its gain is within STEADY_TOLERANCE of the steady gain
-    of the Riccati equation, block by block (``blocks``: row slices; default the whole gain), for
-    ``patience`` samples, or until the distance sits at the rounding floor (_Plateau); from then
-    on the Riccati solution itself is yielded with steady = True (every later sample uses it).
-    """
-    blocks = [slice(None)] if blocks is None else list(blocks)
-    tolerance = STEADY_TOLERANCE
-    steady = None
-    if steady_predicted is not None:
-        try:
-            factor = cho_factor(H @ steady_predicted @ H.T, lower=True)
-            weight = cho_solve(factor, H).T
-            steady = (steady_predicted @ weight, weight, steady_predicted, True)
-        except np.linalg.LinAlgError:
-            steady = None
-    P = 0.5 * (P0 + P0.T)
-    calm = 0
-    plateau = _Plateau()
-    identity = np.eye(T.shape[0])
-    K = None
-    while True:
-        if K is not None:
-            A = identity - K @ H
-            P = T @ (A @ P @ A.T) @ T.T + Q  # Joseph form of the update, then predict
-            P = 0.5 * (P + P.T)
-        weight = _innovation_weight(H, P)  # H' inv(S)
-        K = P @ weight
-        if steady is not None and tolerance >= 0:
-            distance = _blockwise_distance(K, steady[0], blocks)
-            calm = calm + 1 if distance <= tolerance else 0
-            if plateau.reached(distance):
-                calm = patience
-        if calm >= patience:
-            while True:
-                yield steady
-        yield K, weight, P, False
-
-
-def _gain_schedule(T, Q, H, P0, n_samples: int, steady_predicted=None, blocks=None) -> _GainSchedule:
-    """The first samples of :func:`_gain_stream`: up to the first steady one, or the whole log."""
-    gains, weights, predicted = [], [], []
-    stream = _gain_stream(T, Q, H, P0, steady_predicted, blocks)
-    for k, (K, weight, P, steady) in zip(range(n_samples), stream):
-        gains.append(K)
-        weights.append(weight)
-        predicted.append(P)
-        if steady:
-            break
-    return _GainSchedule(np.array(gains), np.array(weights), np.array(predicted), len(gains) - 1)
-
-
-def _at(array: np.ndarray, k: int) -> np.ndarray:
-    """Entry k of a schedule array, the steady (last) entry beyond it."""
-    return array[min(k, len(array) - 1)]
-
-
-def _predicted_means(schedule: _GainSchedule, T, H, y, drive, mean0) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted means a_p[k] and innovations nu[k] for every sample."""
-    N, dim = y.shape[0], T.shape[0]
-    predicted = np.empty((N, dim))
-    mean = mean0
-    head = min(schedule.steady + 1, N)
-    for k in range(head):
-        if k:
-            mean = T @ (mean + schedule.gains[k - 1] @ (y[k - 1] - H @ mean)) + drive[k - 1]
-        predicted[k] = mean
-    if head < N:  # a_p[k] = T (I - K H) a_p[k-1] + T K y[k-1] + b[k-1]
-        K = schedule.gains[-1]
-        transition = T @ (np.eye(dim) - K @ H)
-        forcing = y[head - 1: N - 1] @ (T @ K).T + drive[head - 1: N - 1]
-        predicted[head:] = linear_recurrence(transition, forcing, predicted[head - 1])
-    return predicted, y - predicted @ H.T
-
-
-def _filtered_means(schedule: _GainSchedule, predicted, innovations, output_map) -> np.ndarray:
-    """output_map @ a_f[k] for every sample."""
-    N = predicted.shape[0]
-    head = min(schedule.steady, N)
-    out = predicted @ output_map.T
-    for k in range(head):
-        out[k] += output_map @ (schedule.gains[k] @ innovations[k])
-    out[head:] += innovations[head:] @ (output_map @ schedule.gains[-1]).T
-    return out
-
-
-def _smoothed_means(schedule: _GainSchedule, T, H, predicted, innovations, output_map) -> np.ndarray:
-    """output_map @ a_s[k] for every sample (the smoothed augmented state is never formed)."""
-    N, dim = predicted.shape
-    s = min(schedule.steady, N - 1)
-    lam = np.empty((N, dim))
-    scaled = np.empty((N, dim))  # H' inv(S[k]) nu[k]
-    scaled[s:] = innovations[s:] @ schedule.innovation_weights[-1].T
-    for k in range(s):
-        scaled[k] = schedule.innovation_weights[k] @ innovations[k]
-    # steady region: lam[k] = M lam[k+1] + scaled[k], M = (I - K H)' T'
-    K = schedule.gains[-1]
-    M = (np.eye(dim) - K @ H).T @ T.T
-    lam[s:] = linear_recurrence(M, scaled[s:][::-1], np.zeros(dim))[::-1]
-    for k in range(s - 1, -1, -1):
-        lam[k] = scaled[k] + (np.eye(dim) - schedule.gains[k] @ H).T @ (T.T @ lam[k + 1])
-    out = np.empty((N, output_map.shape[0]))
-    out[s:] = predicted[s:] @ output_map.T + lam[s:] @ (output_map @ schedule.predicted[-1]).T
-    for k in range(s):
-        out[k] = output_map @ (predicted[k] + schedule.predicted[k] @ lam[k])
-    return out
-
-
-def _filter_variances(schedule: _GainSchedule, H, output_map, N: int) -> np.ndarray:
-    out = np.empty((N, output_map.shape[0]))
-    identity = np.eye(H.shape[1])
-    for k in range(min(N, schedule.steady + 1)):
-        A = identity - schedule.gains[k] @ H
-        out[k] = np.einsum("ij,jl,il->i", output_map, A @ schedule.predicted[k] @ A.T, output_map)
-    out[schedule.steady + 1:] = out[min(N, schedule.steady + 1) - 1]
-    return out
-
-
-def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int) -> np.ndarray:
-    """diag(O P_s[k] O') with the backward recursion of Lam; constant in the middle of long logs."""
-    tolerance = STEADY_TOLERANCE
-    dim = T.shape[0]
-    identity = np.eye(dim)
-    s = min(schedule.steady, N - 1)
-
-    def closed(k):
-        return identity - _at(schedule.gains, k) @ H
-
-    def variance(k, Lam):
-        P = _at(schedule.predicted, k)
-        return np.einsum("ij,jl,il->i", output_map, P - P @ Lam @ P, output_map)
-
-    out = np.empty((N, output_map.shape[0]))
-    Lam = _at(schedule.innovation_weights, N - 1) @ H
-    out[N - 1] = variance(N - 1, Lam)
-    k = N - 2
-    calm = 0
-    previous_change = np.inf
-    plateau = _Plateau()
-    while k >= s:  # steady gains: Lam, and the reported variances, converge geometrically backwards
-        A = closed(k)
-        Lam = schedule.innovation_weights[-1] @ H + A.T @ T.T @ Lam @ T @ A
-        Lam = 0.5 * (Lam + Lam.T)
-        out[k] = variance(k, Lam)
-        scale = np.maximum(np.abs(out[k]), 1e-300)
-        change = float(np.max(np.abs(out[k] - out[k + 1]) / scale))  # relative, per reported variance
-        rate = min(change / previous_change, 0.999999) if previous_change > 0 else 0.0
-        previous_change = change
-        remaining = change * rate / (1 - rate)  # distance to the limit of a geometric sequence
-        calm = calm + 1 if remaining <= tolerance and change <= tolerance else 0
-        if plateau.reached(change):
-            calm = 3
-        k -= 1
-        if calm >= 3:
-            out[s: k + 1] = out[k + 1]
-            k = s - 1
-            break
-    for j in range(k, -1, -1):
-        A = closed(j)
-        Lam = schedule.innovation_weights[j] @ H + A.T @ T.T @ Lam @ T @ A
-        Lam = 0.5 * (Lam + Lam.T)
-        out[j] = variance(j, Lam)
-    return out
 
 
 class OnlineKalman:

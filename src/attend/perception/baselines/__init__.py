@@ -47,6 +47,7 @@ from attend.perception.baselines.filters import (
     simulation_covariances,
     steady_state_kalman_filter,
 )
+from attend.perception.baselines import identification
 from attend.perception.baselines.identification import (
     continuous_from_discrete,
     eigenvalue_error,
@@ -66,9 +67,5 @@ __all__ = [
     "augmented_kalman_filter",
     "exact_posterior",
     "coloured_noise_correlation",
-    "n4sid_baseline",
-    "em_baseline",
-    "continuous_from_discrete",
-    "transfer_function_error",
-    "eigenvalue_error",
+    *identification.__all__,
 ]

@@ -174,18 +174,25 @@ def _fixed_lag(mf, Pf, mp, Pp, gains, lag):
     return ms, Ps
 
 
-def _kalman(system, dt, outputs, inputs, process_covariance, measurement_covariance,
-            initial_mean, initial_covariance, mode, lag=0, inputs_field="inputs"):
+def _checked_problem(system, dt, outputs, inputs, process_covariance, measurement_covariance,
+                     inputs_field: str = "inputs"):
+    """(system, dt, y (N, m), u (N, r), Q, R) checked: R must be positive definite."""
     system = _system(system)
     dt = positive_scalar(dt, "dt", "s")
     y = _outputs(system, outputs)
     u = _inputs(system, inputs, y.shape[0], inputs_field)
-    n = system.n_states
-    Q = _covariance(process_covariance, n, "process_covariance")
+    Q = _covariance(process_covariance, system.n_states, "process_covariance")
     R = _covariance(measurement_covariance, system.n_outputs, "measurement_covariance")
     if np.linalg.eigvalsh(R).min() <= 0:
         raise AttendInputError("measurement_covariance: expected a positive definite covariance")
-    m0, P0 = _initial(initial_mean, initial_covariance, n)
+    return system, dt, y, u, Q, R
+
+
+def _kalman(system, dt, outputs, inputs, process_covariance, measurement_covariance,
+            initial_mean, initial_covariance, mode, lag=0, inputs_field="inputs"):
+    system, dt, y, u, Q, R = _checked_problem(system, dt, outputs, inputs, process_covariance,
+                                              measurement_covariance, inputs_field)
+    m0, P0 = _initial(initial_mean, initial_covariance, system.n_states)
     Ad, Bd = system.discretize(dt)
     mf, Pf, mp, Pp, ll = _filter_core(Ad, u @ Bd.T, Q, system.C, R, y, m0, P0)
     if mode == "smooth":
@@ -246,15 +253,9 @@ def steady_state_kalman_filter(system, dt, outputs, inputs=None, *, process_cova
     inputs (N, r) or None, process_covariance Q, measurement_covariance R and initial_mean m0:
     as :func:`kalman_filter`.
     """
-    system = _system(system)
-    dt = positive_scalar(dt, "dt", "s")
-    y = _outputs(system, outputs)
-    u = _inputs(system, inputs, y.shape[0])
+    system, dt, y, u, Q, R = _checked_problem(system, dt, outputs, inputs, process_covariance,
+                                              measurement_covariance)
     n = system.n_states
-    Q = _covariance(process_covariance, n, "process_covariance")
-    R = _covariance(measurement_covariance, system.n_outputs, "measurement_covariance")
-    if np.linalg.eigvalsh(R).min() <= 0:
-        raise AttendInputError("measurement_covariance: expected a positive definite covariance")
     m0, _ = _initial(initial_mean, None, n)
     Ad, Bd = system.discretize(dt)
     C = system.C

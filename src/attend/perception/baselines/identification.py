@@ -7,6 +7,10 @@ import numpy as np
 
 from attend.systems import LinearSystem
 
+#: The identification baselines and error metrics (re-exported by attend.perception.baselines and
+#: attend.perception.learning, in this order).
+__all__ = ["n4sid_baseline", "em_baseline", "continuous_from_discrete", "transfer_function_error", "eigenvalue_error"]
+
 
 def continuous_from_discrete(Ad, Bd, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Inverse zero-order hold: [[A, B], [0, 0]] = logm([[Ad, Bd], [0, I]]) / dt (real part)."""

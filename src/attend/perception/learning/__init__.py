@@ -154,13 +154,9 @@ basis-invariant error metrics live with the other baselines (:mod:`attend.percep
 """
 
 from attend.constants import KNOWN_PRIOR_PRECISION
-from attend.perception.baselines.identification import (
-    continuous_from_discrete,
-    eigenvalue_error,
-    em_baseline,
-    n4sid_baseline,
-    transfer_function_error,
-)
+from attend.perception.baselines import identification as _baselines
+from attend.perception.baselines.identification import (  # re-exported: the baselines of identify
+    continuous_from_discrete, eigenvalue_error, em_baseline, n4sid_baseline, transfer_function_error)
 from attend.perception.learning.batch import PAPER_LEARNER, BatchLearningResult, learn_batch
 from attend.perception.learning.identification import KNOWN_DISPLACED_STD, IdentificationResult, identify
 from attend.perception.learning.parameters import parameter_names, parameter_vector, system_from_parameters
@@ -178,9 +174,5 @@ __all__ = [
     "parameter_names",
     "parameter_vector",
     "system_from_parameters",
-    "n4sid_baseline",
-    "em_baseline",
-    "continuous_from_discrete",
-    "transfer_function_error",
-    "eigenvalue_error",
+    *_baselines.__all__,
 ]

@@ -1,0 +1,83 @@
+"""Running a model file's estimator on a log (`attend estimate`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from attend._validation import AttendInputError
+from attend.io.logs import Log
+from attend.io.model import ModelFile
+from attend.perception.dem import DEMEstimate, DEMObserver
+
+
+def _check_samples(model: ModelFile, log: Log, minimum: int, why: str) -> float:
+    """The log's sample time, after checking its length and the model's dt against it."""
+    if len(log.time) < minimum:
+        raise AttendInputError(f"{log.path}: expected at least {minimum} samples ({why}), got {len(log.time)}")
+    dt = log.dt
+    if model.dt is not None and abs(model.dt - dt) > 1e-4 * dt:
+        raise AttendInputError(
+            f"{model.path}: [model] dt = {model.dt} s but the log {log.path} is sampled every {dt:.6g} s"
+        )
+    return dt
+
+
+def _observer_of(model: ModelFile, dt: float) -> DEMObserver:
+    try:
+        return model.observer(dt)
+    except AttendInputError as error:  # in the file's words: P_v is the [[inputs]] prior_precision
+        message = str(error).replace("input_prior_precision", "[[inputs]] prior_precision")
+        raise AttendInputError(f"{model.path}: [observer] {message}") from None
+
+
+def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEstimate]:
+    """Run the model file's observer on the log (checks columns, finiteness and sample time)."""
+    outputs = log.matrix(model.output_columns)
+    signals = np.zeros((len(log.time), model.system.n_inputs))
+    for j, spec in enumerate(model.inputs):
+        if spec.known:
+            signals[:, j] = log.matrix([spec.column])[:, 0] - spec.operating_point
+        else:
+            signals[:, j] = spec.prior_mean
+    if model.nonlinear and model.method == "dem":
+        window = max(model.nonlinear_order(log.dt), model.input_order) + 1
+        dt = _check_samples(model, log, max(2, window), f"the embedding window of order {window - 1}")
+    elif model.nonlinear:
+        dt = _check_samples(model, log, 2, "the unscented Kalman smoother")
+    elif model.method == "dem":
+        order = model.learning_order  # "auto" picks p <= 6
+        window = max(order, model.input_order) + 1
+        dt = _check_samples(model, log, max(2, window), f"the embedding window of order {window - 1}")
+    else:
+        dt = _check_samples(model, log, 2, "the Kalman smoother")
+    observer = _observer_of(model, dt)
+    with np.errstate(over="ignore", invalid="ignore"):
+        if model.nonlinear:
+            try:
+                estimate = observer.estimate(outputs, signals)
+            except AttendInputError as error:
+                text = str(error)
+                if model.python_path and text.startswith(model.python_path):
+                    raise  # the user's f or g failed: the message names the file and the function
+                raise AttendInputError(f"{model.path}: [observer] method {model.method!r}: {text}") from None
+        else:
+            estimate = observer.estimate(outputs, signals)
+    for name, values in (("states", estimate.states), ("inputs", estimate.inputs)):
+        if not np.all(np.isfinite(values)):
+            raise AttendInputError(
+                f"{model.path}: [observer] the estimated {name} are not finite on the log {log.path}: the "
+                "observer is numerically unstable for these settings; expected smaller precisions, "
+                "lower embedding orders or a kernel_width of a few sample times"
+            )
+    names = list(model.system.state_names) + list(model.system.input_names)
+    undefined = ~np.all(np.isfinite(np.hstack([estimate.state_std, estimate.input_std])), axis=0)
+    if undefined.any():
+        hidden = ", ".join(name for name, bad in zip(names, undefined) if bad)
+        remedy = ("check the precisions and that g depends on them" if model.nonlinear else
+                  "or give [observer] initial_state and initial_state_std with method = \"kalman\" (their "
+                  "estimate is then the prior's)")
+        raise AttendInputError(
+            f"{model.path}: [observer] {hidden}: not informed by the outputs under these settings (no finite "
+            f"standard deviation); add outputs that see them, {remedy}"
+        )
+    return observer, estimate

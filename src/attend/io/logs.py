@@ -1,0 +1,121 @@
+"""CSV logs (read and checked) and the CSV of estimates."""
+
+from __future__ import annotations
+
+import csv
+import io as _text_io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from attend._validation import LARGEST_MAGNITUDE, AttendInputError, unique_names
+from attend.io.fields import _read_text
+from attend.perception.dem import DEMEstimate
+from attend.systems import LinearSystem
+
+
+@dataclass(frozen=True)
+class Log:
+    """A CSV log: time [s] (N,), and named columns."""
+
+    time: np.ndarray
+    columns: dict[str, np.ndarray]
+    path: str = ""
+    line_numbers: np.ndarray | None = None  # line of each sample in the file (errors name it)
+
+    @property
+    def dt(self) -> float:
+        """Mean sample time [s]."""
+        return float((self.time[-1] - self.time[0]) / (len(self.time) - 1))
+
+    def matrix(self, names) -> np.ndarray:
+        """Columns ``names`` side by side as an (N, len(names)) array; NaN, inf and values beyond
+        +-1e150 in them are errors naming the file, line and column."""
+        missing = [name for name in names if name not in self.columns]
+        if missing:
+            raise AttendInputError(
+                f"{self.path}: CSV is missing the declared column{'s' if len(missing) > 1 else ''} "
+                f"{', '.join(map(repr, missing))}; it has {', '.join(self.columns)}"
+            )
+        lines = self.line_numbers if self.line_numbers is not None else np.arange(len(self.time)) + 2
+        for name in names:
+            _check_log_column(self.columns[name], self.path, name, lines)
+        return np.column_stack([self.columns[name] for name in names]) if names else np.zeros((len(self.time), 0))
+
+
+def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: float = 1e-4) -> Log:
+    """Read a CSV log with a header; check the time column is present, finite and uniform.
+
+    UTF-8 with or without a BOM, LF or CRLF line ends. Every cell must be a number; values
+    beyond +-1e150 are errors. Time stamps count as uniform when every step is within
+    ``relative_tolerance`` of the mean step.
+    """
+    path = Path(path)
+    text = _read_text(path, "log")
+    try:
+        lines = list(csv.reader(_text_io.StringIO(text, newline=None)))
+    except csv.Error as error:
+        raise AttendInputError(f"{path}: not a readable CSV ({error})") from None
+    numbered = [(number_, row) for number_, row in enumerate(lines, start=1) if any(cell.strip() for cell in row)]
+    if not numbered:
+        raise AttendInputError(f"{path}: the CSV is empty (expected a header row and samples)")
+    header = [name.strip() for name in numbered[0][1]]
+    rows = numbered[1:]
+    unique_names([name for name in header if name], f"{path}: header")
+    if not rows:
+        raise AttendInputError(f"{path}: the CSV has a header but no samples")
+    if time_column not in header:
+        raise AttendInputError(f"{path}: CSV is missing the time column {time_column!r}; it has {', '.join(header)}")
+    try:
+        values = np.array([row for _, row in rows], dtype=float)
+    except ValueError:
+        for line, row in rows:
+            if len(row) != len(header):
+                raise AttendInputError(f"{path}: line {line} has {len(row)} fields, the header has {len(header)}") from None
+            for name, cell in zip(header, row):
+                try:
+                    float(cell)
+                except ValueError:
+                    raise AttendInputError(f"{path}: line {line}, column {name!r}: expected a number, got {cell!r}") from None
+        raise
+    line_numbers = np.array([line for line, _ in rows])
+    columns = {name: values[:, j] for j, name in enumerate(header)}
+    time = columns[time_column]
+    _check_log_column(time, path, time_column, line_numbers)
+    if len(time) >= 2:
+        steps = np.diff(time)
+        mean_step = (time[-1] - time[0]) / (len(time) - 1)
+        if mean_step <= 0:
+            raise AttendInputError(f"{path}: column {time_column!r}: time stamps must increase")
+        worst = int(np.argmax(np.abs(steps - mean_step)))
+        if abs(steps[worst] - mean_step) > relative_tolerance * mean_step:
+            raise AttendInputError(
+                f"{path}: column {time_column!r}: non-uniform time stamps (step {steps[worst]:.6g} s at line "
+                f"{line_numbers[worst + 1]}, mean step {mean_step:.6g} s); resample the log to a uniform rate first"
+            )
+    return Log(time, columns, str(path), line_numbers)
+
+
+def _check_log_column(values: np.ndarray, path, name: str, line_numbers: np.ndarray) -> None:
+    """NaN, inf and values beyond +-1e150 are errors naming the file, line and column."""
+    bad = ~np.isfinite(values) | (np.abs(values) > LARGEST_MAGNITUDE)
+    if bad.any():
+        row = int(np.argmax(bad))
+        expected = "a finite number" if not np.isfinite(values[row]) else f"a value within +-{LARGEST_MAGNITUDE:.0e}"
+        raise AttendInputError(
+            f"{path}: line {line_numbers[row]} (sample {row + 1}), column {name!r}: expected {expected}, got {values[row]:.6g}"
+        )
+
+
+
+def write_estimates(path: str | Path, log: Log, system: LinearSystem, estimate: DEMEstimate) -> Path:
+    """CSV with time, each state and input estimate, and their standard deviations."""
+    path = Path(path)
+    header = ["t"]
+    header += list(system.state_names) + list(system.input_names)
+    header += [f"{name}_std" for name in system.state_names] + [f"{name}_std" for name in system.input_names]
+    table = np.column_stack([log.time, estimate.states, estimate.inputs, estimate.state_std, estimate.input_std])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savetxt(path, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+    return path

@@ -1,0 +1,237 @@
+"""The parsed model file (:class:`ModelFile`) and the estimators it describes."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from attend._validation import AttendInputError, precision_matrix
+from attend.perception.dem import DEMObserver
+from attend.perception.nonlinear import NonlinearSystem
+from attend.systems import LinearSystem
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """One input: measured in ``column`` (known) or estimated with a Gaussian prior."""
+
+    name: str
+    column: str | None
+    prior_mean: float = 0.0
+    prior_precision: float = 1.0
+    operating_point: float = 0.0
+
+    @property
+    def known(self) -> bool:
+        """True when the input is measured (read from a CSV column)."""
+        return self.column is not None
+
+
+@dataclass(frozen=True)
+class ModelFile:
+    """A parsed model file: the system, its CSV mapping and the observer settings."""
+
+    system: LinearSystem
+    dt: float | None
+    output_columns: tuple[str, ...]
+    inputs: tuple[InputSpec, ...]
+    kernel_width: float | None
+    embedding_order: int | str
+    input_order: int
+    sensor_precision: object
+    process_precision: object
+    precision_convention: str
+    known_input_precision: float
+    time_column: str
+    learning: dict = None
+    path: str = ""
+    method: str = "kalman"
+    process_kernel_width: float | None = None
+    sensor_kernel_width: float | None = None
+    input_kernel_width: float | None = None
+    initial_state: tuple | None = None
+    initial_state_std: object = None
+    python_path: str = ""  # the Python file of a nonlinear model ([model] python), resolved
+
+    @property
+    def nonlinear(self) -> bool:
+        """True for a model given by f and g in a Python file ([model] python)."""
+        return isinstance(self.system, NonlinearSystem)
+
+    @property
+    def learning_order(self) -> int:
+        """The file's embedding order, or 6 (the largest that "auto" picks) when it says "auto"."""
+        return 6 if self.embedding_order == "auto" else int(self.embedding_order)
+
+    def observer(self, dt: float):
+        """The estimator the file describes (``[observer] method``), for logs sampled every ``dt`` s."""
+        if self.nonlinear:
+            return self.nonlinear_estimator(dt)
+        if self.method == "kalman":
+            return self.kalman(dt)
+        return self.dem(dt)
+
+    def nonlinear_order(self, dt: float) -> int:
+        """The DEM embedding order of a nonlinear model: the file's, or under "auto" the largest
+        p <= 6 whose S(s) stays well conditioned (cond <= 1e8 in sample units; the stability check
+        of the linear "auto" needs A, B, C)."""
+        from attend.generalized import smoothness_condition
+        from attend.perception.dem import AUTO_MAX_CONDITION, AUTO_MAX_ORDER
+
+        if self.embedding_order != "auto":
+            return int(self.embedding_order)
+        for p in range(AUTO_MAX_ORDER, 0, -1):
+            if smoothness_condition(p + 1, self.kernel_width, dt) <= AUTO_MAX_CONDITION:
+                return p
+        return 0
+
+    def nonlinear_estimator(self, dt: float) -> "NonlinearFileEstimator":
+        """The estimator of a nonlinear model file (see :class:`NonlinearFileEstimator`)."""
+        estimator = NonlinearFileEstimator(self, dt, self.method, self.nonlinear_order(dt),
+                                           self.embedding_order == "auto")
+        try:
+            estimator.dem()  # the settings are checked here, whichever method runs
+        except AttendInputError as error:
+            raise AttendInputError(f"{self.path}: [observer] {error}") from None
+        return estimator
+
+    def kalman(self, dt: float):
+        """The coloured-noise Kalman smoother: measured inputs drive the model, the others are estimated."""
+        from attend.perception.kalman import KalmanEstimator
+
+        known = [spec.known for spec in self.inputs]
+        prior = None if all(known) else np.array([1.0 if s.known else s.prior_precision for s in self.inputs])
+        try:
+            return KalmanEstimator(
+                self.system, dt, self.sensor_precision, self.process_precision, kernel_width=self.kernel_width,
+                process_kernel_width=self.process_kernel_width, sensor_kernel_width=self.sensor_kernel_width,
+                input_prior_precision=prior, input_kernel_width=self.input_kernel_width,
+                known_inputs=known if self.inputs else True,
+                initial_state=self.initial_state, initial_state_std=self.initial_state_std,
+            )
+        except AttendInputError as error:
+            raise AttendInputError(f"{self.path}: [observer] {error}") from None
+
+    def dem(self, dt: float) -> DEMObserver:
+        """The DEM observer the file describes, for logs sampled every ``dt`` seconds.
+
+        All inputs measured: the known-input observer. Otherwise inputs are unknowns; measured
+        ones get their measurement as prior mean with precision ``known_input_precision``.
+        """
+        all_known = all(spec.known for spec in self.inputs)
+        prior = None if all_known else np.array(
+            [self.known_input_precision if s.known else s.prior_precision for s in self.inputs]
+        )
+        try:
+            return DEMObserver(
+                self.system, dt, self.kernel_width, self.sensor_precision, self.process_precision,
+                prior, self.embedding_order, self.input_order, known_inputs=all_known,
+                precision_convention=self.precision_convention,
+                process_kernel_width=self.process_kernel_width, sensor_kernel_width=self.sensor_kernel_width,
+                input_kernel_width=self.input_kernel_width,
+                initial_state=None if self.initial_state is None else np.array(self.initial_state),
+            )
+        except AttendInputError as error:
+            raise AttendInputError(f"{self.path}: [observer] {error}") from None
+
+
+@dataclass(frozen=True)
+class NonlinearFileEstimator:
+    """The estimator of a nonlinear model file ([model] python), for logs sampled every ``dt`` s.
+
+    method "ukf": the unscented Kalman (RTS) smoother on a white-noise model with the coloured
+    noises' per-sample variance (Q = dt^2 inv(Pi_w), R = inv(Pi_z)); unknown inputs ride in the
+    state as random walks whose one-sample increments have the variance of their prior's
+    (:func:`attend.perception.nonlinear_baselines.input_random_walk_variance`), started at the prior mean; measured inputs drive f and g.
+    Without [observer] initial_state the smoother starts from DEM's estimate of the first sample
+    and its std. method "dem": :class:`attend.perception.nonlinear.NonlinearDEM` (measured inputs,
+    when some are unknown, get their measurement as prior mean with precision known_input_precision).
+    """
+
+    model: "ModelFile"
+    dt: float
+    method: str
+    embedding_order: int
+    automatic_order: bool
+
+    @property
+    def system(self) -> NonlinearSystem:
+        return self.model.system
+
+    @property
+    def known(self) -> np.ndarray:
+        return np.array([spec.known for spec in self.model.inputs], dtype=bool)
+
+    def dem(self):
+        """The NonlinearDEM of the file's settings."""
+        from attend.perception.nonlinear import NonlinearDEM
+
+        model, known = self.model, self.known
+        all_known = bool(known.all())
+        prior = None if all_known else np.array(
+            [model.known_input_precision if spec.known else spec.prior_precision for spec in model.inputs])
+        return NonlinearDEM(
+            self.system, self.dt, model.kernel_width, model.sensor_precision, model.process_precision, prior,
+            self.embedding_order, model.input_order, known_inputs=all_known,
+            precision_convention=model.precision_convention, input_kernel_width=model.input_kernel_width,
+        )
+
+    @property
+    def input_kernel_width(self) -> float:
+        return self.model.input_kernel_width or self.model.kernel_width
+
+    def estimate(self, outputs, signals):
+        """Estimates (time, states, inputs, state_std, input_std, ...) on outputs (N, m); signals
+        (N, r): measured inputs (operating point removed) or the prior means of the unknown ones."""
+        model = self.model
+        initial = None if model.initial_state is None else np.array(model.initial_state)
+        if self.method == "dem":
+            return self.dem().estimate(outputs, signals, initial_state=initial)
+        from attend.perception.nonlinear_baselines import input_random_walk_variance, unscented_kalman
+
+        n, r = self.system.n_states, self.system.n_inputs
+        Pi_w = precision_matrix(model.process_precision, n, "process_precision")
+        Pi_z = precision_matrix(model.sensor_precision, self.system.n_outputs, "sensor_precision")
+        covariances = {}
+        for key, matrix in (("process_precision", Pi_w), ("sensor_precision", Pi_z)):
+            if np.linalg.eigvalsh(matrix).min() <= 0:
+                raise AttendInputError(f"{key}: method \"ukf\" needs a positive definite precision (it is "
+                                       "inverted into a covariance); every entry > 0")
+            covariances[key] = np.linalg.inv(matrix)
+        options = dict(process_covariance=self.dt**2 * covariances["process_precision"],
+                       measurement_covariance=covariances["sensor_precision"])
+        known = self.known
+        if r and not known.all():
+            precisions = np.array([spec.prior_precision for spec in model.inputs])
+            bad = [spec.name for spec in model.inputs if not spec.known and not spec.prior_precision > 0]
+            if bad:
+                raise AttendInputError(f"[[inputs]] {', '.join(map(repr, bad))} prior_precision: method \"ukf\" "
+                                       "needs a prior precision > 0 (it sets the random walk of the input)")
+            variance = input_random_walk_variance(np.where(known, 1.0, precisions), self.input_kernel_width, self.dt)
+            options.update(input_variance=np.diag(np.where(known, 0.0, variance)), input_mean=signals[0],
+                           known_inputs=known)
+            inputs = signals if known.any() else None
+        else:
+            inputs = signals if r else None
+        if initial is None:
+            mean, std = self._start(outputs, signals)
+        else:
+            mean = initial
+            std = np.broadcast_to(np.asarray(0.0 if model.initial_state_std is None else model.initial_state_std,
+                                             dtype=float), (n,))
+        return unscented_kalman(self.system, self.dt, outputs, inputs, initial_mean=mean,
+                                initial_covariance=np.diag(np.asarray(std, dtype=float) ** 2), **options)
+
+    def _start(self, outputs, signals):
+        """x[0] and its std from DEM on the first samples (the smoother's prior on the initial state)."""
+        dem = self.dem()
+        count = min(len(outputs), 4 * (max(self.embedding_order, self.model.input_order) + 1))
+        try:
+            first = dem.estimate(outputs[:count], signals[:count])
+        except AttendInputError as error:
+            if self.model.python_path and str(error).startswith(self.model.python_path):
+                raise
+            raise AttendInputError(f"the smoother starts from DEM's estimate of the first sample, which failed "
+                                   f"({error}); give initial_state and initial_state_std") from None
+        return first.states[0], first.state_std[0]

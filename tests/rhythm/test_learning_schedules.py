@@ -96,6 +96,7 @@ def test_experiment_json_contract(tmp_path, monkeypatch):
     small = dict(RL.SETTINGS, iterations=6, duration=16.0)
     monkeypatch.setattr(RL, "SETTINGS", small)
     result = RL.run(quick=True, progress=False)
+    result.figures = RL.plot(result, tmp_path)
     data = json.loads(result.write(tmp_path).read_text())
     assert data["experiment"] == "rhythm-learning"
     names = {m["name"] for m in data["metrics"]}

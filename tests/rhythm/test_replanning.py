@@ -129,6 +129,7 @@ def test_json_contract(tmp_path):
 
     result = rhythm_ipp.run(quick=True, progress=False, trials=1,
                             policies=["segment", "fixed_20s", "precision"])
+    result.figures = rhythm_ipp.plot(result, tmp_path)
     data = json.loads(result.write(tmp_path).read_text())
     assert data["experiment"] == "rhythm-ipp"
     names = {m["name"] for m in data["metrics"]}

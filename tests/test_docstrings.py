@@ -33,14 +33,7 @@ MODULES = [
 KNOWN_GAPS = {
     ("attend", "OccupancyMap"), ("attend", "SearchField"), ("attend", "make_field"),
     ("attend", "make_planner"), ("attend", "PrecisionOscillator"), ("attend", "OscillatorScheduler"),
-    ("attend", "PrecisionDrivenScheduler"), ("attend", "ActiveVisionAgent"), ("attend", "NonlinearDEM"),
-    ("attend.perception", "NonlinearDEM"),
-    ("attend.perception.nonlinear", "NonlinearDEM"), ("attend.perception.nonlinear", "OnlineNonlinearDEM"),
-    ("attend.perception.nonlinear_baselines", "white_noise_covariances"),
-    ("attend.perception.nonlinear_baselines", "extended_kalman"),
-    ("attend.perception.nonlinear_baselines", "unscented_kalman"),
-    ("attend.perception.nonlinear_baselines", "particle_smoother"),
-    ("attend.perception.nonlinear_baselines", "coloured_unscented_smoother"),
+    ("attend", "PrecisionDrivenScheduler"), ("attend", "ActiveVisionAgent"),
 }
 
 

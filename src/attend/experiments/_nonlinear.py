@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from attend.experiments._result import ExperimentResult
+from attend.experiments._result import Claim, ExperimentResult
 from attend.perception.nonlinear import NonlinearDEM, simulate_nonlinear
 from attend.perception.nonlinear_baselines import (
     coloured_unscented_smoother,
@@ -130,20 +130,71 @@ def compare(name: str, cfg: dict, progress: bool) -> ExperimentResult:
     total = cfg["seeds"] * n_samples
     for method in methods:
         result.add(f"{method} speed", total / max(runtime[method], 1e-9), "samples/s")
-    result.data = dict(state_sse={m: state_sse[m] for m in methods}, input_sse={m: input_sse[m] for m in methods},
-                       example=example)
+    # what the figure needs, kept in the JSON (the figure re-plots from it)
+    result.tables = dict(state_sse={m: state_sse[m] for m in methods}, input_sse={m: input_sse[m] for m in methods},
+                         example=example)
     result.notes.append("EKF/UKF assume white noise with the per-sample variance of the coloured noise (smoothers "
                         "unless 'filter'; 'lag': fixed-lag smoother with DEM's delay); the coloured UKS and the particle smoother model the coloured noise by "
                         "AR(%d) processes." % cfg["ar_order"])
     return result
 
 
-def plot(result: ExperimentResult, out_dir, state_labels, input_label=None) -> list[str]:
-    """NAME.png: seed-0 states (truth, DEM, UKF, particle), input if estimated, SSE per method."""
+def run(module, quick: bool, out_dir, progress: bool, seeds: int | None, quick_settings: dict) -> ExperimentResult:
+    """The run() of a nonlinear reproduction ``module`` (its SETTINGS, build_system, true_input,
+    plot): ``seeds`` seeds (default 3 quick, 20 full), ``quick_settings`` replacing SETTINGS in the
+    quick run; the figure is drawn only when ``out_dir`` is given."""
+    cfg = dict(module.SETTINGS, seeds=seeds or (3 if quick else 20))
+    if quick:
+        cfg.update(quick_settings)
+    result = compare(module.__name__.rsplit(".", 1)[-1], cfg, progress)
+    if out_dir is not None:
+        result.figures.extend(module.plot(result, out_dir))
+    return result
+
+
+def claims(result: ExperimentResult) -> list[Claim]:
+    """The issue's targets for nonlinear DEM, with the measured medians: DEM state SSE <= 1.2x the
+    particle reference and <= the UKF smoother's (coloured noise, s/dt >= 2), and the speed."""
+    value = lambda name: result.metric(name).value  # noqa: E731
+    cfg = result.settings
+    ratio = value("DEM / particle state SSE (median ratio)")
+    dem, ukf = value("DEM state SSE (median)"), value("UKF state SSE (median)")
+    coloured = value("coloured UKS state SSE (median)") if _has(result, "coloured UKS state SSE (median)") else None
+    setting = (f"{cfg['seeds']} seeds, {cfg['duration']:g} s at dt = {cfg['dt']} s, s/dt = "
+               f"{cfg['kernel_width'] / cfg['dt']:.0f}")
+    out = [
+        Claim("nonlinear DEM's state SSE is at most 1.2x the particle smoother's (median, coloured noise)",
+              f"median ratio {ratio:.2f} ({setting}; {cfg['particles']} particles"
+              + (", not converged: see docs/nonlinear.md" if cfg["particles"] < 100_000 else "") + ")",
+              "reproduced" if ratio <= 1.2 else "does not hold"),
+        Claim("nonlinear DEM's state SSE is at most the UKF smoother's (median, coloured noise)",
+              f"DEM {dem:.3g} vs UKF smoother {ukf:.3g} [state unit^2] ({setting})"
+              + (f"; coloured-noise UKS {coloured:.3g}" if coloured is not None else ""),
+              "reproduced" if dem <= ukf else "does not hold"),
+        Claim("nonlinear DEM runs at >= 2e4 samples/s on one core",
+              f"{value('DEM speed'):.0f} samples/s (this run, shared machine)",
+              "reproduced" if value("DEM speed") >= 2e4 else "does not hold"),
+    ]
+    if _has(result, "DEM input SSE (median)"):
+        out.append(Claim("nonlinear DEM estimates the unknown input (input SSE reported beside the augmented UKF)",
+                         f"input SSE median DEM {value('DEM input SSE (median)'):.3g} vs augmented UKF smoother "
+                         f"{value('augmented UKF input SSE (median)'):.3g} [(input unit)^2]",
+                         "reproduced" if value("DEM input SSE (median)") <= value("augmented UKF input SSE (median)")
+                         else "does not hold"))
+    return out
+
+
+def _has(result: ExperimentResult, name: str) -> bool:
+    return any(metric.name == name for metric in result.metrics)
+
+
+def plot(result: ExperimentResult, out_dir, state_labels, input_label=None, sse_unit="state unit^2") -> list[str]:
+    """NAME.png: seed-0 states (truth, DEM, UKF, particle), input if estimated, SSE per method,
+    from ``result.tables`` alone (as rebuilt from the JSON)."""
     from attend.plotting import figure
 
-    data = result.data
-    example = data["example"]
+    data = {key: result.tables[key] for key in ("state_sse", "input_sse")}
+    example = {key: np.asarray(value, dtype=float) for key, value in result.tables["example"].items()}
     n = example["states"].shape[1]
     unknown = input_label is not None
     panels = n + (1 if unknown else 0) + 1
@@ -180,7 +231,7 @@ def plot(result: ExperimentResult, out_dir, state_labels, input_label=None) -> l
     ax.boxplot([data["state_sse"][m] for m in names])
     ax.set_xticks(range(1, len(names) + 1), [name.replace(" ", "\n") for name in names], fontsize=7)
     ax.set_yscale("log")
-    ax.set_ylabel("state SSE per seed")
+    ax.set_ylabel(f"state SSE per seed [{sse_unit}]")
     ax.set_title(f"{result.settings['seeds']} seeds")
     fig.tight_layout()
     path = Path(out_dir) / f"{result.experiment}.png"

@@ -57,6 +57,7 @@ class _ARHistory:
 
 def _weighted_moments(samples, weights):
     """Weighted mean and std over particles of samples (channels, P)."""
+    samples = np.array(samples)  # a fresh aligned copy: the same rounding as a gathered array
     mean = samples @ weights
     std = np.sqrt(np.clip(((samples - mean[:, None]) ** 2) @ weights, 0, None))
     return mean, std
@@ -125,7 +126,8 @@ def particle_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, 
         if k - recent[0][0] >= lag or k == N - 1:  # the oldest kept sample has seen its lag (or the log ends)
             while recent and (k - recent[0][0] >= lag or k == N - 1):
                 sample, particles = recent.popleft()
-                rows[sample] = _weighted_moments(particles, weights)
+                rows[sample] = np.hstack([_weighted_moments(particles[:n], weights),
+                                          _weighted_moments(particles[n:], weights)])
         if ess[k] < P / 2 and k < N - 1:
             # systematic resampling: every carried quantity (and the kept past samples) follows its ancestor
             index = np.minimum(np.searchsorted(np.cumsum(weights), (rng.random() + np.arange(P)) / P), P - 1)

@@ -28,7 +28,8 @@ SETTINGS = dict(
 
 
 def lorenz_system(sigma: float = 10.0, rho: float = 28.0, beta: float = 8.0 / 3.0) -> NonlinearSystem:
-    """The Lorenz system, all three states measured (y = x), with its analytic Jacobians.
+    """The Lorenz system, all three states measured (y = x), with its analytic Jacobians;
+    sigma [1/s], rho [-], beta [1/s]: the Lorenz parameters.
 
     f and g also accept (3, k) columns (for the particle smoother).
     """
@@ -46,12 +47,12 @@ def lorenz_system(sigma: float = 10.0, rho: float = 28.0, beta: float = 8.0 / 3.
 
 
 def build_system(cfg: dict) -> NonlinearSystem:
-    """The Lorenz system of a settings dict (sigma, rho, beta)."""
+    """The Lorenz system of a settings dict ``cfg`` (keys sigma, rho, beta)."""
     return lorenz_system(cfg["sigma"], cfg["rho"], cfg["beta"])
 
 
 def true_input(time: np.ndarray) -> np.ndarray:
-    """No inputs: an autonomous system ((N, 0) array)."""
+    """No inputs: an autonomous system ((N, 0) array for the N sample times ``time`` [s])."""
     return np.zeros((len(time), 0))
 
 
@@ -63,7 +64,7 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, seeds: int | No
 
 
 def plot(result: ExperimentResult, out_dir) -> list[str]:
-    """lorenz.png from ``result.tables``: the three states of seed 0 (true, DEM, UKF, coloured UKS,
+    """lorenz.png, written into ``out_dir``, from ``result.tables``: the three states of seed 0 (true, DEM, UKF, coloured UKS,
     particle) and the state SSE per method and seed."""
     return _nonlinear.plot(result, out_dir, ["x1 [dimensionless]", "x2 [dimensionless]", "x3 [dimensionless]"],
                            sse_unit="dimensionless")

@@ -30,7 +30,8 @@ SETTINGS = dict(
 
 
 def pendulum_system(gravity_over_length: float = 9.81, damping: float = 0.3) -> NonlinearSystem:
-    """The pendulum [theta, omega] with input u (angular acceleration), observed as (sin, cos) theta.
+    """The pendulum [theta, omega] with input u (angular acceleration), observed as (sin, cos) theta;
+    gravity_over_length: g/L [1/s^2]; damping: b [1/s].
 
     f and g also accept (2, k) columns (for the particle smoother).
     """
@@ -52,12 +53,12 @@ def pendulum_system(gravity_over_length: float = 9.81, damping: float = 0.3) -> 
 
 
 def true_input(time: np.ndarray) -> np.ndarray:
-    """u(t) [rad/s^2]: two smooth pushes, at 5 s and 12 s."""
+    """u(t) [rad/s^2] at the sample times ``time`` [s]: two smooth pushes, at 5 s and 12 s."""
     return (4.0 * np.exp(-0.5 * ((time - 5.0) / 0.7) ** 2) - 3.0 * np.exp(-0.5 * ((time - 12.0) / 1.0) ** 2))[:, None]
 
 
 def build_system(cfg: dict) -> NonlinearSystem:
-    """The pendulum of a settings dict (gravity_over_length, damping)."""
+    """The pendulum of a settings dict ``cfg`` (keys gravity_over_length, damping)."""
     return pendulum_system(cfg["gravity_over_length"], cfg["damping"])
 
 
@@ -70,7 +71,7 @@ def run(quick: bool = True, out_dir=None, progress: bool = True, seeds: int | No
 
 
 def plot(result: ExperimentResult, out_dir) -> list[str]:
-    """pendulum.png from ``result.tables``: theta, omega and the input of seed 0 (true and
+    """pendulum.png, written into ``out_dir``, from ``result.tables``: theta, omega and the input of seed 0 (true and
     estimated) and the state SSE per method and seed."""
     return _nonlinear.plot(result, out_dir, ["theta [rad]", "omega [rad/s]"], "input u [rad/s^2]",
                            sse_unit="rad^2 + (rad/s)^2")

@@ -90,8 +90,8 @@ def part0() -> None:
               f"online DEM step {float(out[5]):5.0f} us (target <= 200)")
 
 
-def part1(seeds: int) -> None:
-    for module in (lorenz, pendulum):
+def part1(seeds: int, experiments=("lorenz", "pendulum")) -> None:
+    for module in (m for m in (lorenz, pendulum) if m.__name__.rsplit(".", 1)[-1] in experiments):
         start = time.perf_counter()
         result = module.run(quick=False, seeds=seeds, progress=False)
         elapsed = time.perf_counter() - start
@@ -232,6 +232,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--sweep-seeds", type=int, default=10)
     parser.add_argument("--prior-seeds", type=int, default=20)
+    parser.add_argument("--experiments", default="lorenz,pendulum", help="part 1: which reproductions")
     parser.add_argument("--conv-seeds", type=int, default=4)
     parser.add_argument("--particles", type=int, default=100_000, help="P of the convergence check (part 4)")
     parser.add_argument("--linear-seeds", type=int, default=12)
@@ -244,7 +245,7 @@ def main() -> None:
     if "0" in args.parts:
         part0()
     if "1" in args.parts:
-        part1(args.seeds)
+        part1(args.seeds, args.experiments.split(","))
     if "2" in args.parts and args.sweep_seeds > 0:
         part2(args.sweep_seeds)
     if "3" in args.parts and args.prior_seeds > 0:

@@ -152,35 +152,43 @@ def run(module, quick: bool, out_dir, progress: bool, seeds: int | None, quick_s
     return result
 
 
+#: particles from which the particle smoother is a converged reference (docs/nonlinear.md)
+CONVERGED_PARTICLES = 100_000
+
+
 def claims(result: ExperimentResult) -> list[Claim]:
     """The issue's targets for nonlinear DEM, with the measured medians: DEM state SSE <= 1.2x the
-    particle reference and <= the UKF smoother's (coloured noise, s/dt >= 2), and the speed."""
+    posterior reference and <= the UKF smoother's (coloured noise, s/dt >= 2), the input SSE beside
+    the augmented UKF smoother, and the speed. The reference is the particle smoother when it has
+    CONVERGED_PARTICLES particles or more; with fewer (quick runs) it is not converged, and the
+    better of it and the coloured UKS (the larger DEM ratio) stands in."""
     value = lambda name: result.metric(name).value  # noqa: E731
     cfg = result.settings
-    ratio = value("DEM / particle state SSE (median ratio)")
-    dem, ukf = value("DEM state SSE (median)"), value("UKF state SSE (median)")
-    coloured = value("coloured UKS state SSE (median)") if _has(result, "coloured UKS state SSE (median)") else None
     setting = (f"{cfg['seeds']} seeds, {cfg['duration']:g} s at dt = {cfg['dt']} s, s/dt = "
                f"{cfg['kernel_width'] / cfg['dt']:.0f}")
+    ratio = value("DEM / particle state SSE (median ratio)")
+    reference = f"particle smoother, {cfg['particles']} particles"
+    if cfg["particles"] < CONVERGED_PARTICLES and _has(result, "DEM / coloured UKS state SSE (median ratio)"):
+        uks = value("DEM / coloured UKS state SSE (median ratio)")
+        reference = (f"DEM / particle {ratio:.2f} with {cfg['particles']} particles (not converged), "
+                     f"DEM / coloured UKS {uks:.2f}: the larger counts")
+        ratio = max(ratio, uks)
+    dem, ukf = value("DEM state SSE (median)"), value("UKF state SSE (median)")
     out = [
-        Claim("nonlinear DEM's state SSE is at most 1.2x the particle smoother's (median, coloured noise)",
-              f"median ratio {ratio:.2f} ({setting}; {cfg['particles']} particles"
-              + (", not converged: see docs/nonlinear.md" if cfg["particles"] < 100_000 else "") + ")",
-              "reproduced" if ratio <= 1.2 else "does not hold"),
+        Claim("nonlinear DEM's state SSE is at most 1.2x the posterior reference's (median, coloured noise)",
+              f"median ratio {ratio:.2f} ({reference}; {setting})", "reproduced" if ratio <= 1.2 else "does not hold"),
         Claim("nonlinear DEM's state SSE is at most the UKF smoother's (median, coloured noise)",
-              f"DEM {dem:.3g} vs UKF smoother {ukf:.3g} [state unit^2] ({setting})"
-              + (f"; coloured-noise UKS {coloured:.3g}" if coloured is not None else ""),
+              f"DEM {dem:.3g} vs UKF smoother {ukf:.3g} [state unit^2] ({setting})",
               "reproduced" if dem <= ukf else "does not hold"),
-        Claim("nonlinear DEM runs at >= 2e4 samples/s on one core",
-              f"{value('DEM speed'):.0f} samples/s (this run, shared machine)",
-              "reproduced" if value("DEM speed") >= 2e4 else "does not hold"),
     ]
     if _has(result, "DEM input SSE (median)"):
-        out.append(Claim("nonlinear DEM estimates the unknown input (input SSE reported beside the augmented UKF)",
-                         f"input SSE median DEM {value('DEM input SSE (median)'):.3g} vs augmented UKF smoother "
-                         f"{value('augmented UKF input SSE (median)'):.3g} [(input unit)^2]",
-                         "reproduced" if value("DEM input SSE (median)") <= value("augmented UKF input SSE (median)")
-                         else "does not hold"))
+        dem_input, ukf_input = value("DEM input SSE (median)"), value("augmented UKF input SSE (median)")
+        out.append(Claim("nonlinear DEM's input SSE is at most the augmented UKF smoother's (median)",
+                         f"DEM {dem_input:.3g} vs augmented UKF smoother {ukf_input:.3g} [(input unit)^2] ({setting})",
+                         "reproduced" if dem_input <= ukf_input else "does not hold"))
+    out.append(Claim("nonlinear DEM runs at >= 2e4 samples/s on one core",
+                     f"{value('DEM speed'):.0f} samples/s (this run, on a possibly shared machine)",
+                     "reproduced" if value("DEM speed") >= 2e4 else "does not hold"))
     return out
 
 

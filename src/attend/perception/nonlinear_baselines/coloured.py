@@ -23,10 +23,18 @@ from attend.perception.nonlinear_baselines.kalman import _rk4, _unscented
 
 
 def _yule_walker(rho: np.ndarray, q: int):
-    """AR coefficients a (q,) and innovation variance for unit variance, autocorrelation rho[0..q]."""
+    """AR coefficients a (q,) and innovation variance for unit variance, autocorrelation rho[0..q].
+
+    Raises AttendInputError when the fitted model is not stationary (a root of
+    z^q - a_1 z^(q-1) - ... - a_q on or outside the unit circle): for a noise much smoother than
+    the sample time the Toeplitz system is ill-conditioned at high q, and the AR process would
+    grow without bound (the estimates blow up silently)."""
     if q == 0:
         return np.zeros(0), 1.0
     a = solve_toeplitz(rho[:q], rho[1: q + 1])
+    if np.max(np.abs(np.roots(np.concatenate([[1.0], -a])))) >= 1.0:
+        raise AttendInputError(f"ar_order: an AR({q}) model of this noise (correlation {rho[1]:.6f} at one sample) is "
+                               "not stationary (ill-conditioned Yule-Walker system); lower ar_order")
     return a, float(max(1.0 - a @ rho[1: q + 1], 1e-12))
 
 

@@ -21,6 +21,8 @@ def _diagonal_blocks(block, rows: int, cols: int) -> np.ndarray:
     """kron(eye(rows, cols), block) without the multiplications: ``block`` on the first
     min(rows, cols) diagonal places of a rows x cols grid of blocks (4x faster than np.kron)."""
     a, b = block.shape
+    if a == 0 or b == 0:
+        return np.zeros((rows * a, cols * b))
     out = np.zeros((rows, a, cols, b))
     places = np.arange(min(rows, cols))
     out[places, :, places, :] = block
@@ -405,8 +407,8 @@ class NonlinearDEM:
     def _check(self, X, sample: int) -> None:
         n = self.system.n_states
         n_x = self.n_state_coordinates
-        order0 = np.concatenate([X[:n], X[n_x: n_x + self.system.n_inputs] if self._estimates_inputs else []])
-        if not np.all(np.isfinite(X)) or np.max(np.abs(order0), initial=0.0) > self.divergence_limit:
+        order0 = X[:n] if not self._estimates_inputs else np.concatenate([X[:n], X[n_x: n_x + self.system.n_inputs]])
+        if not np.isfinite(X).all() or np.abs(order0).max() > self.divergence_limit:
             raise AttendInputError(
                 f"NonlinearDEM: the estimate diverged at sample {sample} (max |order-0 estimate| = "
                 f"{np.max(np.abs(order0)):.3g} > divergence_limit = {self.divergence_limit:.3g}). The local "

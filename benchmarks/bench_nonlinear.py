@@ -16,6 +16,10 @@ varies (1, 2, 4, 8), the noise levels fixed.
 Part 3 (``--prior-seeds`` seeds): the pendulum's input prior smoothness: input SSE of DEM and the
 augmented UKF smoother with the noise's s = 0.1 s (and the old fixed random-walk variance 0.5)
 against the pushes' 0.7 s (the random walk matched to the prior).
+Part 4 (``--conv-seeds`` seeds): is the particle reference converged? State (and input) SSE with
+``--particles``/2 and ``--particles`` particles and an independent run at ``--particles``.
+Part 5 (``--linear-seeds`` seeds): is DEM's gap to the posterior inherent? A linear model through the
+nonlinear path (which equals the linear DEM observer to rounding, tests) against the exact posterior.
 Not part of the test run. No BLAS environment variable is needed (attend._threads).
 """
 
@@ -60,7 +64,17 @@ def speed_worker() -> None:
             run()
             best = min(best, time.perf_counter() - start)
         rates[name] = 200 / best
-    print(f"DEM {rates['DEM']:.0f} UKF {rates['UKF']:.0f}")
+    online = dem.online()
+    for y in log.outputs[:20]:  # fill the window (and the start)
+        online.step(y)
+    steps = log.outputs[20:]
+    best = np.inf
+    for _ in range(3):
+        start = time.perf_counter()
+        for y in steps:
+            online.step(y)
+        best = min(best, (time.perf_counter() - start) / len(steps))
+    print(f"DEM {rates['DEM']:.0f} UKF {rates['UKF']:.0f} online_us {1e6 * best:.0f}")
 
 
 def part0() -> None:
@@ -72,11 +86,12 @@ def part0() -> None:
                          ("caller sets OPENBLAS_NUM_THREADS=1", {"OPENBLAS_NUM_THREADS": "1"})):
         out = subprocess.run([sys.executable, __file__, "--speed-worker"], env={**base, **extra},
                              capture_output=True, text=True, check=True).stdout.split()
-        print(f"  {label:62s} DEM {float(out[1]):7.0f}   UKF smoother {float(out[3]):6.0f}")
+        print(f"  {label:62s} DEM {float(out[1]):7.0f} (target >= 2e4)   UKF smoother {float(out[3]):6.0f}   "
+              f"online DEM step {float(out[5]):5.0f} us (target <= 200)")
 
 
-def part1(seeds: int) -> None:
-    for module in (lorenz, pendulum):
+def part1(seeds: int, experiments=("lorenz", "pendulum")) -> None:
+    for module in (m for m in (lorenz, pendulum) if m.__name__.rsplit(".", 1)[-1] in experiments):
         start = time.perf_counter()
         result = module.run(quick=False, seeds=seeds, progress=False)
         elapsed = time.perf_counter() - start
@@ -139,12 +154,89 @@ def part3(seeds: int) -> None:
               f"DEM/UKF {value('DEM / augmented UKF input SSE (median ratio)'):5.2f}")
 
 
+def part4(seeds: int, particles: int) -> None:
+    print(f"\n== convergence of the particle reference ({seeds} seeds, full settings): state SSE with P/2, P and an "
+          f"independent run at P = {particles}")
+    from attend.perception.nonlinear import simulate_nonlinear
+    from attend.perception.nonlinear_baselines import particle_smoother
+
+    for module in (lorenz, pendulum):
+        cfg = dict(module.SETTINGS)
+        system, u, _, n_samples = _nonlinear._setup(module.__name__.rsplit(".", 1)[-1], cfg)
+        unknown = system.n_inputs > 0
+        sw, sz = np.asarray(cfg["process_std"], float), np.asarray(cfg["measurement_std"], float)
+        trim = slice(cfg["embedding_order"] + 1, n_samples - cfg["embedding_order"] - 1)
+        noise = dict(kernel_width=cfg["kernel_width"], process_std=sw, measurement_std=sz,
+                     input_prior_std=np.exp(-cfg["input_prior_log_precision"] / 2) if unknown else None,
+                     initial_mean=cfg["initial_state"], initial_std=cfg["initial_std"], ar_order=cfg["ar_order"],
+                     input_kernel_width=cfg.get("input_kernel_width") if unknown else None, lag=cfg["particle_lag"])
+        changes, spreads = [], []
+        for seed in range(seeds):
+            log = simulate_nonlinear(system, u, cfg["dt"], kernel_width=cfg["kernel_width"], process_std=sw,
+                                     measurement_std=sz, initial_state=cfg["initial_state"], seed=seed)
+            sse = {}
+            for label, count, draw in (("half", particles // 2, seed), ("full", particles, seed),
+                                       ("independent", particles, seed + 10_000)):
+                estimate = particle_smoother(system, cfg["dt"], log.outputs, n_particles=count, seed=draw, **noise)
+                sse[label] = (np.sum((estimate.states - log.states)[trim] ** 2),
+                              np.sum((estimate.inputs - log.inputs)[trim] ** 2) if unknown else 0.0)
+            changes.append(sse["full"][0] / sse["half"][0] - 1)
+            spreads.append(abs(sse["independent"][0] / sse["full"][0] - 1))
+            inputs = (f"  input SSE {sse['half'][1]:.1f} / {sse['full'][1]:.1f} / {sse['independent'][1]:.1f}"
+                      if unknown else "")
+            print(f"  {module.__name__.rsplit('.', 1)[-1]:8s} seed {seed}: state SSE {sse['half'][0]:.3f} / "
+                  f"{sse['full'][0]:.3f} / {sse['independent'][0]:.3f}{inputs}", flush=True)
+        print(f"  {module.__name__.rsplit('.', 1)[-1]:8s} state SSE change P/2 -> P: median {np.median(changes):+.1%}"
+              f" (max |.| {np.max(np.abs(changes)):.1%}); independent runs at P differ by median "
+              f"{np.median(spreads):.1%} (max {np.max(spreads):.1%})")
+
+
+def part5(seeds: int) -> None:
+    print(f"\n== is DEM's gap inherent? a linear model (mass-spring-damper, dt = 0.1 s) through the nonlinear "
+          f"path against the exact posterior ({seeds} seeds, median state SSE ratio over samples 9..192)")
+    from attend.perception.baselines import exact_posterior
+    from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem
+    from attend.perception.nonlinear_baselines import unscented_kalman, white_noise_covariances
+    from attend.problems import mass_spring_damper
+    from attend.systems import simulate
+
+    linear = mass_spring_damper()
+    A, B, C = linear.A, linear.B, linear.C
+    system = NonlinearSystem(lambda x, v: A @ x + B @ v, lambda x, v: C @ x, 2, 1, C.shape[0])
+    dt, sw, sz = 0.1, 0.3, 0.05
+    for ratio in (1, 2, 4):
+        s = ratio * dt
+        rows = {"DEM p = 6": [], "DEM p = 10": [], "UKF smoother (white)": []}
+        Q, R = white_noise_covariances(system, dt, s, sw, sz)
+        for seed in range(seeds):
+            u = np.zeros((200, 1))
+            log = simulate(linear, u, dt, kernel_width=s, process_std=sw, measurement_std=sz, seed=seed,
+                           initial_state=[0.5, 0.0])
+            exact = exact_posterior(linear, dt, log.outputs, u, kernel_width=s, process_std=sw, measurement_std=sz,
+                                    initial_mean=[0.5, 0.0], initial_std=1e-2)
+            trim = slice(8, 192)
+            reference = np.sum((exact.states - log.states)[trim] ** 2)
+            for label, p in (("DEM p = 6", 6), ("DEM p = 10", 10)):
+                dem = NonlinearDEM(system, dt, s, 1 / sz**2, 1 / sw**2, embedding_order=p, known_inputs=True)
+                estimate = dem.estimate(log.outputs, u)
+                rows[label].append(np.sum((estimate.states - log.states)[trim] ** 2) / reference)
+            ukf = unscented_kalman(system, dt, log.outputs, u, process_covariance=Q, measurement_covariance=R,
+                                   initial_mean=[0.5, 0.0], initial_covariance=1e-4)
+            rows["UKF smoother (white)"].append(np.sum((ukf.states - log.states)[trim] ** 2) / reference)
+        print(f"  s/dt = {ratio}: " + "   ".join(f"{label} / exact {np.median(v):5.2f}" for label, v in rows.items()),
+              flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--sweep-seeds", type=int, default=10)
     parser.add_argument("--prior-seeds", type=int, default=20)
-    parser.add_argument("--parts", default="0123", help="which parts to run (default: all)")
+    parser.add_argument("--experiments", default="lorenz,pendulum", help="part 1: which reproductions")
+    parser.add_argument("--conv-seeds", type=int, default=4)
+    parser.add_argument("--particles", type=int, default=100_000, help="P of the convergence check (part 4)")
+    parser.add_argument("--linear-seeds", type=int, default=12)
+    parser.add_argument("--parts", default="012345", help="which parts to run (default: all)")
     parser.add_argument("--speed-worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.speed_worker:
@@ -153,11 +245,15 @@ def main() -> None:
     if "0" in args.parts:
         part0()
     if "1" in args.parts:
-        part1(args.seeds)
+        part1(args.seeds, args.experiments.split(","))
     if "2" in args.parts and args.sweep_seeds > 0:
         part2(args.sweep_seeds)
     if "3" in args.parts and args.prior_seeds > 0:
         part3(args.prior_seeds)
+    if "4" in args.parts and args.conv_seeds > 0:
+        part4(args.conv_seeds, args.particles)
+    if "5" in args.parts and args.linear_seeds > 0:
+        part5(args.linear_seeds)
 
 
 if __name__ == "__main__":

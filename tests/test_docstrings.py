@@ -4,9 +4,8 @@ function, or for a class in its class or ``__init__`` docstring; a public method
 the method's docstring. Private arguments (leading underscore), ``self`` and ``*args``/``**kwargs``
 are exempt, as are the fields of NamedTuples (documented with the class).
 
-Covered: attend.perception and its public modules, and every name attend re-exports. Names from
-modules with other maintainers whose docstrings still have gaps are expected failures (listed in
-KNOWN_GAPS); remove a name there once its docstrings are complete.
+Covered: every name attend re-exports, and the public modules of perception, action, rhythm,
+io, the experiments with figures, the report and the CLI (MODULES). There are no exemptions.
 """
 
 from __future__ import annotations
@@ -47,21 +46,27 @@ MODULES = [
     "attend.experiments.fig3",
     "attend.experiments.fig4",
     "attend.experiments.fig5",
+    "attend.io",
+    "attend.systems",
+    "attend.noise",
+    "attend.generalized",
+    "attend.problems",
+    "attend.interop",
+    "attend.action.belief",
+    "attend.action.camera",
+    "attend.action.field",
+    "attend.action.flight",
+    "attend.action.metrics",
+    "attend.action.mission",
+    "attend.experiments.quadrotor",
+    "attend.experiments.ipp",
+    "attend.experiments.rhythm_ipp",
+    "attend.experiments.rhythm_learning",
+    "attend.experiments.rhythm_tradeoff",
+    "attend.experiments.vision",
+    "attend.experiments.lorenz",
+    "attend.experiments.pendulum",
 ]
-
-#: (module, name) whose docstrings miss arguments, in files maintained elsewhere (action, rhythm,
-#: nonlinear perception)
-KNOWN_GAPS = {
-    ("attend", "NonlinearDEM"),
-    ("attend.perception", "NonlinearDEM"),
-    ("attend.perception.nonlinear", "NonlinearDEM"), ("attend.perception.nonlinear", "OnlineNonlinearDEM"),
-    ("attend.perception.nonlinear_baselines", "white_noise_covariances"),
-    ("attend.perception.nonlinear_baselines", "extended_kalman"),
-    ("attend.perception.nonlinear_baselines", "unscented_kalman"),
-    ("attend.perception.nonlinear_baselines", "particle_smoother"),
-    ("attend.perception.nonlinear_baselines", "coloured_unscented_smoother"),
-}
-
 
 def public_names(module_name: str) -> list[str]:
     """``__all__``, else the public functions and classes defined in the module."""
@@ -103,10 +108,7 @@ def undocumented(obj) -> list[str]:
     return missing
 
 
-CASES = [pytest.param(module, name, id=f"{module}.{name}",
-                      marks=[pytest.mark.xfail(reason="docstring gaps in a file maintained elsewhere")]
-                      if (module, name) in KNOWN_GAPS else [])
-         for module in MODULES for name in public_names(module)]
+CASES = [pytest.param(module, name, id=f"{module}.{name}") for module in MODULES for name in public_names(module)]
 
 
 @pytest.mark.parametrize("module, name", CASES)

@@ -14,6 +14,7 @@ from attend.perception.nonlinear import (
     simulate_nonlinear,
 )
 from attend.perception.nonlinear_baselines import (
+    coloured_unscented_smoother,
     extended_kalman,
     particle_smoother,
     unscented_kalman,
@@ -351,3 +352,15 @@ def test_input_kernel_width_sets_the_input_smoothness():
     assert slow._matrices["S_d"][2, 2] > 10 * default._matrices["S_d"][2, 2]
     with pytest.raises(AttendInputError, match="input_kernel_width"):
         NonlinearDEM(system, 0.05, 0.1, 400.0, 4.0, 0.1, input_kernel_width=0.0)
+
+
+def test_coloured_noise_models_refuse_a_nonstationary_ar_fit():
+    # s/dt = 14 (the pendulum's input prior): AR(8) fitted to rho is not stationary and blew up silently
+    system = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2)
+    y = np.zeros((30, 2))
+    for function, extra in ((coloured_unscented_smoother, {}), (particle_smoother, dict(n_particles=10))):
+        with pytest.raises(AttendInputError, match=r"ar_order: an AR\(\d\) model"):
+            function(system, 0.05, y, kernel_width=0.7, process_std=[0.05, 0.5], measurement_std=0.05,
+                     input_prior_std=1.0, ar_order=8, **extra)
+        function(system, 0.05, y, kernel_width=0.7, process_std=[0.05, 0.5], measurement_std=0.05,
+                 input_prior_std=1.0, ar_order=3, **extra)  # AR(3) is fine

@@ -1,259 +1,32 @@
-"""Nonlinear DEM: state and input estimation for dx/dt = f(x, v, theta) + w, y = g(x, v, theta) + z.
-
-The generative model is the linear core's (spec perception.md §1) with f and g in place of
-(A, B, C): w and z are coloured (white noise convolved with a Gaussian kernel of width s), with
-spatial precisions Pi_w (``process_precision``) and Pi_z (``sensor_precision``); unknown inputs v
-have a prior mean eta (the ``inputs`` argument of :meth:`NonlinearDEM.estimate`) and precision
-P_v (``input_prior_precision``), all weighted over orders of motion by S(s).
-
-D-step (spec nonlinear.md): at every sample, the Jacobians fx = df/dx, fv = df/dv, gx, gv at the
-current expansion point (order 0 of the estimate) give the generalised predictions::
-
-    g~ = [g(x, v); gx x' + gv v'; gx x'' + gv v''; ...]
-    f~ = [f(x, v); fx x' + fv v'; ...]                       (Jacobians held fixed)
-
-and the errors e_y = y~ - g~, e_x = D x~ - f~, e_v = v~ - eta~ with precisions
-Vy = kron(S_p, Pi_z), W = kron(S_p, Pi_w), Vv = kron(S_d, P_v). With E = de/dX (Jacobians held
-fixed) the free-energy gradient is dF/dX = -E' Pi~ e and its curvature -E' Pi~ E (Gauss-Newton:
-second derivatives of f and g are left out, as in SPM). The generalised gradient flow
-dX/dt = D X + dF/dX is integrated over one sample dt by its local linearisation (Ozaki)::
-
-    X <- X + (expm(J dt) - I) inv(J) (D X + dF/dX),      J = D - E' Pi~ E,
-
-with the data held at the sample's embedded values y~[k], eta~[k] over the step. For a linear f, g
-this is exactly the zero-order-hold discretisation of attend's linear observer
-(:class:`attend.perception.dem.DEMObserver`): the two agree to rounding.
-
-Units are attend's: seconds. f is a rate [state unit / s], kernel_width s is in seconds
-(SPM works in bins: s_bins = s / dt).
-"""
+"""The D-step of nonlinear DEM, batch (:class:`NonlinearDEM`); the equations are in
+:mod:`attend.perception.nonlinear`."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from math import factorial
-from typing import Callable, NamedTuple
 
 import numpy as np
 from scipy.linalg import expm
 
-from attend._threads import single_blas_thread, with_single_blas_thread
+from attend._threads import single_blas_thread
 from attend._validation import AttendInputError, as_matrix, order, positive_scalar, precision_matrix, require_finite
 from attend.generalized import block_precisions, embedding_weights, shift_operator, smoothness_precision
-from attend.noise import coloured_noise
 from attend.perception.dem import DEMEstimate
-from attend.systems import Trajectory
-
-__all__ = [
-    "NonlinearSystem",
-    "NonlinearDEM",
-    "OnlineNonlinearDEM",
-    "simulate_nonlinear",
-    "finite_difference_jacobian",
-]
-
-_EPS = np.finfo(float).eps
+from attend.perception.nonlinear.model import NonlinearSystem
+from attend.perception.nonlinear.online import OnlineNonlinearDEM
 
 
-# --- the model ------------------------------------------------------------------------------
-
-def finite_difference_jacobian(function: Callable, point, *, method: str = "central",
-                               vectorized: bool = False) -> np.ndarray:
-    """d function / d point at ``point`` (k,), as a (len(function(point)), k) matrix.
-
-    method "central": (f(z + h e_j) - f(z - h e_j)) / 2h with h_j = eps^(1/3) max(1, |z_j|)
-    (error O(h^2) + rounding O(eps/h), ~1e-10 relative); "complex": the complex step
-    Im f(z + i h e_j) / h, h = 1e-30, exact to rounding but only for functions that are analytic
-    and written with complex-safe operations (no abs, max, comparisons): a wrong function gives a
-    silently wrong derivative, so it is not the default. ``vectorized``: ``function`` accepts a
-    (k, batch) array and returns (out, batch), evaluating columns at once (scipy's convention).
-    """
-    z = np.asarray(point, dtype=float)
-    k = z.shape[0]
-    if method == "complex":
-        h = 1e-30
-        shifted = z[:, None] + 1j * h * np.eye(k)
-        if vectorized:
-            values = np.asarray(function(shifted))
-        else:
-            values = np.stack([np.asarray(function(shifted[:, j])) for j in range(k)], axis=1) if k else None
-        if k == 0:
-            return np.zeros((np.asarray(function(z)).shape[0], 0))
-        return np.imag(values) / h
-    if method != "central":
-        raise AttendInputError(f"jacobian_method: expected 'central' or 'complex', got {method!r}")
-    h = _EPS ** (1 / 3) * np.maximum(1.0, np.abs(z))
-    if k == 0:
-        return np.zeros((np.asarray(function(z)).shape[0], 0))
-    steps = np.diag(h)
-    if vectorized:
-        values = np.asarray(function(np.hstack([z[:, None] + steps, z[:, None] - steps])), dtype=float)
-        return (values[:, :k] - values[:, k:]) / (2 * h)
-    columns = [(np.asarray(function(z + steps[:, j]), dtype=float) - np.asarray(function(z - steps[:, j]), dtype=float))
-               / (2 * h[j]) for j in range(k)]
-    return np.stack(columns, axis=1)
-
-
-@dataclass(frozen=True, eq=False)
-class NonlinearSystem:
-    """A nonlinear state-space model dx/dt = f(x, v, theta) + w, y = g(x, v, theta) + z.
-
-    f, g: plain NumPy functions of 1-D arrays, ``f(x, v)`` -> (n_states,) [state unit / s] and
-    ``g(x, v)`` -> (n_outputs,) [output unit], with x (n_states,) and v (n_inputs,) (an empty
-    array when n_inputs = 0: autonomous systems). When ``parameters`` theta is given they are
-    called ``f(x, v, parameters)``, ``g(x, v, parameters)``.
-    jacobian_f, jacobian_g: optional analytic Jacobians, called like f and g and returning the
-    pair (df/dx (n, n), df/dv (n, r)) resp. (dg/dx (m, n), dg/dv (m, r)); without them the
-    Jacobians are finite differences (``jacobian_method`` "central" or "complex", see
-    :func:`finite_difference_jacobian`; ``vectorized``: f and g accept (k, batch) columns).
-    state_names, input_names, output_names: labels (default x1.., u1.., y1..).
-    """
-
-    f: Callable
-    g: Callable
-    n_states: int
-    n_inputs: int
-    n_outputs: int
-    parameters: object = None
-    state_names: tuple[str, ...] = ()
-    input_names: tuple[str, ...] = ()
-    output_names: tuple[str, ...] = ()
-    jacobian_f: Callable | None = None
-    jacobian_g: Callable | None = None
-    jacobian_method: str = "central"
-    vectorized: bool = False
-
-    def __post_init__(self):
-        if not callable(self.f):
-            raise AttendInputError("f: expected a function f(x, v) -> dx/dt")
-        if not callable(self.g):
-            raise AttendInputError("g: expected a function g(x, v) -> y")
-        for name, value, low in (("n_states", self.n_states, 1), ("n_inputs", self.n_inputs, 0),
-                                 ("n_outputs", self.n_outputs, 1)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-                raise AttendInputError(f"{name}: expected an integer >= {low}, got {value!r}")
-            object.__setattr__(self, name, int(value))
-        if self.jacobian_method not in ("central", "complex"):
-            raise AttendInputError(f"jacobian_method: expected 'central' or 'complex', got {self.jacobian_method!r}")
-        for which in ("jacobian_f", "jacobian_g"):
-            if getattr(self, which) is not None and not callable(getattr(self, which)):
-                raise AttendInputError(f"{which}: expected a function returning (d/dx, d/dv) or None")
-        for field_, names, size, letter in (("state_names", self.state_names, self.n_states, "x"),
-                                            ("input_names", self.input_names, self.n_inputs, "u"),
-                                            ("output_names", self.output_names, self.n_outputs, "y")):
-            names = tuple(names) or tuple(f"{letter}{i + 1}" for i in range(size))
-            if len(names) != size:
-                raise AttendInputError(f"{field_}: expected {size} names, got {len(names)}")
-            object.__setattr__(self, field_, names)
-
-    # evaluation ------------------------------------------------------------------------------
-
-    def _call(self, function, x, v):
-        return function(x, v) if self.parameters is None else function(x, v, self.parameters)
-
-    def _value(self, which: str, x, v) -> np.ndarray:
-        function, size = (self.f, self.n_states) if which == "f" else (self.g, self.n_outputs)
-        try:
-            value = np.asarray(self._call(function, x, v), dtype=float)
-        except AttendInputError:
-            raise
-        except Exception as error:  # the user's function failed: say which and where
-            raise AttendInputError(f"{which}: raised {type(error).__name__}: {error} at x = {x}, v = {v}") from error
-        if value.shape != (size,):
-            value = value.reshape(-1) if value.size == size else value
-            if value.shape != (size,):
-                raise AttendInputError(f"{which}: expected {size} values (a 1-D array), got shape {value.shape}")
-        return value
-
-    def flow(self, x, v=None) -> np.ndarray:
-        """f(x, v) [state unit / s]."""
-        return self._value("f", np.asarray(x, dtype=float), self._inputs(v))
-
-    def observe(self, x, v=None) -> np.ndarray:
-        """g(x, v) [output unit]."""
-        return self._value("g", np.asarray(x, dtype=float), self._inputs(v))
-
-    def _inputs(self, v):
-        return np.zeros(self.n_inputs) if v is None else np.asarray(v, dtype=float).reshape(self.n_inputs)
-
-    def jacobians(self, x, v=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(fx, fv, gx, gv) at (x, v): analytic when given, else finite differences."""
-        x = np.asarray(x, dtype=float)
-        v = self._inputs(v)
-        n, r, m = self.n_states, self.n_inputs, self.n_outputs
-        out = []
-        for which, analytic, size in (("f", self.jacobian_f, n), ("g", self.jacobian_g, m)):
-            if analytic is not None:
-                try:
-                    dx, dv = self._call(analytic, x, v)
-                    dx = np.asarray(dx, dtype=float).reshape(size, n)
-                    dv = np.asarray(dv, dtype=float).reshape(size, r)
-                except (TypeError, ValueError) as error:
-                    raise AttendInputError(f"jacobian_{which}: expected the pair (d{which}/dx ({size}, {n}), "
-                                           f"d{which}/dv ({size}, {r})) ({error})") from None
-            else:
-                function = self.f if which == "f" else self.g
-                if self.vectorized or self.jacobian_method == "complex":
-                    joint = lambda z, fn=function: np.asarray(self._call(fn, z[:n], z[n:]))  # noqa: E731
-                else:
-                    joint = lambda z, w=which: self._value(w, z[:n], z[n:])  # noqa: E731
-                jac = finite_difference_jacobian(joint, np.concatenate([x, v]), method=self.jacobian_method,
-                                                 vectorized=self.vectorized)
-                dx, dv = jac[:, :n], jac[:, n:]
-            out.extend([dx, dv])
-        fx, fv, gx, gv = out
-        return fx, fv, gx, gv
-
-
-def simulate_nonlinear(system: NonlinearSystem, inputs, dt: float, *, kernel_width: float, process_std=0.0,
-                       measurement_std=0.0, initial_state=None, seed=0, substeps: int = 10) -> Trajectory:
-    """Simulate the generative process with coloured noise.
-
-    system: the NonlinearSystem (f, g); dt: sample time [s]; initial_state: x[0] (default 0);
-    seed: seed of the noise draws; substeps: RK4 sub-steps per sample.
-    inputs: (N, r) input samples, or the number of samples N for an autonomous system (r = 0).
-    x[k] = x[k-1] + integral over one sample of f(x, u[k-1]) + w[k-1] (RK4 with ``substeps``
-    sub-steps, u and w held over the sample: the zero-order hold of the linear simulate()),
-    y[k] = g(x[k], u[k]) + z[k]; w, z: white noise convolved with the Gaussian kernel of width
-    kernel_width [s], standard deviations process_std [state unit / s] and measurement_std per
-    sample. Returns an :class:`attend.systems.Trajectory`.
-    """
-    if not isinstance(system, NonlinearSystem):
-        raise AttendInputError("system: expected an attend NonlinearSystem")
-    dt = positive_scalar(dt, "dt", "s")
-    if isinstance(inputs, (int, np.integer)) and not isinstance(inputs, bool):
-        u = np.zeros((int(inputs), system.n_inputs))
-    else:
-        u = np.asarray(inputs, dtype=float)
-        if u.ndim == 1 and system.n_inputs == 1:
-            u = u[:, None]
-        if u.ndim != 2 or u.shape[1] != system.n_inputs:
-            raise AttendInputError(f"inputs: expected shape (N, {system.n_inputs}), got {u.shape}")
-        require_finite(u, "inputs")
-    n_samples = u.shape[0]
-    if n_samples < 1:
-        raise AttendInputError("inputs: expected at least one sample")
-    rng = np.random.default_rng(seed)
-    w = coloured_noise(n_samples, system.n_states, dt, kernel_width, process_std, rng)
-    z = coloured_noise(n_samples, system.n_outputs, dt, kernel_width, measurement_std, rng)
-    x = np.zeros((n_samples, system.n_states))
-    if initial_state is not None:
-        x[0] = as_matrix(initial_state, "initial_state", cols=1)[:, 0]
-    h = dt / int(substeps)
-    for k in range(1, n_samples):
-        state, uk, wk = x[k - 1], u[k - 1], w[k - 1]
-        for _ in range(int(substeps)):
-            k1 = system.flow(state, uk) + wk
-            k2 = system.flow(state + 0.5 * h * k1, uk) + wk
-            k3 = system.flow(state + 0.5 * h * k2, uk) + wk
-            k4 = system.flow(state + h * k3, uk) + wk
-            state = state + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        if not np.all(np.isfinite(state)):
-            raise AttendInputError(f"simulate_nonlinear: the state became non-finite at sample {k}; "
-                                   "lower dt or raise substeps")
-        x[k] = state
-    y = np.stack([system.observe(x[k], u[k]) for k in range(n_samples)]) + z
-    return Trajectory(np.arange(n_samples) * dt, x, u, y, w, z)
+def _diagonal_blocks(block, rows: int, cols: int) -> np.ndarray:
+    """kron(eye(rows, cols), block) without the multiplications: ``block`` on the first
+    min(rows, cols) diagonal places of a rows x cols grid of blocks (4x faster than np.kron)."""
+    a, b = block.shape
+    if a == 0 or b == 0:
+        return np.zeros((rows * a, cols * b))
+    out = np.zeros((rows, a, cols, b))
+    places = np.arange(min(rows, cols))
+    out[places, :, places, :] = block
+    return out.reshape(rows * a, cols * b)
 
 
 def _jacobi(matrix):
@@ -424,7 +197,7 @@ class NonlinearDEM:
             Ey=embedding_weights(p + 1, self.dt), Eu=embedding_weights(d + 1, self.dt),
             Vy=np.kron(S_p, self.sensor_precision), W=np.kron(S_p, self.process_precision),
             Vv=np.kron(S_d, self.input_prior_precision), D_X=D_X,
-            Dx=shift_operator(p + 1, n), eye_pd=np.eye(p + 1, d + 1), eye_p=np.eye(p + 1),
+            Dx=shift_operator(p + 1, n),
             order_scale=np.concatenate([np.repeat(self.dt ** np.arange(p + 1), n),
                                         np.repeat(self.dt ** np.arange(d + 1), r) if n_v else []]),
         )
@@ -446,7 +219,8 @@ class NonlinearDEM:
         """Prediction errors and their Jacobian at X, Jacobians of f, g held at order 0 of X.
 
         Returns (e, E, Pi) with e = [e_y; e_x; e_v] (e_v only for unknown inputs), E = de/dX and
-        Pi = blkdiag(Vy, W, Vv). u_tilde: the embedded input prior eta~ (unknown inputs) or the
+        Pi = blkdiag(Vy, W, Vv). X: the generalised state [x~; v~]; y_tilde: the embedded outputs
+        y~ ((p + 1) m values); u_tilde: the embedded input prior eta~ (unknown inputs) or the
         embedded measured inputs u~ (known inputs), (d + 1) r values.
         """
         mats = self._matrices
@@ -464,8 +238,8 @@ class NonlinearDEM:
             g_t[0] = system.observe(x[0], v[0])
             f_t = x @ fx.T + v_pad @ fv.T
             f_t[0] = system.flow(x[0], v[0])
-            Fx, Gx = np.kron(mats["eye_p"], fx), np.kron(mats["eye_p"], gx)
-            Fv, Gv = np.kron(mats["eye_pd"], fv), np.kron(mats["eye_pd"], gv)
+            Fx, Gx = _diagonal_blocks(fx, p + 1, p + 1), _diagonal_blocks(gx, p + 1, p + 1)
+            Fv, Gv = _diagonal_blocks(fv, p + 1, d + 1), _diagonal_blocks(gv, p + 1, d + 1)
         x_next = np.vstack([x[1:], np.zeros((1, n))])
         e_y = y_tilde - g_t.ravel()
         e_x = (x_next - f_t).ravel()
@@ -553,7 +327,8 @@ class NonlinearDEM:
         """Start of the flow: the static mode of F for the first sample's data (no generalised
         motion), by Gauss-Newton from ``guess`` (order-0 states (n,), or a full X; default zeros)
         with step halving so F never decreases. For a linear model one step reaches
-        inv(Pi_X) B_obs Y[0], the linear observer's start."""
+        inv(Pi_X) B_obs Y[0], the linear observer's start. y_tilde, u_tilde: the first sample's
+        embedded outputs and inputs (see :meth:`errors`); iterations: the most Gauss-Newton steps."""
         size = self.n_state_coordinates + self.n_input_coordinates
         X = np.zeros(size)
         if guess is not None:
@@ -632,8 +407,8 @@ class NonlinearDEM:
     def _check(self, X, sample: int) -> None:
         n = self.system.n_states
         n_x = self.n_state_coordinates
-        order0 = np.concatenate([X[:n], X[n_x: n_x + self.system.n_inputs] if self._estimates_inputs else []])
-        if not np.all(np.isfinite(X)) or np.max(np.abs(order0), initial=0.0) > self.divergence_limit:
+        order0 = X[:n] if not self._estimates_inputs else np.concatenate([X[:n], X[n_x: n_x + self.system.n_inputs]])
+        if not np.isfinite(X).all() or np.abs(order0).max() > self.divergence_limit:
             raise AttendInputError(
                 f"NonlinearDEM: the estimate diverged at sample {sample} (max |order-0 estimate| = "
                 f"{np.max(np.abs(order0)):.3g} > divergence_limit = {self.divergence_limit:.3g}). The local "
@@ -656,7 +431,8 @@ class NonlinearDEM:
         mean eta (unknown inputs; default 0); initial_state: a guess of the order-0 states (n,)
         (or a full generalised state) where the Gauss-Newton start is sought (default zeros).
         Row k is the estimate at sample k after the flow over that sample (it uses samples up to
-        k + delay). Batch and :meth:`online` agree sample by sample.
+        k + delay). Batch and :meth:`online` agree sample by sample. keep_generalized: also return
+        the generalised state [x~; v~] of every sample (``generalized``, (N, n (p + 1) + r (d + 1))).
         """
         signals = self._signals(outputs, inputs)
         online = OnlineNonlinearDEM(self, initial_state=initial_state)
@@ -679,82 +455,6 @@ class NonlinearDEM:
         return DEMEstimate(np.arange(n_samples) * self.dt, states, inputs, state_std, input_std, generalized)
 
     def online(self, initial_state=None) -> "OnlineNonlinearDEM":
-        """A fixed-memory estimator fed one sample at a time (see :class:`OnlineNonlinearDEM`)."""
+        """A fixed-memory estimator fed one sample at a time (see :class:`OnlineNonlinearDEM`);
+        initial_state: a guess of the order-0 states (n,) for the start (default zeros)."""
         return OnlineNonlinearDEM(self, initial_state=initial_state)
-
-
-class OnlineNonlinearDEM:
-    """Sample-by-sample nonlinear DEM: fixed-size state, output delayed by ``estimator.delay``.
-
-    ``step(y, u=None)`` takes sample k (outputs (m,), and the measured input or the input prior
-    (r,)) and returns (states, inputs) of sample k - delay once enough samples have arrived (None
-    before); ``finish()`` returns the last ``delay`` estimates, repeating the final sample as the
-    batch mode does. Batch and online agree sample by sample.
-    """
-
-    def __init__(self, estimator: NonlinearDEM, initial_state=None):
-        self.estimator = estimator
-        mats = estimator._matrices
-        offsets = mats["offsets"]
-        self._before = int(-offsets[0])
-        self._lead = int(offsets[-1])
-        self._window = len(offsets)
-        self._m = estimator.system.n_outputs
-        self._r = estimator.system.n_inputs
-        self._buffer = np.zeros((self._window, self._m + self._r))
-        self._count = 0
-        self._row = 0
-        self._total: int | None = None
-        self._state: np.ndarray | None = None
-        self._guess = initial_state
-        self._order0 = estimator.edges == "order0"
-
-    def _advance(self, at_end: bool):
-        est = self.estimator
-        row = self._row
-        edge = self._order0 and (row < self._before or at_end)
-        y_t, u_t = est._embed_row(self._buffer, edge, self._buffer[self._before])
-        if self._state is None:
-            self._state = est.initial_state(y_t, u_t, self._guess)
-        X = self._state
-        for _ in range(est.substeps):
-            X, curvature = est._step(X, y_t, u_t)
-        est._check(X, row)
-        self._state = X
-        self._row += 1
-        return (*est._outputs(X, curvature, u_t), X.copy())
-
-    def _push(self, sample):
-        if self._count == 0:
-            self._buffer[:] = sample
-        else:
-            self._buffer[:-1] = self._buffer[1:]
-            self._buffer[-1] = sample
-        self._count += 1
-        if self._count <= self._lead:
-            return None
-        return self._advance(at_end=False)
-
-    def _flush(self):
-        out = []
-        for _ in range(min(self._lead, self._count)):
-            self._buffer[:-1] = self._buffer[1:].copy()
-            out.append(self._advance(at_end=True))
-        return out
-
-    @with_single_blas_thread
-    def step(self, output, input_value=None):
-        """Feed sample k; return (states (n,), inputs (r,)) of sample k - delay, or None."""
-        sample = np.concatenate([np.ravel(np.asarray(output, dtype=float)),
-                                 np.zeros(self._r) if input_value is None
-                                 else np.ravel(np.asarray(input_value, dtype=float))])
-        if sample.shape[0] != self._m + self._r:
-            raise AttendInputError(f"step: expected {self._m} outputs and {self._r} inputs")
-        require_finite(sample, "step sample")
-        out = self._push(sample)
-        return None if out is None else (out[0].copy(), out[1].copy())
-
-    @with_single_blas_thread
-    def finish(self):
-        """Flush the estimates still waiting for future samples (end samples repeated)."""
-        return [(row[0].copy(), row[1].copy()) for row in self._flush()]

@@ -1,0 +1,217 @@
+"""The nonlinear model dx/dt = f(x, v, theta) + w, y = g(x, v, theta) + z: :class:`NonlinearSystem`,
+its Jacobians (analytic or :func:`finite_difference_jacobian`) and :func:`simulate_nonlinear`, the
+generative process with coloured noise (see :mod:`attend.perception.nonlinear`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from attend._validation import AttendInputError, as_matrix, positive_scalar, require_finite
+from attend.noise import coloured_noise
+from attend.systems import Trajectory
+
+_EPS = np.finfo(float).eps
+
+
+# --- the model ------------------------------------------------------------------------------
+
+def finite_difference_jacobian(function: Callable, point, *, method: str = "central",
+                               vectorized: bool = False) -> np.ndarray:
+    """d function / d point at ``point`` (k,), as a (len(function(point)), k) matrix.
+
+    method "central": (f(z + h e_j) - f(z - h e_j)) / 2h with h_j = eps^(1/3) max(1, |z_j|)
+    (error O(h^2) + rounding O(eps/h), ~1e-10 relative); "complex": the complex step
+    Im f(z + i h e_j) / h, h = 1e-30, exact to rounding but only for functions that are analytic
+    and written with complex-safe operations (no abs, max, comparisons): a wrong function gives a
+    silently wrong derivative, so it is not the default. ``vectorized``: ``function`` accepts a
+    (k, batch) array and returns (out, batch), evaluating columns at once (scipy's convention).
+    """
+    z = np.asarray(point, dtype=float)
+    k = z.shape[0]
+    if method == "complex":
+        h = 1e-30
+        shifted = z[:, None] + 1j * h * np.eye(k)
+        if vectorized:
+            values = np.asarray(function(shifted))
+        else:
+            values = np.stack([np.asarray(function(shifted[:, j])) for j in range(k)], axis=1) if k else None
+        if k == 0:
+            return np.zeros((np.asarray(function(z)).shape[0], 0))
+        return np.imag(values) / h
+    if method != "central":
+        raise AttendInputError(f"jacobian_method: expected 'central' or 'complex', got {method!r}")
+    h = _EPS ** (1 / 3) * np.maximum(1.0, np.abs(z))
+    if k == 0:
+        return np.zeros((np.asarray(function(z)).shape[0], 0))
+    steps = np.diag(h)
+    if vectorized:
+        values = np.asarray(function(np.hstack([z[:, None] + steps, z[:, None] - steps])), dtype=float)
+        return (values[:, :k] - values[:, k:]) / (2 * h)
+    columns = [(np.asarray(function(z + steps[:, j]), dtype=float) - np.asarray(function(z - steps[:, j]), dtype=float))
+               / (2 * h[j]) for j in range(k)]
+    return np.stack(columns, axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class NonlinearSystem:
+    """A nonlinear state-space model dx/dt = f(x, v, theta) + w, y = g(x, v, theta) + z.
+
+    f, g: plain NumPy functions of 1-D arrays, ``f(x, v)`` -> (n_states,) [state unit / s] and
+    ``g(x, v)`` -> (n_outputs,) [output unit], with x (n_states,) and v (n_inputs,) (an empty
+    array when n_inputs = 0: autonomous systems). When ``parameters`` theta is given they are
+    called ``f(x, v, parameters)``, ``g(x, v, parameters)``.
+    jacobian_f, jacobian_g: optional analytic Jacobians, called like f and g and returning the
+    pair (df/dx (n, n), df/dv (n, r)) resp. (dg/dx (m, n), dg/dv (m, r)); without them the
+    Jacobians are finite differences (``jacobian_method`` "central" or "complex", see
+    :func:`finite_difference_jacobian`; ``vectorized``: f and g accept (k, batch) columns).
+    state_names, input_names, output_names: labels (default x1.., u1.., y1..).
+    """
+
+    f: Callable
+    g: Callable
+    n_states: int
+    n_inputs: int
+    n_outputs: int
+    parameters: object = None
+    state_names: tuple[str, ...] = ()
+    input_names: tuple[str, ...] = ()
+    output_names: tuple[str, ...] = ()
+    jacobian_f: Callable | None = None
+    jacobian_g: Callable | None = None
+    jacobian_method: str = "central"
+    vectorized: bool = False
+
+    def __post_init__(self):
+        if not callable(self.f):
+            raise AttendInputError("f: expected a function f(x, v) -> dx/dt")
+        if not callable(self.g):
+            raise AttendInputError("g: expected a function g(x, v) -> y")
+        for name, value, low in (("n_states", self.n_states, 1), ("n_inputs", self.n_inputs, 0),
+                                 ("n_outputs", self.n_outputs, 1)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+                raise AttendInputError(f"{name}: expected an integer >= {low}, got {value!r}")
+            object.__setattr__(self, name, int(value))
+        if self.jacobian_method not in ("central", "complex"):
+            raise AttendInputError(f"jacobian_method: expected 'central' or 'complex', got {self.jacobian_method!r}")
+        for which in ("jacobian_f", "jacobian_g"):
+            if getattr(self, which) is not None and not callable(getattr(self, which)):
+                raise AttendInputError(f"{which}: expected a function returning (d/dx, d/dv) or None")
+        for field_, names, size, letter in (("state_names", self.state_names, self.n_states, "x"),
+                                            ("input_names", self.input_names, self.n_inputs, "u"),
+                                            ("output_names", self.output_names, self.n_outputs, "y")):
+            names = tuple(names) or tuple(f"{letter}{i + 1}" for i in range(size))
+            if len(names) != size:
+                raise AttendInputError(f"{field_}: expected {size} names, got {len(names)}")
+            object.__setattr__(self, field_, names)
+
+    # evaluation ------------------------------------------------------------------------------
+
+    def _call(self, function, x, v):
+        return function(x, v) if self.parameters is None else function(x, v, self.parameters)
+
+    def _value(self, which: str, x, v) -> np.ndarray:
+        function, size = (self.f, self.n_states) if which == "f" else (self.g, self.n_outputs)
+        try:
+            value = np.asarray(self._call(function, x, v), dtype=float)
+        except AttendInputError:
+            raise
+        except Exception as error:  # the user's function failed: say which and where
+            raise AttendInputError(f"{which}: raised {type(error).__name__}: {error} at x = {x}, v = {v}") from error
+        if value.shape != (size,):
+            value = value.reshape(-1) if value.size == size else value
+            if value.shape != (size,):
+                raise AttendInputError(f"{which}: expected {size} values (a 1-D array), got shape {value.shape}")
+        return value
+
+    def flow(self, x, v=None) -> np.ndarray:
+        """f(x, v) [state unit / s]."""
+        return self._value("f", np.asarray(x, dtype=float), self._inputs(v))
+
+    def observe(self, x, v=None) -> np.ndarray:
+        """g(x, v) [output unit]."""
+        return self._value("g", np.asarray(x, dtype=float), self._inputs(v))
+
+    def _inputs(self, v):
+        return np.zeros(self.n_inputs) if v is None else np.asarray(v, dtype=float).reshape(self.n_inputs)
+
+    def jacobians(self, x, v=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(fx, fv, gx, gv) at (x, v): analytic when given, else finite differences."""
+        x = np.asarray(x, dtype=float)
+        v = self._inputs(v)
+        n, r, m = self.n_states, self.n_inputs, self.n_outputs
+        out = []
+        for which, analytic, size in (("f", self.jacobian_f, n), ("g", self.jacobian_g, m)):
+            if analytic is not None:
+                try:
+                    dx, dv = self._call(analytic, x, v)
+                    dx = np.asarray(dx, dtype=float).reshape(size, n)
+                    dv = np.asarray(dv, dtype=float).reshape(size, r)
+                except (TypeError, ValueError) as error:
+                    raise AttendInputError(f"jacobian_{which}: expected the pair (d{which}/dx ({size}, {n}), "
+                                           f"d{which}/dv ({size}, {r})) ({error})") from None
+            else:
+                function = self.f if which == "f" else self.g
+                if self.vectorized or self.jacobian_method == "complex":
+                    joint = lambda z, fn=function: np.asarray(self._call(fn, z[:n], z[n:]))  # noqa: E731
+                else:
+                    joint = lambda z, w=which: self._value(w, z[:n], z[n:])  # noqa: E731
+                jac = finite_difference_jacobian(joint, np.concatenate([x, v]), method=self.jacobian_method,
+                                                 vectorized=self.vectorized)
+                dx, dv = jac[:, :n], jac[:, n:]
+            out.extend([dx, dv])
+        fx, fv, gx, gv = out
+        return fx, fv, gx, gv
+
+
+def simulate_nonlinear(system: NonlinearSystem, inputs, dt: float, *, kernel_width: float, process_std=0.0,
+                       measurement_std=0.0, initial_state=None, seed=0, substeps: int = 10) -> Trajectory:
+    """Simulate the generative process with coloured noise.
+
+    system: the NonlinearSystem (f, g); dt: sample time [s]; initial_state: x[0] (default 0);
+    seed: seed of the noise draws; substeps: RK4 sub-steps per sample.
+    inputs: (N, r) input samples, or the number of samples N for an autonomous system (r = 0).
+    x[k] = x[k-1] + integral over one sample of f(x, u[k-1]) + w[k-1] (RK4 with ``substeps``
+    sub-steps, u and w held over the sample: the zero-order hold of the linear simulate()),
+    y[k] = g(x[k], u[k]) + z[k]; w, z: white noise convolved with the Gaussian kernel of width
+    kernel_width [s], standard deviations process_std [state unit / s] and measurement_std per
+    sample. Returns an :class:`attend.systems.Trajectory`.
+    """
+    if not isinstance(system, NonlinearSystem):
+        raise AttendInputError("system: expected an attend NonlinearSystem")
+    dt = positive_scalar(dt, "dt", "s")
+    if isinstance(inputs, (int, np.integer)) and not isinstance(inputs, bool):
+        u = np.zeros((int(inputs), system.n_inputs))
+    else:
+        u = np.asarray(inputs, dtype=float)
+        if u.ndim == 1 and system.n_inputs == 1:
+            u = u[:, None]
+        if u.ndim != 2 or u.shape[1] != system.n_inputs:
+            raise AttendInputError(f"inputs: expected shape (N, {system.n_inputs}), got {u.shape}")
+        require_finite(u, "inputs")
+    n_samples = u.shape[0]
+    if n_samples < 1:
+        raise AttendInputError("inputs: expected at least one sample")
+    rng = np.random.default_rng(seed)
+    w = coloured_noise(n_samples, system.n_states, dt, kernel_width, process_std, rng)
+    z = coloured_noise(n_samples, system.n_outputs, dt, kernel_width, measurement_std, rng)
+    x = np.zeros((n_samples, system.n_states))
+    if initial_state is not None:
+        x[0] = as_matrix(initial_state, "initial_state", cols=1)[:, 0]
+    h = dt / int(substeps)
+    for k in range(1, n_samples):
+        state, uk, wk = x[k - 1], u[k - 1], w[k - 1]
+        for _ in range(int(substeps)):
+            k1 = system.flow(state, uk) + wk
+            k2 = system.flow(state + 0.5 * h * k1, uk) + wk
+            k3 = system.flow(state + 0.5 * h * k2, uk) + wk
+            k4 = system.flow(state + h * k3, uk) + wk
+            state = state + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        if not np.all(np.isfinite(state)):
+            raise AttendInputError(f"simulate_nonlinear: the state became non-finite at sample {k}; "
+                                   "lower dt or raise substeps")
+        x[k] = state
+    y = np.stack([system.observe(x[k], u[k]) for k in range(n_samples)]) + z
+    return Trajectory(np.arange(n_samples) * dt, x, u, y, w, z)

@@ -1,0 +1,46 @@
+"""Baselines for nonlinear models: extended and unscented Kalman filters/smoothers, and a particle
+smoother under (a finite model of) the true coloured noise.
+
+Kalman-type baselines (white noise) work on the discrete model that
+:func:`attend.perception.nonlinear.simulate_nonlinear` samples without noise::
+
+    x[k] = F(x[k-1], u[k-1]) + q[k-1],  q ~ N(0, Q)        (Q = process_covariance)
+    y[k] = g(x[k], u[k]) + r[k],        r ~ N(0, R)        (R = measurement_covariance)
+    x[0] ~ N(m0, P0)
+
+F integrates dx/dt = f(x, u) over one sample dt by RK4 with ``substeps`` sub-steps (u held).
+Unknown inputs: pass ``input_variance`` instead of inputs; the state is augmented with
+u[k] = u[k-1] + e, e ~ N(0, input_variance) (a random walk), started at ``input_mean``.
+:func:`white_noise_covariances` gives the Q, R matching coloured noise (same variance per sample,
+or same low-frequency power).
+
+Results are :class:`attend.perception.baselines.KalmanEstimate` (time, states, inputs, state_std,
+input_std first, as :class:`attend.perception.dem.DEMEstimate`).
+
+:func:`particle_smoother`: a bootstrap particle filter whose state carries the coloured noises
+(each channel an autoregressive model AR(q) fitted by Yule-Walker to rho(tau) =
+exp(-tau^2/(4 s^2)) at lags 0..q samples), with the sensor noise marginalised exactly (given a
+particle's path, z is known up to its AR innovation), and fixed-lag smoothing by tracing the
+particles' ancestry. Its mean approximates the posterior mean under the coloured-noise model
+(exact as the number of particles grows, up to the AR(q) fit of rho and the lag): a slow
+reference, not an estimator for use.
+"""
+
+from attend.perception.nonlinear_baselines.coloured import coloured_unscented_smoother
+from attend.perception.nonlinear_baselines.kalman import (
+    extended_kalman,
+    input_random_walk_variance,
+    unscented_kalman,
+    white_noise_covariances,
+)
+from attend.perception.nonlinear_baselines.particle import ParticleEstimate, particle_smoother
+
+__all__ = [
+    "white_noise_covariances",
+    "input_random_walk_variance",
+    "extended_kalman",
+    "unscented_kalman",
+    "particle_smoother",
+    "coloured_unscented_smoother",
+    "ParticleEstimate",
+]

@@ -1,0 +1,164 @@
+"""A particle smoother under (a finite model of) the true coloured noise: the reference for the
+posterior mean of the nonlinear reproductions (see :mod:`attend.perception.nonlinear_baselines`)."""
+
+from __future__ import annotations
+
+from collections import deque
+from typing import NamedTuple
+
+import numpy as np
+
+from attend._threads import with_single_blas_thread
+from attend._validation import AttendInputError
+from attend.perception.nonlinear import NonlinearSystem
+from attend.perception.nonlinear_baselines.coloured import _noise_model, _yule_walker
+from attend.perception.nonlinear_baselines.kalman import _rk4
+
+
+class ParticleEstimate(NamedTuple):
+    """Particle smoother estimates: time (N,), states (N, n), inputs (N, r) posterior means,
+    state_std, input_std their standard deviations, effective_sample_size (N,) after each update."""
+
+    time: np.ndarray
+    states: np.ndarray
+    inputs: np.ndarray
+    state_std: np.ndarray
+    input_std: np.ndarray
+    effective_sample_size: np.ndarray
+
+
+class _ARHistory:
+    """The last q values (newest first) of unit-variance AR noises of ``channels`` channels, per
+    particle; ``draw`` samples the next value given the history available so far."""
+
+    def __init__(self, rho, q, channels, particles, rng):
+        self.table = [_yule_walker(rho, j) for j in range(q + 1)]
+        self.values = np.zeros((q, channels, particles))
+        self.q, self.rng = q, rng
+
+    def predict(self, available: int):
+        """(conditional mean, innovation variance) of the next value given ``available`` values."""
+        j = min(available, self.q)
+        a, variance = self.table[j]
+        return (np.tensordot(a, self.values[:j], axes=(0, 0)) if j else 0.0), variance
+
+    def draw(self, available: int):
+        mean, variance = self.predict(available)
+        return mean + np.sqrt(variance) * self.rng.standard_normal(self.values.shape[1:])
+
+    def push(self, value):
+        if self.q:
+            self.values[1:] = self.values[:-1].copy()
+            self.values[0] = value
+
+    def resample(self, index):
+        self.values = self.values[:, :, index]
+
+
+def _weighted_moments(samples, weights):
+    """Weighted mean and std over particles of samples (channels, P)."""
+    samples = np.array(samples)  # a fresh aligned copy: the same rounding as a gathered array
+    mean = samples @ weights
+    std = np.sqrt(np.clip(((samples - mean[:, None]) ** 2) @ weights, 0, None))
+    return mean, std
+
+
+@with_single_blas_thread
+def particle_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, *, kernel_width: float,
+                      process_std, measurement_std, input_prior_std=None, input_prior_mean=None,
+                      initial_mean=None, initial_std=None, n_particles: int = 2000, ar_order: int = 3,
+                      lag: int = 20, substeps: int = 4, seed=0,
+                      input_kernel_width: float | None = None) -> ParticleEstimate:
+    """Bootstrap particle filter + fixed-lag ancestry smoother under AR(q) coloured noise.
+
+    The generative model is :func:`attend.perception.nonlinear.simulate_nonlinear`'s: w, z (and,
+    for unknown inputs, v with mean input_prior_mean and standard deviation input_prior_std, the
+    DEM input prior) are Gaussian-kernel coloured noises of width kernel_width [s], each channel
+    approximated by an AR(ar_order) process with the autocorrelation of the true noise at lags
+    0..ar_order. The sensor noise is marginalised: a particle's weight is the AR predictive density
+    of its residual y[k] - g(x[k], v[k]). Row k is the weighted mean over the ancestry at sample
+    min(k + lag, N - 1) (only the last lag + 1 samples of particles are kept: memory
+    O(lag n n_particles)). The system's f and g must accept (n, n_particles) columns
+    (NonlinearSystem(vectorized=True) or functions written with x[0], x[1], ... and
+    np.array([...]) on arrays). O(N n_particles) model evaluations: slow, a reference.
+
+    system: the NonlinearSystem; dt: sample time [s]; outputs: (N, m); inputs: measured inputs
+    (N, r), or None with input_prior_std for unknown inputs; process_std: sigma_w [state unit / s];
+    measurement_std: sigma_z [output unit]; input_prior_mean: eta (scalar, (r,) or (N, r));
+    initial_mean / initial_std: the Gaussian of x[0]; n_particles: P; lag: L samples;
+    substeps: RK4 sub-steps per sample; seed: seed of the particle draws (independent seeds give
+    independent runs: their spread measures the Monte Carlo error); input_kernel_width: the unknown
+    inputs' own smoothness s_v [s] (default kernel_width).
+    """
+    q = int(ar_order)
+    model = _noise_model(system, dt, outputs, inputs, kernel_width, process_std, measurement_std, input_prior_std,
+                         input_prior_mean, input_kernel_width, q)
+    n, r, m = system.n_states, system.n_inputs, system.n_outputs
+    N = model.y.shape[0]
+    rng = np.random.default_rng(seed)
+    P = int(n_particles)
+    m0 = np.zeros(n) if initial_mean is None else np.asarray(initial_mean, dtype=float).reshape(n)
+    s0 = np.zeros(n) if initial_std is None else np.broadcast_to(np.asarray(initial_std, dtype=float), (n,))
+    w_hist = _ARHistory(model.rho, q, n, P, rng)
+    v_hist = _ARHistory(model.rho_v, q, r, P, rng)
+    z_hist = _ARHistory(model.rho, q, m, P, rng)  # residuals (sensor noise) of each particle's path
+    x = m0[:, None] + s0[:, None] * rng.standard_normal((n, P))
+    noises = [w_hist.draw(0), v_hist.draw(0)]
+    rows = np.empty((N, 2, n + r))  # per sample: (mean, std) of [x; v]
+    ess = np.empty(N)
+    recent = deque()  # (sample, particles [x; v] (n + r, P)) of the last lag + 1 samples
+    log_w = np.zeros(P)
+    for k in range(N):
+        if k > 0:
+            x = _propagate(system, model, x, noises, k, substeps, (w_hist, v_hist))
+        u_now = _inputs(model, noises[1], k, P)
+        residual = (model.y[k][:, None] - np.asarray(system._call(system.g, x, u_now), dtype=float)) / model.sz[:, None]
+        predicted, variance = z_hist.predict(k)
+        log_w = log_w - 0.5 * np.sum((residual - predicted) ** 2, axis=0) / variance
+        z_hist.push(residual)
+        log_w -= log_w.max()
+        weights = np.exp(log_w)
+        weights /= weights.sum()
+        if not np.all(np.isfinite(x)):
+            raise AttendInputError("particle_smoother: non-finite particles; check the model and the noise levels")
+        ess[k] = 1.0 / np.sum(weights**2)
+        recent.append((k, np.vstack([x, u_now])))
+        if k - recent[0][0] >= lag or k == N - 1:  # the oldest kept sample has seen its lag (or the log ends)
+            while recent and (k - recent[0][0] >= lag or k == N - 1):
+                sample, particles = recent.popleft()
+                rows[sample] = np.hstack([_weighted_moments(particles[:n], weights),
+                                          _weighted_moments(particles[n:], weights)])
+        if ess[k] < P / 2 and k < N - 1:
+            # systematic resampling: every carried quantity (and the kept past samples) follows its ancestor
+            index = np.minimum(np.searchsorted(np.cumsum(weights), (rng.random() + np.arange(P)) / P), P - 1)
+            x = x[:, index]
+            noises = [noise[:, index] for noise in noises]
+            for history in (w_hist, v_hist, z_hist):
+                history.resample(index)
+            recent = deque((sample, particles[:, index]) for sample, particles in recent)
+            log_w = np.zeros(P)
+    if not model.unknown:
+        return ParticleEstimate(np.arange(N) * model.dt, rows[:, 0, :n], model.u_known, rows[:, 1, :n],
+                                np.zeros((N, r)), ess)
+    return ParticleEstimate(np.arange(N) * model.dt, rows[:, 0, :n], rows[:, 0, n:], rows[:, 1, :n], rows[:, 1, n:],
+                            ess)
+
+
+def _inputs(model, v_now, k, P):
+    """The particles' inputs at sample k: eta + sv v (unknown) or the measured ones."""
+    if model.unknown:
+        return model.eta[k][:, None] + model.sv[:, None] * v_now
+    return model.u_known[k][:, None] * np.ones((1, P))
+
+
+def _propagate(system, model, x, noises, k, substeps, histories):
+    """x[k] from x[k-1] under the noises of sample k - 1; then draw the noises of sample k
+    (``noises`` is updated in place)."""
+    w_now, v_now = noises
+    x = _rk4(system, x, _inputs(model, v_now, k - 1, x.shape[1]), model.dt, substeps,
+             w=model.sw[:, None] * w_now)
+    w_hist, v_hist = histories
+    w_hist.push(w_now)
+    v_hist.push(v_now)
+    noises[0], noises[1] = w_hist.draw(k), v_hist.draw(k)
+    return x

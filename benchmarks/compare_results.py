@@ -6,7 +6,9 @@ For every NAME.json present in either folder, each metric (by name) is compared:
 (bit for bit, or both NaN) are counted as identical; others are printed with both values and
 their relative difference, and marked "within tolerance" when |a - b| <= atol + rtol |a| (default
 0: any change is a difference). Metrics or experiments present on one side only are listed.
-Exit status: 0 when nothing differs beyond the tolerance, 1 otherwise.
+Metrics that measure this machine's clock rather than the method (run times, samples per second,
+compute-time ratios) differ from run to run; ``--skip-wall-clock`` leaves them out (they are
+counted and named as skipped). Exit status: 0 when nothing differs beyond the tolerance, 1 otherwise.
 """
 
 from __future__ import annotations
@@ -14,8 +16,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 from pathlib import Path
+
+
+#: names of wall-clock metrics: run times [s], speeds [samples/s], compute-time ratios
+WALL_CLOCK = re.compile(r"(wall_time|_time_(mean|median)$|speed$|_over_best_fixed_compute$)")
 
 
 def load_metrics(path: Path) -> dict[str, object]:
@@ -49,8 +56,9 @@ def relative(a, b) -> str:
     return "-"
 
 
-def compare(before: Path, after: Path, rtol: float = 0.0, atol: float = 0.0) -> int:
-    """Print the comparison; return the number of metrics that differ beyond the tolerance."""
+def compare(before: Path, after: Path, rtol: float = 0.0, atol: float = 0.0, skip: re.Pattern | None = None) -> int:
+    """Print the comparison; return the number of metrics that differ beyond the tolerance.
+    Metrics whose name ``skip`` matches are left out (and counted as skipped)."""
     names = sorted({p.stem for p in before.glob("*.json")} | {p.stem for p in after.glob("*.json")})
     failures = 0
     for name in names:
@@ -60,6 +68,9 @@ def compare(before: Path, after: Path, rtol: float = 0.0, atol: float = 0.0) -> 
             failures += 1
             continue
         a, b = load_metrics(a_path), load_metrics(b_path)
+        skipped = sorted(m for m in set(a) | set(b) if skip is not None and skip.search(m))
+        a = {k: v for k, v in a.items() if k not in skipped}
+        b = {k: v for k, v in b.items() if k not in skipped}
         identical, lines = 0, []
         for metric in sorted(set(a) | set(b)):
             if metric not in a or metric not in b:
@@ -72,7 +83,8 @@ def compare(before: Path, after: Path, rtol: float = 0.0, atol: float = 0.0) -> 
                 failures += not ok
                 lines.append(f"  {metric}: {a[metric]!r} -> {b[metric]!r} (relative {relative(a[metric], b[metric])})"
                              + (" within tolerance" if ok else ""))
-        print(f"{name}: {identical} of {len(set(a) | set(b))} metrics identical")
+        print(f"{name}: {identical} of {len(set(a) | set(b))} metrics identical"
+              + (f" ({len(skipped)} wall-clock metrics skipped)" if skipped else ""))
         for line in lines:
             print(line)
     print("no differences" if failures == 0 else f"{failures} difference(s) beyond tolerance")
@@ -85,11 +97,14 @@ def main(argv=None) -> int:
     parser.add_argument("after", type=Path)
     parser.add_argument("--rtol", type=float, default=0.0, help="relative tolerance (default 0: bit for bit)")
     parser.add_argument("--atol", type=float, default=0.0, help="absolute tolerance (default 0)")
+    parser.add_argument("--skip-wall-clock", action="store_true",
+                        help="leave out run times, speeds and compute-time ratios (they measure the machine)")
     args = parser.parse_args(argv)
     for folder in (args.before, args.after):
         if not folder.is_dir():
             parser.error(f"{folder}: not a folder")
-    return 1 if compare(args.before, args.after, args.rtol, args.atol) else 0
+    return 1 if compare(args.before, args.after, args.rtol, args.atol,
+                           WALL_CLOCK if args.skip_wall_clock else None) else 0
 
 
 if __name__ == "__main__":

@@ -168,7 +168,10 @@ def _data_dir(data_dir) -> Path:
 
 
 def load_flight(data_dir, name: str) -> Log:
-    """The CSV log of one flight (CSV data row r = MATLAB column r + 1)."""
+    """The CSV log of one flight (CSV data row r = MATLAB column r + 1).
+
+    data_dir: the directory of the flight CSVs (see :func:`default_data_dir`); name: the flight,
+    one of :data:`WIND_FLIGHTS` or :data:`NO_WIND_FLIGHTS` (its file is ``name``.csv)."""
     return read_log(Path(data_dir) / f"{name}.csv")
 
 
@@ -194,7 +197,11 @@ class Slice(NamedTuple):
 
 
 def prepare_slice(log: Log, first: int, last: int, fully_observed: bool = False) -> Slice:
-    """Samples ``first..last`` (1-based, inclusive) of a flight, scaled as in the published code."""
+    """Samples ``first..last`` (1-based, inclusive) of a flight, scaled as in the published code.
+
+    log: the flight's log (:func:`load_flight`: state_phi [rad], state_phi_dot [rad/s], meas_phi
+    [rad], motor_1..motor_4 commands); fully_observed: measure both states (C = I, outputs
+    [phi, phi_dot]) instead of meas_phi alone."""
     rows = slice(first - 1, last)
     states = np.column_stack([log.columns["state_phi"][rows], log.columns["state_phi_dot"][rows]])
     motors = np.column_stack([log.columns[f"motor_{m}"][rows] for m in range(1, 5)])
@@ -247,6 +254,7 @@ def published_embedding(outputs, input_prior, embedding_order: int, input_order:
 
     outputs (N, m), input_prior eta (N, r) -> (N, m (p + 1) + r (d + 1)); row j drives step j of
     the flow (attend's sign: +eta~; the authors stack -eta~ and use -Vv, the same product).
+    embedding_order: p of the outputs; input_order: d of the inputs; dt: sample time [s].
 
     - interior rows, p + 1 <= j <= N - p - 3 (0-based; MATLAB p + 1 < i < N - p - 1, used for the
       input block as well): y~ from p + 1 samples and eta~ from d + 1 samples, both expanded
@@ -280,6 +288,8 @@ def published_dem(observer: DEMObserver, outputs, input_prior) -> np.ndarray:
     observer must treat the inputs as unknown (known inputs: prior = measured input with a large
     ``input_prior_precision``). Drive = Gamma [y~; eta~] from :func:`published_embedding`;
     X[0] = 0 except the order-0 inputs = eta[0]; X[j] = Phi X[j-1] + drive[j] for j >= 1.
+    observer: the DEMObserver (known_inputs=False); outputs: y (N, m); input_prior: eta (N, r),
+    the inputs' prior means (the scaled motor commands where they are measured).
     """
     if observer.known_inputs:
         raise AttendInputError("observer: the published protocol keeps the inputs as unknowns (known_inputs=False)")
@@ -335,7 +345,10 @@ def lagged_kalman_filter(system: LinearSystem, dt: float, outputs, inputs, proce
     prediction Ad x[j-1] + Bd u[j-1] is corrected with y[j-1] (one-sample lag). This equals the
     standard filter on the shifted log y'[k] = y[k], u'[k] = u[k+1] (k = 0..N-2) started from
     x'[0] ~ N(Bd u[0], Q + Ad P0 Ad'); row j of the result is row j - 1 of that filter.
-    Returns the states (N, n).
+    system: the continuous-time model, discretised by ZOH; dt: sample time [s]; outputs: y (N, m);
+    inputs: u (N, r); process_covariance: Q [state unit^2 per step], a vector (diagonal) or (n, n);
+    measurement_covariance: R [output unit^2], scalar, vector or (m, m); initial_covariance: P0
+    (n, n) (None: I). Returns the states (N, n).
     """
     y = np.asarray(outputs, dtype=float)
     u = np.asarray(inputs, dtype=float)
@@ -356,7 +369,9 @@ def authors_kalman_filter(Ad, Bd, C, Q, R, P0, outputs, inputs) -> np.ndarray:
 
     x[0] = 0; for j >= 1: predict with u[j-1], correct with y[j-1] (one-sample lag). Reproduces
     their ``Kalman_estimate.m``; equals :func:`lagged_kalman_filter` for the plain model.
-    Returns the states (N, n).
+    Ad (n, n), Bd (n, r): the discrete model; C (m, n): output matrix; Q (n, n): process-noise
+    covariance per step; R (m, m): measurement covariance; P0 (n, n): covariance of x[0];
+    outputs: y (N, m); inputs: u (N, r). Returns the states (N, n).
     """
     y, u = np.asarray(outputs, dtype=float), np.asarray(inputs, dtype=float)
     n = Ad.shape[0]
@@ -378,6 +393,8 @@ def fit_ar(series, order: int) -> tuple[np.ndarray, float]:
     w[t] = sum_m a_m w[t-m] + e[t]. Coefficients a: one least-squares problem stacking the
     forward (t = N..n-1, w[t] on w[t-1..t-N]) and backward (w[t] on w[t+1..t+N]) equations, no
     padding. Noise variance: mean square of the forward residuals (divided by n - N).
+    series: w (n,), e.g. one state's one-step residuals (:attr:`Slice.residuals`). Returns the
+    coefficients a (order,) and the noise variance sigma^2 [unit of w squared].
     """
     w = np.asarray(series, dtype=float)
     n = len(w)
@@ -393,7 +410,8 @@ def state_augmented_kalman_filter(piece: Slice, ar_order: int = 6) -> np.ndarray
 
     State [x; eta_1; ...; eta_N] (eta_m = w[k-m+1]), A_aug = [[Ad, [I 0 ...]], [0, AR]], AR's top
     block row [diag(a_1) ... diag(a_N)] above a shift; Q_aug = diag(sigma^2) on eta_1 only; the
-    authors' lagged KF with P0 = I. Returns the states x (N, 2).
+    authors' lagged KF with P0 = I. piece: the :class:`Slice` (its residuals give the AR fits).
+    Returns the states x (N, 2).
     """
     n = piece.Ad.shape[0]
     fits = [fit_ar(piece.residuals[:, i], ar_order) for i in range(n)]
@@ -417,7 +435,8 @@ def smikf(piece: Slice) -> np.ndarray:
     phi = diag(a_1), Qw = diag(sigma^2) from :func:`fit_ar` (order 1); P = I, K = eye(n, m),
     Pww = Qw, x = 0; for k >= 1: Pww' = phi^2 Pww + Qw, Pxw = (I - K C) phi Pww (previous K),
     P- = Ad P Ad' + Ad Pxw + Pxw' Ad' + Pww', then the lagged update with y[k-1].
-    Returns the states (N, n). It diverges on one wind slice (exp_25_WW_WM_2, slice 1).
+    piece: the :class:`Slice` filtered. Returns the states (N, n). It diverges on one wind slice
+    (exp_25_WW_WM_2, slice 1).
     """
     n = piece.Ad.shape[0]
     fits = [fit_ar(piece.residuals[:, i], 1) for i in range(n)]
@@ -443,7 +462,10 @@ def smikf(piece: Slice) -> np.ndarray:
 
 
 def sse(estimate, reference, trim: int = TRIM) -> float:
-    """Sum of squared errors with ``trim`` samples left out at each end."""
+    """Sum of squared errors with ``trim`` samples left out at each end.
+
+    estimate, reference: (N,) series in the same unit (e.g. phi_dot [rad/s]); the SSE is in that
+    unit squared."""
     e = np.asarray(estimate, dtype=float)
     r = np.asarray(reference, dtype=float)
     return float(np.sum((e[trim: len(e) - trim] - r[trim: len(r) - trim]) ** 2))

@@ -74,7 +74,11 @@ def _unit_precision_core(n_orders: int) -> np.ndarray:
 
 
 def temporal_covariance(n_orders: int, kernel_width: float) -> np.ndarray:
-    """V(s): covariance of a Gaussian-smoothed noise and its first n_orders - 1 derivatives."""
+    """V(s): covariance of a Gaussian-smoothed noise and its first n_orders - 1 derivatives.
+
+    kernel_width: s [s], the width of the noise's Gaussian kernel (in the derivatives' time unit).
+    Returns (n_orders, n_orders); order i carries (2 s^2)^(-i/2), so V(s) = inv(S(s)).
+    """
     n_orders = order(n_orders, "n_orders", maximum=40)
     s = positive_scalar(kernel_width, "kernel_width")
     core = np.array([[float(v) for v in row] for row in _unit_covariance_core(n_orders)])
@@ -175,6 +179,9 @@ def embed(series, n_orders: int, dt: float, *, edges: str = "clamp", shift: int 
 
 def smoothness_condition(n_orders: int, kernel_width: float, dt: float) -> float:
     """cond(S) of the temporal precision in sample units (kernel width s / dt samples).
+
+    n_orders: p + 1 orders of S; kernel_width: s [s], the width of the noise's Gaussian kernel;
+    dt: sample time [s].
 
     Unit-free: how unequally S weights the orders once derivatives are measured per sample, i.e.
     how precisely finite differences of the data would have to resolve the highest order. It

@@ -33,7 +33,10 @@ def _control():
 
 
 def from_statespace(statespace, *, state_names=(), input_names=(), output_names=()) -> LinearSystem:
-    """LinearSystem (A, B, C) of a continuous-time control.StateSpace with D = 0."""
+    """LinearSystem (A, B, C) of a continuous-time control.StateSpace with D = 0.
+
+    statespace: the python-control system (dt = 0, D = 0); state_names (n,), input_names (r,),
+    output_names (m,): labels for the columns of logs and results (default x1.., u1.., y1..)."""
     control = _control()
     if not isinstance(statespace, control.StateSpace):
         raise AttendInputError("statespace: expected a control.StateSpace")

@@ -19,7 +19,11 @@ from attend._validation import AttendInputError, positive_scalar
 
 
 def gaussian_kernel(dt: float, kernel_width: float, support: float = 6.0) -> np.ndarray:
-    """Samples of h(t) = exp(-t^2/(2 s^2)) for |t| <= support*s, normalised to unit energy."""
+    """Samples of h(t) = exp(-t^2/(2 s^2)) for |t| <= support*s, normalised to unit energy.
+
+    dt: sample spacing [s]; kernel_width: s [s], the width of the Gaussian kernel; support: the
+    half-length kept, in kernel widths. Returns (2 ceil(support s / dt) + 1,) samples centred on t = 0.
+    """
     dt = positive_scalar(dt, "dt", "s")
     s = positive_scalar(kernel_width, "kernel_width", "s")
     half = int(np.ceil(support * s / dt))
@@ -29,7 +33,7 @@ def gaussian_kernel(dt: float, kernel_width: float, support: float = 6.0) -> np.
 
 
 def autocorrelation(tau, kernel_width: float):
-    """rho(tau) = exp(-tau^2 / (4 s^2)) for lags tau [s] and kernel width s [s]."""
+    """rho(tau) = exp(-tau^2 / (4 s^2)) for lags tau [s] (any shape) and kernel_width s [s]."""
     s = positive_scalar(kernel_width, "kernel_width", "s")
     return np.exp(-np.asarray(tau, dtype=float) ** 2 / (4 * s**2))
 
@@ -98,14 +102,17 @@ def kernel_autocorrelation(dt: float, kernel_width: float) -> np.ndarray:
     """r[l], l = 0, 1, ...: autocorrelation of :func:`coloured_noise` samples (the kernel's self-correlation).
 
     r[l] = sum_i h[i] h[i + l] with h = gaussian_kernel(dt, s); r[l] ~ rho(l dt) for s >= dt, and
-    exactly zero beyond the kernel's length.
+    exactly zero beyond the kernel's length. dt: sample spacing [s]; kernel_width: s [s], the
+    width of the noise's Gaussian kernel.
     """
     h = gaussian_kernel(dt, kernel_width)
     return np.correlate(h, h, mode="full")[len(h) - 1:]
 
 
 def sampled_autocorrelation(dt: float, kernel_width: float) -> np.ndarray:
-    """r[l] = rho(l dt) = exp(-(l dt)^2 / (4 s^2)) for the lags where it exceeds 1e-17."""
+    """r[l] = rho(l dt) = exp(-(l dt)^2 / (4 s^2)) for the lags where it exceeds 1e-17.
+
+    dt: sample spacing [s]; kernel_width: s [s], the width of the noise's Gaussian kernel."""
     s = positive_scalar(kernel_width, "kernel_width", "s")
     lags = int(np.ceil(2 * s * np.sqrt(17 * np.log(10)) / dt)) + 1
     return autocorrelation(np.arange(lags) * dt, s)
@@ -119,6 +126,9 @@ def white_state_space() -> NoiseStateSpace:
 
 def noise_state_space(autocorrelation_sequence, *, white_floor: float = 1e-8, accuracy: float = 1e-5) -> NoiseStateSpace:
     """Fit a :class:`NoiseStateSpace` to the autocorrelation r[0], r[1], ... (r[0] = 1).
+
+    autocorrelation_sequence: r[l] at lags l = 0, 1, ... samples, (L,) with r[0] > 0 (rescaled to
+    r[0] = 1), e.g. from :func:`kernel_autocorrelation` or :func:`sampled_autocorrelation`.
 
     Steps: (1) Hankel matrix of r[1..] and its SVD give (F, H, G_bar) with r[l] = H F^(l-1) G_bar
     for l >= 1 (Ho-Kalman on covariances), truncated where the singular values fall below a

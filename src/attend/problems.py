@@ -104,7 +104,8 @@ MSD_PUBLISHED_THETA = {"theta3": -0.5714, "theta4": -0.2857, "theta6": 0.7143}
 
 
 def msd_input(time: np.ndarray) -> np.ndarray:
-    """The bank's input force u(t) = exp(-0.25 (t - 12)^2) [N] at the times (N,) [s], as (N, 1)."""
+    """The bank's input force u(t) = exp(-0.25 (t - 12)^2) [N] at the sample times ``time`` (N,) [s],
+    as (N, 1)."""
     return np.exp(-0.25 * (time - 12.0) ** 2)[:, None]
 
 

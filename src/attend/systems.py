@@ -116,7 +116,8 @@ class LinearSystem:
 
 def as_linear_system(system, field: str = "system") -> LinearSystem:
     """``system`` as a LinearSystem: a python-control ``StateSpace`` (continuous time, D = 0) is
-    converted with :func:`attend.interop.from_statespace`; anything else is an error naming it."""
+    converted with :func:`attend.interop.from_statespace`; anything else is an error naming
+    ``field``, the argument's name in the caller's API."""
     if isinstance(system, LinearSystem):
         return system
     if type(system).__name__ == "StateSpace" and type(system).__module__.split(".")[0] == "control":
@@ -143,7 +144,9 @@ def zero_order_hold(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray
 
 
 def observability_rank(A: np.ndarray, C: np.ndarray) -> int:
-    """Numerical rank of [C; CA; ...; CA^(n-1)] (rows scaled to unit norm first)."""
+    """Numerical rank of [C; CA; ...; CA^(n-1)] (rows scaled to unit norm first).
+
+    A: state matrix (n, n); C: output matrix (m, n)."""
     n = A.shape[0]
     blocks, block = [], C
     for _ in range(n):

@@ -129,7 +129,7 @@ def kalman_update_diagonal(
 
 def connected_groups(marked: np.ndarray, grid: Grid, min_cells: int = 1) -> list[np.ndarray]:
     """Cell indices of each connected group (8-neighbourhood) of at least ``min_cells`` cells of
-    the (n,) mask ``marked``."""
+    the (n,) mask ``marked``; grid: the map's :class:`Grid` (n = cells_per_side^2 cells, row-major)."""
     if not marked.any():
         return []
     labels, n = scipy.ndimage.label(marked.reshape(grid.shape), structure=np.ones((3, 3)))

@@ -74,7 +74,11 @@ def line_of_sight_blocked(
     poses_m: np.ndarray, ground_points_m: np.ndarray, obstacles: Sequence[Obstacle], candidates: np.ndarray | None = None
 ) -> np.ndarray:
     """(k, n) mask: the segment from pose k to ground point (x, y, 0) passes through a box
-    (slab test; a point under a box counts as blocked)."""
+    (slab test; a point under a box counts as blocked).
+
+    poses_m: (k, 3) camera poses (x, y, z) [m]; ground_points_m: (n, 2) ground points (x, y) [m];
+    obstacles: the boxes; candidates: (k, n) mask of the pose-point pairs to test (the others
+    count as not blocked; None: all pairs)."""
     poses = np.atleast_2d(poses_m)
     k, n = len(poses), len(ground_points_m)
     blocked = np.zeros((k, n), dtype=bool)
@@ -91,7 +95,10 @@ def line_of_sight_blocked(
 
 
 def segments_hit_box(start: np.ndarray, end: np.ndarray, bounds: Sequence[float], margin_m: float = 0.0) -> np.ndarray:
-    """Whether each segment start->end (arrays (m, 3)) intersects the box (slab method)."""
+    """Whether each segment start->end (arrays (m, 3) [m]) intersects the box (slab method): (m,) mask.
+
+    bounds: the box (x_min, x_max, y_min, y_max, z_min, z_max) [m], e.g. :attr:`Obstacle.bounds`;
+    margin_m: clearance [m] added on every side of the box."""
     x0, x1, y0, y1, z0, z1 = bounds
     low = np.array([x0 - margin_m, y0 - margin_m, z0 - margin_m])
     high = np.array([x1 + margin_m, y1 + margin_m, z1 + margin_m])

@@ -148,6 +148,8 @@ class SearchField:
 
 
 def validate_altitude_limits(limits: Sequence[float]) -> tuple[float, float]:
+    """``limits`` = (min, max) flight altitudes [m] as floats, checked finite with 0 < min < max;
+    errors name altitude_limits_m."""
     try:
         low, high = (float(v) for v in limits)
     except (TypeError, ValueError):
@@ -160,7 +162,10 @@ def validate_altitude_limits(limits: Sequence[float]) -> tuple[float, float]:
 
 
 def validate_pose(pose: Sequence[float], grid: Grid, altitude_limits_m: Sequence[float], name: str) -> np.ndarray:
-    """Check that ``pose`` = (x, y, z) m lies inside the field and the altitude limits."""
+    """Check that ``pose`` = (x, y, z) m lies inside the field and the altitude limits; returns it as (3,).
+
+    grid: the field's :class:`Grid` (x, y within +-size_m / 2); altitude_limits_m: (min, max)
+    altitudes [m] for z; name: the argument's name, used in error messages."""
     try:
         xyz = np.asarray(pose, dtype=float).reshape(3)
     except (TypeError, ValueError):
@@ -179,6 +184,8 @@ def validate_pose(pose: Sequence[float], grid: Grid, altitude_limits_m: Sequence
 
 
 def validate_obstacles(obstacles: Sequence[Obstacle], grid: Grid) -> None:
+    """Check that each of ``obstacles`` is an :class:`Obstacle` with positive width, depth and
+    height [m] whose footprint lies inside the field of ``grid`` (within +-size_m / 2)."""
     half = grid.size_m / 2
     for k, box in enumerate(obstacles):
         if not isinstance(box, Obstacle):
@@ -196,7 +203,8 @@ def validate_obstacles(obstacles: Sequence[Obstacle], grid: Grid) -> None:
 def person_cell_indices(person: Person, grid: Grid, samples_per_side: int = 10) -> np.ndarray:
     """Flat indices of the cells the person covers: a cell is occupied when any of its
     ``samples_per_side``**2 evenly spaced sample points lies on the rectangle (overlap of
-    about 1 % of the cell or more; slivers below that are ignored)."""
+    about 1 % of the cell or more; slivers below that are ignored). person: the rectangle (centre,
+    length, width [m], heading [rad]); grid: the field's :class:`Grid`."""
     centres = grid.cell_centres()
     reach = np.hypot(person.length_m, person.width_m) / 2 + grid.cell_size_m
     near = np.flatnonzero(np.hypot(centres[:, 0] - person.x_m, centres[:, 1] - person.y_m) <= reach)
@@ -210,7 +218,8 @@ def person_cell_indices(person: Person, grid: Grid, samples_per_side: int = 10) 
 
 
 def preset_obstacles(name: str) -> tuple[Obstacle, ...]:
-    """Named obstacle layouts: "none"; "buildings": a 26 m tower at the centre and a 13 m block."""
+    """The obstacle layout called ``name``: "none"; "buildings": a 26 m tower at the centre and a
+    13 m block."""
     if name == "none":
         return ()
     if name == "buildings":

@@ -154,7 +154,9 @@ class FlightModel:
 
 def path_collides(points_m: np.ndarray, obstacles: Sequence[Obstacle], margin_m: float = 1.0) -> np.ndarray:
     """For paths (k, w, 3) (w points each, consecutive points joined), whether any segment
-    passes within ``margin_m`` of an obstacle box; returns (k,) bools."""
+    passes within ``margin_m`` [m] of an obstacle box; returns (k,) bools.
+
+    points_m: the paths' points (x, y, z) [m], (k, w, 3); obstacles: the boxes."""
     paths = np.asarray(points_m, dtype=float)
     k, w, _ = paths.shape
     if not obstacles or w < 2:
@@ -169,7 +171,9 @@ def path_collides(points_m: np.ndarray, obstacles: Sequence[Obstacle], margin_m:
 
 def detour(start_m: np.ndarray, goal_m: np.ndarray, obstacles: Sequence[Obstacle], margin_m: float = 1.5) -> np.ndarray:
     """Waypoints (j, 3) from start to goal that go around the boxes in the way (via the box
-    corners inflated by ``margin_m``, at the goal altitude, shorter side first); ends at goal."""
+    corners inflated by ``margin_m`` [m], at the goal altitude, shorter side first); ends at goal.
+
+    start_m, goal_m: positions (x, y, z) [m], (3,); obstacles: the boxes, each detoured in turn."""
     start, goal = np.asarray(start_m, float), np.asarray(goal_m, float)
     route = [goal]
     for box in obstacles:

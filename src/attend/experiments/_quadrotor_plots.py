@@ -58,7 +58,8 @@ def figure_tables(wind: dict, no_wind: dict, inputs: dict, dt: float) -> dict:
 def claims(result) -> list[Claim]:
     """The published claims tested on the real flights: DEM beats the KF in wind, DEM vs the
     state-augmented KF, the p sweep, and the motor-1 estimate (verdict: within 0.1 % of the
-    published value, and whether the published ranking holds)."""
+    published value, and whether the published ranking holds). result: the ExperimentResult of
+    :func:`attend.experiments.quadrotor.run`."""
 
     def metric(name):
         return result.metric(name)

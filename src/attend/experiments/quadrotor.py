@@ -1,8 +1,8 @@
 """Real quadrotor flights in wind: roll-rate and motor-input estimation (Bos et al. 2022).
 
-Reproduces the published numbers of Bos, Anil Meera, Benders & Wisse, "Free Energy Principle
-for State and Input Estimation of a Quadcopter Flying in Wind" (ICRA 2022, arXiv 2109.12052),
-from the flight logs in ``shared/data/quadrotor-wind`` (see its README):
+Reproduces the published numbers of Bos, Anil Meera, Benders & Wisse, "Free Energy Principle for
+State and Input Estimation of a Quadcopter Flying in Wind" (ICRA 2022, arXiv 2109.12052), from the
+flight logs in ``shared/data/quadrotor-wind`` (see its README):
 
 - mean SSE of the roll-rate (phi_dot) estimate over 4 flights x 5 slices of 240 samples, with
   and without wind, for DEM, the authors' Kalman filter (KF), their state-augmented KF with an
@@ -10,15 +10,14 @@ from the flight logs in ``shared/data/quadrotor-wind`` (see its README):
 - the DEM SSE with wind against the embedding order p = 0..6;
 - the SSE of the DEM estimate of motor 1 (treated as unknown) on the four wind flights.
 
-The DEM estimates come from attend's own flow: :class:`attend.perception.dem.DEMObserver`
-(known inputs kept as unknowns with prior precision exp(32), ``precision_convention="max"``)
-gives the discrete transition Phi and gain Gamma, and
-:func:`attend.perception.recurrence.linear_recurrence` runs X[k] = Phi X[k-1] + Gamma [y~; eta~][k].
-What is specific to the published benchmark is only *which* data drive that flow and where it
-starts; that is the "published protocol" below (:func:`published_embedding`,
-:func:`published_dem`). attend's default convention (windows centred on their own sample,
-order-0 edges, static-MAP start: :meth:`DEMObserver.estimate`) is reported beside it as extra
-metrics with no published value.
+The DEM estimates come from attend's own flow: :class:`attend.perception.dem.DEMObserver` (known
+inputs kept as unknowns with prior precision exp(32), ``precision_convention="max"``) gives the
+discrete transition Phi and gain Gamma, and :func:`attend.perception.recurrence.linear_recurrence`
+runs X[k] = Phi X[k-1] + Gamma [y~; eta~][k]. What is specific to the published benchmark is only
+*which* data drive that flow and where it starts; that is the "published protocol" below
+(:func:`published_embedding`, :func:`published_dem`). attend's default convention (windows centred
+on their own sample, order-0 edges, static-MAP start: :meth:`DEMObserver.estimate`) is reported
+beside it as extra metrics with no published value.
 
 Published protocol (from the authors' MATLAB code, FreddyBos97/DEM_Drone_in_wind):
 
@@ -28,13 +27,11 @@ Published protocol (from the authors' MATLAB code, FreddyBos97/DEM_Drone_in_wind
    each motor's mean is removed; B is multiplied by fac.
 3. Process precision Pi_w = diag(1 / var(w_i)) of the one-step ZOH residuals of the measured
    [phi, phi_dot] (first residual 0, variance with N - 1); Pi_z = 1 / 8.1214e-9.
-4. DEM: s = 0.006 s, p = 6, d = 2, S inverted at max(p, d) + 1 orders then truncated.
-   Data embedding (:func:`published_embedding`): the column that drives step j is the Taylor
-   inversion of a window expanded about sample j - 1 (one sample behind); a column counts as
-   interior when p + 1 <= j <= N - p - 3 (0-based, the same test for the input block, which
-   depends on p, not d); other columns carry order 0 of sample j only; and a padding rule zeroes
-   the highest orders when a window sample lies too near an edge. The flow starts from
-   X[0] = 0 except the order-0 inputs = prior[0], and the recursion runs from j = 1.
+4. DEM: s = 0.006 s, p = 6, d = 2, S inverted at max(p, d) + 1 orders then truncated. Data
+   embedding (:func:`published_embedding`): column j is the Taylor inversion of a window expanded
+   about sample j - 1 (one sample behind) when p + 1 <= j <= N - p - 3 (0-based, inputs too),
+   else order 0 of sample j; a padding rule zeroes the highest orders near an edge. The flow
+   starts from X[0] = 0 except the order-0 inputs = prior[0]; the recursion runs from j = 1.
 5. KF: prediction for sample j corrected with the measurement of sample j - 1 (a one-sample
    lag), P0 = I, x[0] = 0, Q = inv(Pi_w), R = 8.1214e-9. SA and SMIKF inherit the lag; their
    AR models are fitted like MATLAB ``ar(w, N)`` (forward-backward least squares, noise variance
@@ -43,10 +40,9 @@ Published protocol (from the authors' MATLAB code, FreddyBos97/DEM_Drone_in_wind
    are left out of the mean (one SMIKF slice diverges); the p sweep has no threshold and takes
    the mean over slices of a flight, then over flights.
 
-Not reproduced: the unknown-input observer (UIO) of the input-estimation table. Its gains come
-from a YALMIP feasibility problem with no objective whose solution was not saved, so its SSEs
-cannot be reproduced deterministically (see ``settings["not_reproduced"]``).
-"""
+Not reproduced: the unknown-input observer (UIO) of the input-estimation table. Its gains come from
+a YALMIP feasibility problem with no objective whose solution was not saved, so its SSEs cannot be
+reproduced deterministically (see ``settings["not_reproduced"]``)."""
 
 from __future__ import annotations
 
@@ -168,7 +164,8 @@ def _data_dir(data_dir) -> Path:
 
 
 def load_flight(data_dir, name: str) -> Log:
-    """The CSV log of one flight (CSV data row r = MATLAB column r + 1)."""
+    """The CSV log of one flight (CSV data row r = MATLAB column r + 1): ``name``.csv in data_dir, the
+    directory of the flight CSVs; name: one of :data:`WIND_FLIGHTS` or :data:`NO_WIND_FLIGHTS`."""
     return read_log(Path(data_dir) / f"{name}.csv")
 
 
@@ -194,7 +191,8 @@ class Slice(NamedTuple):
 
 
 def prepare_slice(log: Log, first: int, last: int, fully_observed: bool = False) -> Slice:
-    """Samples ``first..last`` (1-based, inclusive) of a flight, scaled as in the published code."""
+    """Samples ``first..last`` (1-based, inclusive) of a flight, scaled as in the published code. log: the
+    flight (:func:`load_flight`); fully_observed: outputs [phi, phi_dot] (C = I), not meas_phi alone."""
     rows = slice(first - 1, last)
     states = np.column_stack([log.columns["state_phi"][rows], log.columns["state_phi_dot"][rows]])
     motors = np.column_stack([log.columns[f"motor_{m}"][rows] for m in range(1, 5)])
@@ -247,6 +245,7 @@ def published_embedding(outputs, input_prior, embedding_order: int, input_order:
 
     outputs (N, m), input_prior eta (N, r) -> (N, m (p + 1) + r (d + 1)); row j drives step j of
     the flow (attend's sign: +eta~; the authors stack -eta~ and use -Vv, the same product).
+    embedding_order: p of the outputs; input_order: d of the inputs; dt: sample time [s].
 
     - interior rows, p + 1 <= j <= N - p - 3 (0-based; MATLAB p + 1 < i < N - p - 1, used for the
       input block as well): y~ from p + 1 samples and eta~ from d + 1 samples, both expanded
@@ -274,7 +273,8 @@ def published_embedding(outputs, input_prior, embedding_order: int, input_order:
 
 
 def published_dem(observer: DEMObserver, outputs, input_prior) -> np.ndarray:
-    """Generalised DEM estimates X (N, dim X) under the published protocol.
+    """Generalised DEM estimates X (N, dim X) of outputs y (N, m) and input_prior eta (N, r), the
+    inputs' prior means, under the published protocol.
 
     Uses the observer's own transition Phi and gain Gamma (``generalized_matrices()``); the
     observer must treat the inputs as unknown (known inputs: prior = measured input with a large
@@ -298,12 +298,11 @@ def _observer(**settings) -> DEMObserver:
     """DEMObserver with the published settings (p = 6 unless a sweep says otherwise), run even
     where DEMObserver's stability analysis would refuse it (``allow_unstable=True``).
 
-    With the known inputs pinned by a prior precision of exp(32), A_obs has entries from ~1e-2
-    to ~1e22 and the computed spectral radius of Phi comes out as 1 +- 1e-5 on some slices
-    (rounding in the eigenvalues of so stiff a matrix, in modes of the nearly free highest
-    orders); over 240 or 1201 steps such a mode grows by at most 1.01, and the published
-    numbers are those of this flow, so the refusal (and its ModelWarning) carries no
-    information here.
+    With the known inputs pinned by a prior precision of exp(32), A_obs has entries from ~1e-2 to
+    ~1e22 and the computed spectral radius of Phi comes out as 1 +- 1e-5 on some slices (rounding
+    in the eigenvalues of so stiff a matrix, in modes of the nearly free highest orders); over 240
+    or 1201 steps such a mode grows by at most 1.01, and the published numbers are those of this
+    flow, so the refusal (and its ModelWarning) carries no information here.
     """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ModelWarning)
@@ -335,7 +334,9 @@ def lagged_kalman_filter(system: LinearSystem, dt: float, outputs, inputs, proce
     prediction Ad x[j-1] + Bd u[j-1] is corrected with y[j-1] (one-sample lag). This equals the
     standard filter on the shifted log y'[k] = y[k], u'[k] = u[k+1] (k = 0..N-2) started from
     x'[0] ~ N(Bd u[0], Q + Ad P0 Ad'); row j of the result is row j - 1 of that filter.
-    Returns the states (N, n).
+    system: the continuous-time model (ZOH-discretised); dt: sample time [s]; outputs: y (N, m); inputs:
+    u (N, r); process_covariance: Q [state unit^2 per step], (n,) diagonal or (n, n); measurement_covariance:
+    R [output unit^2], scalar, (m,) or (m, m); initial_covariance: P0 (n, n) (None: I). Returns x (N, n).
     """
     y = np.asarray(outputs, dtype=float)
     u = np.asarray(inputs, dtype=float)
@@ -355,8 +356,9 @@ def authors_kalman_filter(Ad, Bd, C, Q, R, P0, outputs, inputs) -> np.ndarray:
     """The authors' lagged KF on a discrete model (used for the state-augmented KF).
 
     x[0] = 0; for j >= 1: predict with u[j-1], correct with y[j-1] (one-sample lag). Reproduces
-    their ``Kalman_estimate.m``; equals :func:`lagged_kalman_filter` for the plain model.
-    Returns the states (N, n).
+    their ``Kalman_estimate.m``; equals :func:`lagged_kalman_filter` for the plain model. Ad (n, n), Bd
+    (n, r), C (m, n): the discrete model; Q (n, n): process covariance per step; R (m, m): measurement
+    covariance; P0 (n, n): covariance of x[0]; outputs: y (N, m); inputs: u (N, r). Returns x (N, n).
     """
     y, u = np.asarray(outputs, dtype=float), np.asarray(inputs, dtype=float)
     n = Ad.shape[0]
@@ -378,6 +380,7 @@ def fit_ar(series, order: int) -> tuple[np.ndarray, float]:
     w[t] = sum_m a_m w[t-m] + e[t]. Coefficients a: one least-squares problem stacking the
     forward (t = N..n-1, w[t] on w[t-1..t-N]) and backward (w[t] on w[t+1..t+N]) equations, no
     padding. Noise variance: mean square of the forward residuals (divided by n - N).
+    series: w (n,), e.g. one column of :attr:`Slice.residuals`. Returns a (order,) and sigma^2 [w unit^2].
     """
     w = np.asarray(series, dtype=float)
     n = len(w)
@@ -393,7 +396,8 @@ def state_augmented_kalman_filter(piece: Slice, ar_order: int = 6) -> np.ndarray
 
     State [x; eta_1; ...; eta_N] (eta_m = w[k-m+1]), A_aug = [[Ad, [I 0 ...]], [0, AR]], AR's top
     block row [diag(a_1) ... diag(a_N)] above a shift; Q_aug = diag(sigma^2) on eta_1 only; the
-    authors' lagged KF with P0 = I. Returns the states x (N, 2).
+    authors' lagged KF with P0 = I. piece: the :class:`Slice` (its residuals give the AR fits).
+    Returns the states x (N, 2).
     """
     n = piece.Ad.shape[0]
     fits = [fit_ar(piece.residuals[:, i], ar_order) for i in range(n)]
@@ -416,8 +420,8 @@ def smikf(piece: Slice) -> np.ndarray:
 
     phi = diag(a_1), Qw = diag(sigma^2) from :func:`fit_ar` (order 1); P = I, K = eye(n, m),
     Pww = Qw, x = 0; for k >= 1: Pww' = phi^2 Pww + Qw, Pxw = (I - K C) phi Pww (previous K),
-    P- = Ad P Ad' + Ad Pxw + Pxw' Ad' + Pww', then the lagged update with y[k-1].
-    Returns the states (N, n). It diverges on one wind slice (exp_25_WW_WM_2, slice 1).
+    P- = Ad P Ad' + Ad Pxw + Pxw' Ad' + Pww', then the lagged update with y[k-1]. piece: the
+    :class:`Slice`. Returns the states (N, n). It diverges on one wind slice (exp_25_WW_WM_2, slice 1).
     """
     n = piece.Ad.shape[0]
     fits = [fit_ar(piece.residuals[:, i], 1) for i in range(n)]
@@ -443,7 +447,7 @@ def smikf(piece: Slice) -> np.ndarray:
 
 
 def sse(estimate, reference, trim: int = TRIM) -> float:
-    """Sum of squared errors with ``trim`` samples left out at each end."""
+    """Sum of squared errors [unit^2] of estimate - reference, (N,) each, ``trim`` samples cut at each end."""
     e = np.asarray(estimate, dtype=float)
     r = np.asarray(reference, dtype=float)
     return float(np.sum((e[trim: len(e) - trim] - r[trim: len(r) - trim]) ** 2))

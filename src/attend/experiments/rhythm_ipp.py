@@ -292,7 +292,8 @@ def _verdict(mean: float, sem: float) -> str:
 
 def claims(result: ExperimentResult) -> list[Claim]:
     """The seed's claim (§4.4, Fig. 10, use 2): letting the rhythm, or precision dynamics with the
-    rhythm as a prior, decide when to replan beats a flight-time budget per plan."""
+    rhythm as a prior, decide when to replan beats a flight-time budget per plan. result: the
+    ExperimentResult of :func:`run`."""
     best = next((n[len("best fixed budget by mean final RSE: "):] for n in result.notes
                  if n.startswith("best fixed budget")), None)
     found = []

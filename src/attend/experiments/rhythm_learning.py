@@ -97,10 +97,13 @@ def learn_schedule_runs(task: dict) -> dict:
 
 def policy_sse(settings: dict, seeds, levels, schedules: np.ndarray, *, cluster=None, progress: bool = True,
                runs_per_task: int = RUNS_PER_TASK, desc: str = "rhythm-learning") -> np.ndarray:
-    """Parameter SSE (n_policies, n_levels, n_seeds) of each schedule (n_policies, iterations)
-    on the logs of every (noise level, seed): sensor log-precision ``levels``, simulation seeds
-    ``seeds`` (prior means from the same seeds), on the keys of ``settings``; ``cluster``,
-    ``progress``, ``runs_per_task`` and ``desc`` go to attend.sweep.run_tasks."""
+    """Parameter SSE (n_policies, n_levels, n_seeds) of each schedule on the logs of every (noise
+    level, seed): ``schedules`` (n_policies, iterations) holds the prior precision P_theta of the
+    free parameters at each learning iteration; sensor log-precision ``levels`` (lambda_z = ln
+    Pi_z); simulation seeds ``seeds`` (prior means from the same seeds); the keys of ``settings``
+    (:data:`SETTINGS`: dt [s], duration [s], kernel_width [s], embedding_order, iterations,
+    process_log_precision, prior_relative_spread); ``cluster``, ``progress``, ``runs_per_task``
+    and ``desc`` go to attend.sweep.run_tasks."""
     seeds = np.asarray(seeds, dtype=int)
     levels = np.asarray(levels, dtype=float)
     schedules = np.asarray(schedules, dtype=float)
@@ -126,7 +129,8 @@ def policy_sse(settings: dict, seeds, levels, schedules: np.ndarray, *, cluster=
 
 def regrets(median_sse: np.ndarray, n_fixed: int) -> tuple[np.ndarray, np.ndarray]:
     """Relative and absolute regret (n_policies, n_levels) of each policy's median SSE to the best
-    of the first ``n_fixed`` (fixed) policies at each level."""
+    of the first ``n_fixed`` (fixed) policies at each level. median_sse: (n_policies, n_levels)
+    median parameter SSE over seeds, from :func:`policy_sse`."""
     best = median_sse[:n_fixed].min(axis=0)
     return median_sse / best - 1.0, median_sse - best
 
@@ -249,7 +253,8 @@ def plot(result: ExperimentResult, out_dir) -> list[str]:
 
 def claims(result: ExperimentResult) -> list[Claim]:
     """The seed's claim (§4.4, use 1): a rhythmic P_theta has a lower worst-case regret across
-    sensor noise than every fixed P_theta, without knowing the noise level."""
+    sensor noise than every fixed P_theta, without knowing the noise level. result: the
+    ExperimentResult of :func:`run`."""
     value = lambda name: result.metric(name).value  # noqa: E731
     beaten, n_fixed = int(value("fixed_policies_beaten_on_worst_case_relative_regret")), int(value("fixed_policies"))
     quick = result.settings.get("seeds", 0) < 20

@@ -230,7 +230,9 @@ def _episode(task: dict) -> dict:
 
 
 def grid_points(cfg: dict) -> list[dict]:
-    """The trade-off settings of the run: IPP (blur, latency) pairs, then vision saccade costs."""
+    """The trade-off settings of the run: IPP (blur [s/m], latency [s]) pairs, then vision saccade
+    costs [s], each numbered by ``index``. cfg: the run's configuration (:data:`SETTINGS` plus
+    ``quick``, which picks the quick_ lists and only the two IPP corners)."""
     prefix = "quick_" if cfg["quick"] else ""
     points = [dict(domain="ipp", blur=float(b), latency_s=float(lat))
               for b in cfg[f"{prefix}ipp_blur_per_speed"] for lat in cfg[f"{prefix}ipp_latency_s"]]
@@ -241,12 +243,14 @@ def grid_points(cfg: dict) -> list[dict]:
 
 
 def tuning_seed_list(cfg: dict) -> list[int]:
-    """Seeds 100, 101, ... on which every family is tuned."""
+    """Seeds 100, 101, ... on which every family is tuned. cfg: the run's configuration
+    (``tuning_first_seed`` and the number ``tuning_seeds``)."""
     return list(range(cfg["tuning_first_seed"], cfg["tuning_first_seed"] + cfg["tuning_seeds"]))
 
 
 def trial_seed_list(cfg: dict) -> list[int]:
-    """Seeds 0, 1, ... of the comparison (those of ``attend reproduce ipp``)."""
+    """Seeds 0, 1, ... of the comparison (those of ``attend reproduce ipp``). cfg: the run's
+    configuration (``trial_first_seed`` and the number ``trials``)."""
     return list(range(cfg["trial_first_seed"], cfg["trial_first_seed"] + cfg["trials"]))
 
 
@@ -501,7 +505,7 @@ def claims(result: ExperimentResult) -> list[Claim]:
     """The seed's claim (§4.4, Fig. 10) where switching costs: a rhythm (the oscillator, or the
     precision-driven rule with the rhythm as prior) beats a fixed budget tuned alike. One claim
     per domain; reproduced if some rhythmic family's 95 % interval lies below 0 at some setting,
-    does not hold otherwise."""
+    does not hold otherwise. result: the ExperimentResult of :func:`run`."""
     found = []
     for domain, what in (("ipp", "UAV search (final RSE)"), ("vision", "active vision (time-averaged entropy, nats)")):
         rows = [row for row in result.tables.get("map", []) if row["domain"] == domain]

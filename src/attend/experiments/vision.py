@@ -367,7 +367,8 @@ def claims(result: ExperimentResult) -> list[Claim]:
     """The seed's claims on active vision (§2-3, Fig. 1; spec/rhythm.md use 3): epistemic
     salience finds the letters in fewer saccades than static saliency and random saccades;
     inhibition of return emerges without being coded; and timing saccades on the rhythm helps
-    (against fixed fixations and the precision-driven rule at the same precision budget)."""
+    (against fixed fixations and the precision-driven rule at the same precision budget).
+    result: the ExperimentResult of :func:`run`."""
     value = lambda name: result.metric(name).value  # noqa: E731
     level = f"{result.settings['accuracy_level']:.0%}"
     saccades = {n: value(f"{_key(n)}: saccades to {level} accuracy (mean curve)") for n in POLICY_NAMES}

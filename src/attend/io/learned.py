@@ -20,7 +20,8 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
     """Run attend's learning (D, E, M steps) on the log with the model file's [learning] settings.
 
     The model's A, B, C are the prior means; every input must be measured (a column). An
-    [observer] embedding_order of "auto" means p = 6 here (the learning default).
+    [observer] embedding_order of "auto" means p = 6 here (the learning default). model: the
+    parsed model file; log: the CSV log; progress: show a progress bar over the iterations.
     """
     from attend.perception.learning import identify
 
@@ -100,7 +101,9 @@ def check_learned_model(model: ModelFile, log: Log, result) -> list[str]:
     """Problems that make a learned model unusable by `attend estimate` (empty list: usable).
 
     Checks finite matrices, finite positive noise precisions, and runs the model file's observer with
-    the learned A, B, C and precisions on the log: every estimate must be finite.
+    the learned A, B, C and precisions on the log: every estimate must be finite. model: the
+    model file learned from; log: the log to test on; result: the identification result of
+    :func:`identify_from_files` (learned system and noise precisions exp(lambda)).
     """
     from dataclasses import replace
 
@@ -129,7 +132,9 @@ def check_learned_model(model: ModelFile, log: Log, result) -> list[str]:
 
 def write_learned_model(path: str | Path, model: ModelFile, result) -> Path:
     """A model file with the learned A, B, C and noise precisions, their posterior precisions in
-    [learned], ready for `attend estimate`."""
+    [learned], ready for `attend estimate`. path: the TOML file to write (parent folders created);
+    model: the model file learned from (its other sections are kept); result: the identification
+    result of :func:`identify_from_files`. Returns the path."""
     import tomli_w
 
     system = result.system()

@@ -17,7 +17,8 @@ from attend.systems import LinearSystem
 
 @dataclass(frozen=True)
 class Log:
-    """A CSV log: time [s] (N,), and named columns."""
+    """A CSV log: time [s] (N,), and named columns (name -> (N,) values); path: the CSV file
+    (errors name it); line_numbers: (N,) the file line of each sample (None: line k + 2)."""
 
     time: np.ndarray
     columns: dict[str, np.ndarray]
@@ -47,9 +48,9 @@ class Log:
 def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: float = 1e-4) -> Log:
     """Read a CSV log with a header; check the time column is present, finite and uniform.
 
-    UTF-8 with or without a BOM, LF or CRLF line ends. Every cell must be a number; values
-    beyond +-1e150 are errors. Time stamps count as uniform when every step is within
-    ``relative_tolerance`` of the mean step.
+    path: the CSV file; time_column: the name of its time column [s]. UTF-8 with or without a
+    BOM, LF or CRLF line ends. Every cell must be a number; values beyond +-1e150 are errors.
+    Time stamps count as uniform when every step is within ``relative_tolerance`` of the mean step.
     """
     path = Path(path)
     text = _read_text(path, "log")
@@ -110,7 +111,11 @@ def _check_log_column(values: np.ndarray, path, name: str, line_numbers: np.ndar
 
 
 def write_estimates(path: str | Path, log: Log, system: LinearSystem, estimate: DEMEstimate) -> Path:
-    """CSV with time, each state and input estimate, and their standard deviations."""
+    """CSV with time, each state and input estimate, and their standard deviations.
+
+    path: the CSV to write (parent folders created); log: the :class:`Log` estimated (its time
+    column [s] is written); system: names the state and input columns; estimate: states (N, n),
+    inputs (N, r) and their stds. Returns the path."""
     path = Path(path)
     header = ["t"]
     header += list(system.state_names) + list(system.input_names)

@@ -14,7 +14,13 @@ from attend.systems import LinearSystem
 
 @dataclass(frozen=True)
 class InputSpec:
-    """One input: measured in ``column`` (known) or estimated with a Gaussian prior."""
+    """One input: measured in ``column`` (known) or estimated with a Gaussian prior.
+
+    name: the input's name (a column of B, in order); column: the CSV column holding its
+    measurement, or None for an unknown input; prior_mean: eta, the prior mean of an unknown
+    input [input unit]; prior_precision: P_v [1/input unit^2] of an unknown input;
+    operating_point: the linearisation point subtracted from the measured column [input unit].
+    """
 
     name: str
     column: str | None
@@ -30,7 +36,23 @@ class InputSpec:
 
 @dataclass(frozen=True)
 class ModelFile:
-    """A parsed model file: the system, its CSV mapping and the observer settings."""
+    """A parsed model file: the system, its CSV mapping and the observer settings.
+
+    system: the model ([model]: A, B, C, or f and g of a Python file); dt: the sample time the
+    file asks for [s] (None: the log's); output_columns: the CSV column of each output (m,);
+    inputs: one :class:`InputSpec` per input (r,); kernel_width: s [s], the Gaussian kernel width
+    of both noises (0: white); embedding_order: p, an int or "auto"; input_order: d;
+    sensor_precision: Pi_z [1/output unit^2] and process_precision: Pi_w, each a scalar, a
+    per-row list or a matrix; precision_convention: "size" (SPM) or "max" (Meera);
+    known_input_precision: prior precision [1/input unit^2] DEM gives measured inputs when some
+    are unknown; time_column: the CSV column of time stamps [s]; learning: the [learning]
+    section as a dict (None: absent); path: the model file (errors name it); method: "kalman",
+    "dem" or (nonlinear) "ukf"; process_kernel_width: s_w [s], sensor_kernel_width: s_z [s] and
+    input_kernel_width: s_u [s], each overriding kernel_width for w, z and the unknown inputs'
+    prior (None: not given); initial_state: prior mean of x[0] (n,) (None: a broad prior);
+    initial_state_std: its std [state unit], scalar or (n,); python_path: the resolved Python
+    file of a nonlinear model ("" for a linear one).
+    """
 
     system: LinearSystem
     dt: float | None
@@ -75,7 +97,7 @@ class ModelFile:
     def nonlinear_order(self, dt: float) -> int:
         """The DEM embedding order of a nonlinear model: the file's, or under "auto" the largest
         p <= 6 whose S(s) stays well conditioned (cond <= 1e8 in sample units; the stability check
-        of the linear "auto" needs A, B, C)."""
+        of the linear "auto" needs A, B, C). dt: the log's sample time [s]."""
         from attend.generalized import smoothness_condition
         from attend.perception.dem import AUTO_MAX_CONDITION, AUTO_MAX_ORDER
 
@@ -87,7 +109,8 @@ class ModelFile:
         return 0
 
     def nonlinear_estimator(self, dt: float) -> "NonlinearFileEstimator":
-        """The estimator of a nonlinear model file (see :class:`NonlinearFileEstimator`)."""
+        """The estimator of a nonlinear model file (see :class:`NonlinearFileEstimator`), for logs
+        sampled every ``dt`` s."""
         estimator = NonlinearFileEstimator(self, dt, self.method, self.nonlinear_order(dt),
                                            self.embedding_order == "auto")
         try:
@@ -97,7 +120,8 @@ class ModelFile:
         return estimator
 
     def kalman(self, dt: float):
-        """The coloured-noise Kalman smoother: measured inputs drive the model, the others are estimated."""
+        """The coloured-noise Kalman smoother, for logs sampled every ``dt`` s: measured inputs drive
+        the model, the others are estimated."""
         from attend.perception.kalman import KalmanEstimator
 
         known = [spec.known for spec in self.inputs]
@@ -147,6 +171,10 @@ class NonlinearFileEstimator:
     Without [observer] initial_state the smoother starts from DEM's estimate of the first sample
     and its std. method "dem": :class:`attend.perception.nonlinear.NonlinearDEM` (measured inputs,
     when some are unknown, get their measurement as prior mean with precision known_input_precision).
+
+    model: the parsed :class:`ModelFile`; dt: sample time [s]; method: "ukf" or "dem";
+    embedding_order: p, resolved to an int (:meth:`ModelFile.nonlinear_order`); automatic_order:
+    True when the file said "auto" and p was chosen here.
     """
 
     model: "ModelFile"

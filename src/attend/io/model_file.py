@@ -60,7 +60,7 @@ _INPUT_KEYS = {"name", "column", "operating_point", "prior_mean", "prior_precisi
 
 
 def read_model(path: str | Path) -> ModelFile:
-    """Parse and validate a model TOML file (format in the docstring of attend.io)."""
+    """Parse and validate the model TOML file at ``path`` (format in the docstring of attend.io)."""
     path = Path(path)
     data = _read_sections(path)
     model = data.get("model", {})

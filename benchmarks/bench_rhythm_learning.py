@@ -41,7 +41,7 @@ def main():
         print("  (SETTINGS uses pi_0 = {rhythm_baseline_precision}, a = {rhythm_depth}, "
               "f = {rhythm_cycles_per_iteration}, phi = {rhythm_phase})".format(**s))
     t0 = time.perf_counter()
-    res = RL.run(quick=not args.full, out_dir=None, progress=True)
+    res = RL.run(quick=not args.full, progress=True)
     wall = time.perf_counter() - t0
     d = res.data
     fixed, rel, ab = d["fixed_prior_precision"], d["relative_regret"], d["absolute_regret"]

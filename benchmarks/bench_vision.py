@@ -39,7 +39,9 @@ def main() -> None:
     parser.add_argument("--out", default=None, help="directory for vision.json and the figures")
     args = parser.parse_args()
     start = time.perf_counter()
-    result = vision.run(quick=args.quick, out_dir=args.out, progress=True)
+    result = vision.run(quick=args.quick, progress=True)
+    if args.out:
+        result.figures = vision.plot(result, args.out)
     elapsed = time.perf_counter() - start
     if args.out:
         result.write(args.out)

@@ -307,19 +307,22 @@ def test_reproduce_with_a_relative_out_embeds_every_figure_and_caches(tmp_path, 
     calls = []
 
     def fake_experiment(name, n_figures):
-        def run(quick=True, out_dir=None, progress=True):
+        def run(quick=True, progress=True):
             calls.append(name)
             result = ExperimentResult(name)
             result.add("value", 1.0, "")
+            return result
+
+        def plot(result, out_dir):
+            paths = []
             for i in range(n_figures):
                 path = Path(out_dir) / f"{name}_{i}.png"  # the pattern of the experiments: out_dir / name
                 figure = Figure(figsize=(1, 1))
                 figure.add_subplot().plot([0, 1])
                 figure.savefig(path)
-                result.figures.append(str(path))
-            result.write(out_dir)
-            return result
-        return types.SimpleNamespace(run=run)
+                paths.append(str(path))
+            return paths
+        return types.SimpleNamespace(run=run, plot=plot)
 
     modules = {"first": fake_experiment("first", 2), "second": fake_experiment("second", 3)}
     monkeypatch.setattr(experiments, "available", lambda: {name: f"{name} experiment" for name in modules})
@@ -353,9 +356,9 @@ def test_reproduce_all_reports_bad_input_and_bugs_of_experiments_apart(tmp_path,
     from attend._validation import AttendInputError
 
     def failing(error):
-        def run(quick=True, out_dir=None, progress=True):
+        def run(quick=True, progress=True):
             raise error
-        return types.SimpleNamespace(run=run)
+        return types.SimpleNamespace(run=run, plot=lambda result, out_dir: [])
 
     modules = {"needs_data": failing(AttendInputError("data_dir: the flight logs are missing")),
                "buggy": failing(RuntimeError("slip"))}
@@ -390,9 +393,8 @@ def test_identify_readme_example_on_the_whole_bundled_flight(tmp_path, capsys):
     assert out.exists()
 
 
-def test_reproduce_runs_contract_and_old_style_experiments_side_by_side(tmp_path, capsys, monkeypatch):
-    """Modules that follow the contract are run, then plotted by the CLI; modules that still take
-    out_dir plot themselves; `attend report` then redraws the contract one from its JSON."""
+def test_reproduce_runs_then_plots_and_report_redraws_from_the_json(tmp_path, capsys, monkeypatch):
+    """The CLI runs an experiment, then plots it; `attend report` redraws it from its JSON."""
     import types
 
     from attend import experiments, report
@@ -417,20 +419,14 @@ def test_reproduce_runs_contract_and_old_style_experiments_side_by_side(tmp_path
         draw(Path(out_dir) / "new.png")
         return ["new.png"]
 
-    def old_run(quick=True, out_dir=None, progress=True):
-        result = ExperimentResult("old", figures=[str(Path(out_dir) / "old.png")])
-        draw(Path(out_dir) / "old.png")
-        return result
-
-    modules = {"new": types.SimpleNamespace(run=new_run, plot=new_plot, CAPTIONS={"new.png": "a caption"}),
-               "old": types.SimpleNamespace(run=old_run)}
+    modules = {"new": types.SimpleNamespace(run=new_run, plot=new_plot, CAPTIONS={"new.png": "a caption"})}
     monkeypatch.setattr(experiments, "available", lambda: {name: name for name in modules})
     monkeypatch.setattr(experiments, "load", modules.__getitem__)
     monkeypatch.setattr(experiments, "EXPERIMENTS", {name: ("", name) for name in modules})
     monkeypatch.setattr(report, "_module", modules.get)
     assert main(["reproduce", "all", "--out", str(tmp_path), "--no-progress"]) == 0
-    assert plotted == [[0.0, 1.0]] and (tmp_path / "old.png").is_file()
-    assert json_figures(tmp_path / "new.json") == ["new.png"] and json_figures(tmp_path / "old.json") == ["old.png"]
+    assert plotted == [[0.0, 1.0]]
+    assert json_figures(tmp_path / "new.json") == ["new.png"]
     (tmp_path / "new.png").unlink()
     assert main(["report", str(tmp_path)]) == 0
     assert plotted == [[0.0, 1.0]] * 2 and (tmp_path / "new.png").is_file()

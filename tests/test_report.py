@@ -70,7 +70,7 @@ def test_modules_without_claims_or_captions_fall_back_to_file_names(tmp_path, mo
     fig, axis = figure((2, 2))
     axis.plot([0, 1])
     fig.savefig(tmp_path / "old_figure.png")
-    monkeypatch.setattr(report, "_module", lambda name: types.SimpleNamespace(run=lambda quick=True, out_dir=None: None))
+    monkeypatch.setattr(report, "_module", lambda name: types.SimpleNamespace(run=lambda quick=True: None))
     page = report.write_report(tmp_path, [result], {"old": "an old experiment"}, "attend report", 0.1).read_text()
     assert "<figcaption>old_figure.png</figcaption>" in page and 'class="verdict"' not in page
 

@@ -465,20 +465,15 @@ def _command_reproduce(args) -> int:
 
 
 def _run_experiment(module, quick: bool, out: Path, progress: bool, cluster):
-    """Run one experiment module: ``run`` then ``plot(result, out)`` for modules that follow the
-    contract of :mod:`attend.experiments`; ``run(out_dir=out)`` (which plots itself) for the others.
-    quick: quick settings; out: the output folder; progress: progress bars; cluster: a Dask
+    """Run one experiment module (the contract of :mod:`attend.experiments`): ``run`` computes,
+    then ``plot(result, out)`` draws the figures into ``out``. quick: quick settings; out: the output folder; progress: progress bars; cluster: a Dask
     scheduler address for the modules whose ``run`` takes ``cluster`` (None: run here)."""
-    from attend import experiments
-
     options = dict(quick=quick, progress=progress)
     if cluster is not None and "cluster" in inspect.signature(module.run).parameters:
         options["cluster"] = cluster
-    if experiments.follows_contract(module):
-        result = module.run(**options)
-        result.figures = [str(figure) for figure in module.plot(result, out)]
-        return result
-    return module.run(out_dir=out, **options)
+    result = module.run(**options)
+    result.figures = [str(figure) for figure in module.plot(result, out)]
+    return result
 
 
 def _command_report(args) -> int:

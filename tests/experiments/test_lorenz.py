@@ -13,7 +13,8 @@ DATA = Path(__file__).parent / "data"
 
 
 def test_lorenz_quick_contract(tmp_path):
-    result = lorenz.run(quick=True, out_dir=tmp_path, progress=False, seeds=2)
+    result = lorenz.run(quick=True, progress=False, seeds=2)
+    result.figures = lorenz.plot(result, tmp_path)
     data = json.loads(result.write(tmp_path).read_text())
     assert data["experiment"] == "lorenz"
     names = {m["name"] for m in data["metrics"]}

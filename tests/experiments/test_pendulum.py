@@ -9,7 +9,8 @@ from attend.experiments._result import ExperimentResult
 
 
 def test_pendulum_quick_contract(tmp_path):
-    run = pendulum.run(quick=True, out_dir=tmp_path, progress=False, seeds=2)
+    run = pendulum.run(quick=True, progress=False, seeds=2)
+    run.figures = pendulum.plot(run, tmp_path)
     result = ExperimentResult.from_json_dict(json.loads(run.write(tmp_path).read_text()))
     assert result.experiment == "pendulum" and (tmp_path / "pendulum.png").stat().st_size > 20_000
     for name in ("DEM input SSE (median)", "augmented UKF input SSE (median)", "particle input SSE (median)",

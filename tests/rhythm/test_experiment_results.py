@@ -50,7 +50,9 @@ def test_the_verdicts_follow_the_quick_run_numbers():
     learning = load("rhythm-learning").claims(_result("rhythm-learning"))[0]
     result = _result("rhythm-learning")
     beaten = result.metric("fixed_policies_beaten_on_worst_case_relative_regret").value
-    assert (learning.verdict == "reproduced") == (beaten == result.metric("fixed_policies").value)
+    holds = beaten == result.metric("fixed_policies").value
+    quick = result.settings["seeds"] < 20  # a quick run cannot reproduce the claim, only fail it
+    assert learning.verdict == ("does not hold" if not holds else "differs" if quick else "reproduced")
     ipp = _result("rhythm-ipp")
     for claim in load("rhythm-ipp").claims(ipp):  # not better than the best fixed budget by 2 s.e.m.
         policy = {"the troughs of a rhythm": "oscillator", "(no rhythm)": "precision_no_prior"}

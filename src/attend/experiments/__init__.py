@@ -55,11 +55,3 @@ def load(name: str):
     if name not in EXPERIMENTS:
         raise KeyError(name)
     return importlib.import_module(EXPERIMENTS[name][0])
-
-
-def follows_contract(module) -> bool:
-    """Whether ``module`` follows the contract above: it has ``plot`` and its ``run`` takes no
-    ``out_dir`` (modules not yet converted still draw their figures inside ``run(out_dir=...)``)."""
-    import inspect
-
-    return callable(getattr(module, "plot", None)) and "out_dir" not in inspect.signature(module.run).parameters

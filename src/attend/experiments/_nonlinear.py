@@ -139,17 +139,14 @@ def compare(name: str, cfg: dict, progress: bool) -> ExperimentResult:
     return result
 
 
-def run(module, quick: bool, out_dir, progress: bool, seeds: int | None, quick_settings: dict) -> ExperimentResult:
-    """The run() of a nonlinear reproduction ``module`` (its SETTINGS, build_system, true_input,
-    plot): ``seeds`` seeds (default 3 quick, 20 full), ``quick_settings`` replacing SETTINGS in the
-    quick run; the figure is drawn only when ``out_dir`` is given."""
+def run(module, quick: bool, progress: bool, seeds: int | None, quick_settings: dict) -> ExperimentResult:
+    """The run() of a nonlinear reproduction ``module`` (its SETTINGS, build_system, true_input):
+    ``seeds`` seeds (default 3 quick, 20 full), ``quick_settings`` replacing SETTINGS in the quick
+    run; progress: a progress bar. Computes only (the module's plot draws the figure)."""
     cfg = dict(module.SETTINGS, seeds=seeds or (3 if quick else 20))
     if quick:
         cfg.update(quick_settings)
-    result = compare(module.__name__.rsplit(".", 1)[-1], cfg, progress)
-    if out_dir is not None:
-        result.figures.extend(module.plot(result, out_dir))
-    return result
+    return compare(module.__name__.rsplit(".", 1)[-1], cfg, progress)
 
 
 #: particles from which the particle smoother is a converged reference (docs/nonlinear.md)

@@ -56,11 +56,11 @@ def true_input(time: np.ndarray) -> np.ndarray:
     return np.zeros((len(time), 0))
 
 
-def run(quick: bool = True, out_dir=None, progress: bool = True, seeds: int | None = None) -> ExperimentResult:
+def run(quick: bool = True, progress: bool = True, seeds: int | None = None) -> ExperimentResult:
     """State SSE of DEM, EKF, UKF and the particle smoother over seeds (quick: 3 seeds, 2 s, 1000
-    particles; full: 20 seeds, 4 s, 100000 particles). quick: the short run; out_dir: draw the figure
-    there (kept until the CLI calls plot itself); progress: a progress bar; seeds: the number of seeds."""
-    return _nonlinear.run(sys.modules[__name__], quick, out_dir, progress, seeds, dict(duration=2.0, particles=1000))
+    particles; full: 20 seeds, 4 s, 100000 particles). quick: the short run; progress: a progress
+    bar; seeds: the number of seeds."""
+    return _nonlinear.run(sys.modules[__name__], quick, progress, seeds, dict(duration=2.0, particles=1000))
 
 
 def plot(result: ExperimentResult, out_dir) -> list[str]:

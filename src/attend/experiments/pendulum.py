@@ -62,12 +62,11 @@ def build_system(cfg: dict) -> NonlinearSystem:
     return pendulum_system(cfg["gravity_over_length"], cfg["damping"])
 
 
-def run(quick: bool = True, out_dir=None, progress: bool = True, seeds: int | None = None) -> ExperimentResult:
+def run(quick: bool = True, progress: bool = True, seeds: int | None = None) -> ExperimentResult:
     """State and input SSE of DEM, augmented EKF/UKF and the particle smoother (quick: 3 seeds,
-    15 s, 1000 particles; full: 20 seeds, 20 s, 100000 particles). quick: the short run; out_dir:
-    draw the figure there (kept until the CLI calls plot itself); progress: a progress bar;
-    seeds: the number of seeds."""
-    return _nonlinear.run(sys.modules[__name__], quick, out_dir, progress, seeds, dict(duration=15.0, particles=1000))
+    15 s, 1000 particles; full: 20 seeds, 20 s, 100000 particles). quick: the short run;
+    progress: a progress bar; seeds: the number of seeds."""
+    return _nonlinear.run(sys.modules[__name__], quick, progress, seeds, dict(duration=15.0, particles=1000))
 
 
 def plot(result: ExperimentResult, out_dir) -> list[str]:

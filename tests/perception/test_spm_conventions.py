@@ -160,3 +160,22 @@ def test_integration_is_checked():
         NonlinearDEM(system, 0.1, 0.2, 1.0, 1.0, integration="SPM")
     with pytest.raises(AttendInputError, match="integration"):
         DEMObserver(mass_spring_damper(), 0.1, 0.2, 1.0, 1.0, known_inputs=True, integration="held")
+
+
+def test_linear_std_accounts_for_the_reporting_lag():
+    """The steady-state std of DEMObserver(integration="spm") describes its reported rows (the
+    state one step behind): |error| < 2 std on ~95 % of the middle samples, states and input."""
+    from attend.noise import coloured_noise
+
+    system, dt, s = convolution_model(), 0.1, 0.2
+    u = coloured_noise(4000, system.n_inputs, dt, s, 1.0, seed=3)
+    log = simulate(system, u, dt, kernel_width=s, process_std=0.1, measurement_std=0.05, seed=3)
+    observer = DEMObserver(system, dt, s, 1 / 0.05**2, 1 / 0.1**2, 1.0, embedding_order=3,
+                           integration="spm")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ModelWarning)
+        estimate = observer.estimate(log.outputs)
+    middle = slice(300, -300)
+    for ours, truth, std in ((estimate.states, log.states, estimate.state_std), (estimate.inputs, u, estimate.input_std)):
+        fraction = (np.abs(ours[middle] - truth[middle]) < 2 * std[middle]).mean(axis=0)
+        assert np.all((fraction > 0.90) & (fraction < 0.99)), fraction

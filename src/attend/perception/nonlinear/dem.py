@@ -307,8 +307,9 @@ class NonlinearDEM:
             Gv[:, : n_v * r] = blocks(gv, n_v)
         return E @ F, E @ G, blocks(fx, p + 1), Fv, blocks(gx, p + 1), Gv
 
-    def _gradient_curvature(self, X, y_tilde, u_tilde):
-        e, E, Pi = self.errors(X, y_tilde, u_tilde)
+    @staticmethod
+    def _weighted(e, E, Pi):
+        """(Pi e, Pi E) with Pi = blkdiag(Pi) applied block by block."""
         weighted_E = np.empty_like(E)
         weighted_e = np.empty_like(e)
         start = 0
@@ -317,6 +318,11 @@ class NonlinearDEM:
             weighted_E[start:stop] = block @ E[start:stop]
             weighted_e[start:stop] = block @ e[start:stop]
             start = stop
+        return weighted_e, weighted_E
+
+    def _gradient_curvature(self, X, y_tilde, u_tilde):
+        e, E, Pi = self.errors(X, y_tilde, u_tilde)
+        weighted_e, weighted_E = self._weighted(e, E, Pi)
         gradient = -E.T @ weighted_e           # dF/dX
         curvature = E.T @ weighted_E           # -d2F/dX2 (Gauss-Newton)
         free_energy = -0.5 * e @ weighted_e
@@ -349,13 +355,7 @@ class NonlinearDEM:
         units with flow_time="samples". Returns (X, y~, u~ at the end of the step, curvature)."""
         mats = self._matrices
         e, E, Pi, E_u = self._errors(X, y_tilde, u_tilde, data_jacobian=True)
-        weighted_E, weighted_e = np.empty_like(E), np.empty_like(e)
-        start = 0
-        for block in Pi:
-            stop = start + block.shape[0]
-            weighted_E[start:stop] = block @ E[start:stop]
-            weighted_e[start:stop] = block @ e[start:stop]
-            start = stop
+        weighted_e, weighted_E = self._weighted(e, E, Pi)
         gradient, curvature = -E.T @ weighted_e, E.T @ weighted_E
         n_y = y_tilde.shape[0]
         couplings = (-weighted_E[:n_y].T, -weighted_E.T @ E_u)     # d(dF/dX)/dy~, d(dF/du~)

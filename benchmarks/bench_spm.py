@@ -15,7 +15,8 @@ spm_DEM runs only its D-step (fixed parameters and precisions); its estimates ar
 <case>_seed<k>_spm.csv and its run time as <case>_seed<k>_spm.csv.json (README there: how, with
 which SPM and Octave). This script needs no Octave: it runs attend on the stored data and prints,
 per seed, the SSE of SPM and attend against the truth, their ratio (target: within 5 %) and the
-SSE between the two estimates, over samples p + 2 .. N - p - 1 (1-based; the reproductions' trim).
+SSE between the two estimates, for attend's own integration and for integration="spm" (spm_DEM's
+D-step, which matches SPM to rounding), over samples p + 2 .. N - p - 1 (1-based; the reproductions' trim).
 ``--decompose`` attributes the differences to SPM's integration conventions with
 :func:`spm_style_flow`, a Python re-derivation of spm_DEM's D-step; ``--sweep N`` compares the
 two integrations on N fresh seeds per case with it. Conventions: docs/spm.md.
@@ -77,21 +78,24 @@ def export() -> None:
     print(f"wrote {2 * len(SEEDS)} data files to {REFERENCE}")
 
 
-def lorenz_estimator() -> NonlinearDEM:
+def lorenz_estimator(integration: str = "attend") -> NonlinearDEM:
     """attend's NonlinearDEM on SPM's conventions (docs/spm.md): s/dt = 2 bins, p = 6, the true
-    precisions, the flow in sample units with one D-step per bin, repeated end samples."""
+    precisions, the flow in sample units with one D-step per bin, repeated end samples;
+    integration: "attend" (data held, row k after the step) or "spm" (spm_DEM's D-step)."""
     cfg = lorenz.SETTINGS
     return NonlinearDEM(lorenz.build_system(cfg), cfg["dt"], cfg["kernel_width"], 1.0 / cfg["measurement_std"] ** 2,
                         1.0 / cfg["process_std"] ** 2, embedding_order=EMBEDDING_ORDER, flow_time="samples",
-                        substeps=1, motion="linearized", edges="clamp")
+                        substeps=1, motion="linearized", edges="clamp", integration=integration)
 
 
-def convolution_estimator() -> DEMObserver:
-    """attend's linear DEMObserver on SPM's convolution settings (p = d = 6, start at x = 0)."""
+def convolution_estimator(integration: str = "attend") -> DEMObserver:
+    """attend's linear DEMObserver on SPM's convolution settings (p = d = 6, start at x = 0);
+    integration: "attend" or "spm" as in :func:`lorenz_estimator`."""
     c = CONVOLUTION
     return DEMObserver(convolution_model(), c["dt"], c["kernel_width"], np.exp(c["log_precision"]),
                        np.exp(c["log_precision"]), np.exp(c["prior_log_precision"]), embedding_order=EMBEDDING_ORDER,
-                       input_order=EMBEDDING_ORDER, edges="clamp", initial_state=np.zeros(2), allow_unstable=True)
+                       input_order=EMBEDDING_ORDER, edges="clamp", initial_state=np.zeros(2), allow_unstable=True,
+                       integration=integration)
 
 
 def spm_style_flow(system: NonlinearSystem, outputs, dt: float, kernel_width: float, sensor_precision: float,
@@ -188,52 +192,56 @@ def _load(case: str, seed: int):
     return data, np.loadtxt(spm_path, delimiter=","), meta
 
 
-def _run_attend(case: str, data: np.ndarray):
-    """attend's estimates (states, inputs or None) and its CPU seconds on one stored data set."""
+def _run_attend(case: str, data: np.ndarray, integration: str = "attend"):
+    """attend's estimates (states, inputs or None) and its CPU seconds on one stored data set;
+    integration: "attend" (attend's default) or "spm" (spm_DEM's D-step)."""
     start = time.process_time()
     if case == "lorenz":
-        states, inputs = lorenz_estimator().estimate(data[:, :3], initial_state=data[0, :3]).states, None
+        states, inputs = lorenz_estimator(integration).estimate(data[:, :3], initial_state=data[0, :3]).states, None
     else:
         with warnings.catch_warnings():  # p = d = 6 is outside attend's stable orders here (ModelWarning)
             warnings.simplefilter("ignore")
-            estimate = convolution_estimator().estimate(data[:, :4])
+            estimate = convolution_estimator(integration).estimate(data[:, :4])
         states, inputs = estimate.states, estimate.inputs
     return states, inputs, time.process_time() - start
 
 
-def compare(case: str) -> list[float]:
+def compare(case: str, integration: str = "attend") -> list[float]:
     """Print, per seed, SPM's and attend's SSE against the truth, their ratio and the SSE between
-    them (states, and the input for the convolution model); return the ratios."""
+    them (states, and the input for the convolution model); return the ratios. integration:
+    attend's "attend" (default) or "spm" (spm_DEM's D-step, docs/spm.md)."""
     columns = {"lorenz": (slice(0, 3), slice(3, 6), None), "convolution": (slice(0, 4), slice(4, 6), slice(6, 7))}
     _, x_cols, u_cols = columns[case]
     width = x_cols.stop - x_cols.start
-    print(f"\n== {case}: SSE against the truth (samples p + 2 .. N - p - 1)")
+    print(f"\n== {case}, attend integration={integration!r}: SSE against the truth (samples p + 2 .. N - p - 1)")
     header = f"{'seed':>4} {'spm_DEM x':>10} {'attend x':>10} {'ratio':>7} {'SSE(att-SPM)':>12}"
     if u_cols:
         header += f" {'spm_DEM u':>10} {'attend u':>10} {'ratio':>7} {'SSE(att-SPM)':>12}"
     print(header)
     ratios, spm_rate, attend_rate = [], [], []
+    digits = 4 if integration == "attend" else 8
     for seed in SEEDS:
         loaded = _load(case, seed)
         if loaded is None:
             print(f"{seed:4d} no SPM output: run benchmarks/spm/run_all.sh")
             continue
         data, spm, meta = loaded
-        states, inputs, seconds = _run_attend(case, data)
+        states, inputs, seconds = _run_attend(case, data, integration)
         spm_rate.append(meta["samples_per_second"])
         attend_rate.append(len(data) / seconds)
         truth, spm_x = data[:, x_cols], spm[:, :width]
         row = f"{seed:4d} {sse(spm_x, truth):10.4g} {sse(states, truth):10.4g} "
         ratios.append(sse(states, truth) / sse(spm_x, truth))
-        row += f"{ratios[-1]:7.4f} {sse(states, spm_x):12.4g}"
+        row += f"{ratios[-1]:7.{digits}f} {sse(states, spm_x):12.4g}"
         if u_cols:
             spm_u, true_u = spm[:, width:], data[:, u_cols]
             ratios.append(sse(inputs, true_u) / sse(spm_u, true_u))
-            row += f" {sse(spm_u, true_u):10.4g} {sse(inputs, true_u):10.4g} {ratios[-1]:7.4f} {sse(inputs, spm_u):12.4g}"
+            row += f" {sse(spm_u, true_u):10.4g} {sse(inputs, true_u):10.4g} {ratios[-1]:7.{digits}f} " \
+                   f"{sse(inputs, spm_u):12.4g}"
         print(row)
     if ratios:
         worst = max(abs(r - 1) for r in ratios)
-        print(f"median attend/SPM SSE ratio {np.median(ratios):.4f}, worst |ratio - 1| = {worst:.4f}: "
+        print(f"median attend/SPM SSE ratio {np.median(ratios):.{digits}f}, worst |ratio - 1| = {worst:.2g}: "
               f"{'within' if worst <= 0.05 else 'NOT within'} 5 %")
         print(f"speed (samples per CPU second, median): spm_DEM in Octave {np.median(spm_rate):.1f}, "
               f"attend {np.median(attend_rate):.0f} ({np.median(attend_rate) / np.median(spm_rate):.0f}x)")
@@ -359,7 +367,8 @@ def main() -> None:
         export()
         return
     for case in ("lorenz", "convolution"):
-        compare(case)
+        for integration in ("attend", "spm"):
+            compare(case, integration)
     if args.decompose:
         decompose()
         check_input_order()

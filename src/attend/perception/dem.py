@@ -51,7 +51,7 @@ from attend.perception.dem_analysis import (
     start_influence,
     start_time_constant,
 )
-from attend.perception.dem_flow import flow_matrices, start_state
+from attend.perception.dem_flow import flow_matrices, known_input_error, start_state
 from attend.perception.dem_online import OnlineDEM
 from attend.perception.recurrence import linear_recurrence
 from attend.systems import LinearSystem, ModelWarning, as_linear_system
@@ -167,6 +167,10 @@ class DEMObserver:
     initial_state: order-0 states (n,) the flow starts from (default: the static MAP of the
     first sample, see :meth:`estimate`); allow_unstable: run configurations that analysis()
     finds unstable or drifting (with a ModelWarning and NaN std) instead of refusing them.
+    integration: "attend" (default: the data held over each step, row k the state after the step
+    with sample k) or "spm" (spm_DEM's D-step: the data ride along their generalised motion over the
+    step, row k is the state before the step with sample k (row 0 the start), the top order's motion
+    error 0; :func:`attend.perception.dem_flow.spm_discretisation`, docs/spm.md).
     Precisions are scalars (times I), vectors (diagonal) or matrices.
     """
 
@@ -187,6 +191,7 @@ class DEMObserver:
     initial_state: np.ndarray | None = None
     allow_unstable: bool = False
     input_kernel_width: float | None = None
+    integration: str = "attend"
     _matrices: dict = field(default_factory=dict, repr=False)
     _cache: dict = field(default_factory=dict, repr=False)
 
@@ -219,6 +224,8 @@ class DEMObserver:
         set_(self, "input_prior_precision", prior)
         if self.edges not in ("order0", "clamp"):
             raise AttendInputError(f"edges: expected 'order0' or 'clamp', got {self.edges!r}")
+        if self.integration not in ("attend", "spm"):
+            raise AttendInputError(f"integration: expected 'attend' or 'spm', got {self.integration!r}")
         if int(self.window_offset) != self.window_offset:
             raise AttendInputError(f"window_offset: expected an integer number of samples, got {self.window_offset!r}")
         if self.initial_state is not None:
@@ -414,7 +421,7 @@ class DEMObserver:
         columns are those of :meth:`analysis` (steady state under the model, edges excluded);
         with known inputs the state std adds the mean square, over the middle 80 % of the log, of
         the filter's own error on the noise-free response to the given inputs (see
-        :meth:`_known_input_error`), so it depends on the log.
+        :func:`attend.perception.dem_flow.known_input_error`), so it depends on the log.
         """
         signals = self._signals(outputs, inputs)
         n_samples = signals.shape[0]
@@ -440,7 +447,7 @@ class DEMObserver:
             )
         state_std = analysis.state_std
         if self.known_inputs and np.all(np.isfinite(state_std)) and n_samples >= 10:
-            state_std = np.sqrt(state_std**2 + self._known_input_error(signals, segment))
+            state_std = np.sqrt(state_std**2 + known_input_error(self, signals, segment))
         self._warn_if_worse_than_the_prior(state_std, analysis.input_std)
         state_std = np.broadcast_to(state_std, (n_samples, n))
         input_std = np.broadcast_to(analysis.input_std, (n_samples, r))
@@ -467,7 +474,10 @@ class DEMObserver:
             if state is None:
                 state = self._start_state(signals, start, len(edge) > 0 and edge[0] == 0)
             X = linear_recurrence(mats["transition"], drive, state)
-            state = X[-1]
+            if self.integration == "spm":  # row k: the state before the step with sample k
+                X, state = np.vstack([state[None, :], X[:-1]]), X[-1]
+            else:
+                state = X[-1]
             states[start:stop] = X[:, :n]
             if self.known_inputs:
                 inputs_out[start:stop] = signals[start:stop, self.system.n_outputs:]
@@ -476,27 +486,6 @@ class DEMObserver:
             if keep_generalized:
                 generalized[start:stop] = X
         return states, inputs_out, generalized
-
-    def _known_input_error(self, signals: np.ndarray, segment: int) -> np.ndarray:
-        """Mean square (n,) of the DEM filter's own error on the noise-free response to the known
-        inputs, over the middle 80 % of the log.
-
-        The plant x[k] = Ad x[k-1] + Bd u[k-1] (from x = 0) and DEM's generalised motion
-        dx/dt = A x + B u (embedded u) respond differently to the same input (sample-and-hold
-        delay, finite-difference derivatives); that deterministic error depends on the input
-        signal, so it is measured on the given one and added to the noise-driven variance."""
-        system = self.system
-        m, n = system.n_outputs, system.n_states
-        u = signals[:, m:]
-        Ad, Bd = system.discretize(self.dt)
-        response = np.zeros((signals.shape[0], n))
-        with np.errstate(over="ignore", invalid="ignore"):
-            response[1:] = linear_recurrence(Ad, u[:-1] @ Bd.T, np.zeros(n))
-            clean = np.hstack([response @ system.C.T, u])
-            states = self._run(clean, None, False, segment)[0]
-        middle = slice(signals.shape[0] // 10, signals.shape[0] - signals.shape[0] // 10)
-        error = np.mean((states[middle] - response[middle]) ** 2, axis=0)
-        return np.where(np.isfinite(error), error, np.inf)
 
     def _check_log_length(self, n_samples: int) -> None:
         """Drifting: a start error of one natural unit (see DEMAnalysis.start_time_constant) still

@@ -363,9 +363,10 @@ def observer_error_std(observer, names) -> tuple[np.ndarray, np.ndarray, tuple]:
     """
     mats, system, n = observer._matrices, observer.system, observer.system.n_states
     rows_x, rows_v = observer._readout(observer.embedding_order)
+    lag = 1 if getattr(observer, "integration", "attend") == "spm" else 0  # row k reports X[k - 1]
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         error_x, error_v, prior_x, prior_v = steady_state_error_variance(
-            mats["transition"], mats["window_gain"], mats["offsets"], rows_x, rows_v,
+            mats["transition"], mats["window_gain"], mats["offsets"] - lag, rows_x, rows_v,
             A=system.A, B=system.B, C=system.C, dt=observer.dt,
             process_precision=observer.process_precision, sensor_precision=observer.sensor_precision,
             input_prior_precision=observer.input_prior_precision,

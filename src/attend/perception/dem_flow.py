@@ -8,6 +8,7 @@ from scipy.linalg import expm
 
 from attend._validation import AttendInputError
 from attend.generalized import block_precisions, embedding_weights, shift_operator
+from attend.perception.recurrence import linear_recurrence
 
 
 def flow_matrices(observer, p: int) -> dict[str, np.ndarray]:
@@ -53,12 +54,16 @@ def flow_matrices(observer, p: int) -> dict[str, np.ndarray]:
             [np.zeros((r * (d + 1), m * (p + 1))), Vv],
         ])  # drives: [y~; eta~]
     size, width = A_obs.shape[0], B_obs.shape[1]
-    block = np.zeros((size + width, size + width))
-    block[:size, :size] = A_obs * observer.dt
-    block[:size, size:] = B_obs * observer.dt
-    with np.errstate(over="ignore", invalid="ignore"):
-        exponential = expm(block)
-    transition, gain = exponential[:size, :size], exponential[:size, size:]
+    if getattr(observer, "integration", "attend") == "spm":
+        transition, gain = spm_discretisation(observer, p, Ct, motion, Bt, (Vy, W, Vv))
+        exponential = np.hstack([transition, gain])
+    else:
+        block = np.zeros((size + width, size + width))
+        block[:size, :size] = A_obs * observer.dt
+        block[:size, size:] = B_obs * observer.dt
+        with np.errstate(over="ignore", invalid="ignore"):
+            exponential = expm(block)
+        transition, gain = exponential[:size, :size], exponential[:size, size:]
     if not np.all(np.isfinite(exponential)):
         suspect = ("kernel_width" if observer.kernel_width > 50 * observer.dt
                    else "sensor_precision, process_precision, input_prior_precision")
@@ -82,6 +87,83 @@ def flow_matrices(observer, p: int) -> dict[str, np.ndarray]:
         transition=transition, gain=gain, window_gain=window_gain, window_B_obs=window_B_obs,
         offsets=offsets, order0_gain=gain[:, order0], order0_B_obs=B_obs[:, order0],
     )
+
+
+def spm_discretisation(observer, p: int, Ct, motion, Bt, precisions) -> tuple[np.ndarray, np.ndarray]:
+    """(Phi, Gamma) of spm_DEM's D-step for the linear flow (integration="spm", docs/spm.md).
+
+    Over one sample the data ride along their generalised motion, d/dt [X; y~; u~] =
+    [D_X X - E' Pi_M (E X + H data~); D data~], integrated by the local linearisation with the
+    Jacobian J_aug = [[D_X - E' Pi E, -E' Pi H], [0, D]] (E = de/dX, H = de/d data~; Pi_M: the precision with
+    the columns of the top order's motion error zeroed, spm_DEM's e_x^(p) = 0). With
+    Psi = int_0^dt expm(J_aug t) dt (one exponential of [[J_aug, I], [0, 0]] dt):
+    X[k+1] = (I + Psi_XX A_M) X[k] + (Psi_XX B_M + Psi_Xd D) data~[k], A_M = D_X - E' Pi_M E,
+    B_M = -E' Pi_M H. observer: the DEMObserver; p: the embedding order; Ct, motion = D_x - A~,
+    Bt: the generalised C, motion operator and B; precisions: (Vy, W, Vv).
+    """
+    n, r, m = observer.system.n_states, observer.system.n_inputs, observer.system.n_outputs
+    d = observer.input_order
+    Vy, W, Vv = precisions
+    n_x, n_y, n_u = n * (p + 1), m * (p + 1), r * (d + 1)
+    mask = np.ones(n_x)
+    mask[-n:] = 0.0  # no motion error at the top order
+    if observer.known_inputs:  # e = [y~ - Ct x~; motion x~ - Bt u~], data [y~; u~]
+        E = np.vstack([-Ct, motion])
+        H = np.block([[np.eye(n_y), np.zeros((n_y, n_u))], [np.zeros((n_x, n_y)), -Bt]])
+        Pi, Pi_M = _block_diagonal(Vy, W), _block_diagonal(Vy, W * mask[None, :])
+        D_X = shift_operator(p + 1, n)
+    else:  # e = [y~ - Ct x~; motion x~ - Bt v~; v~ - eta~], data [y~; eta~]
+        E = np.block([[-Ct, np.zeros((n_y, n_u))], [motion, -Bt], [np.zeros((n_u, n_x)), np.eye(n_u)]])
+        H = np.zeros((n_y + n_x + n_u, n_y + n_u))
+        H[:n_y, :n_y], H[n_y + n_x:, n_y:] = np.eye(n_y), -np.eye(n_u)
+        Pi, Pi_M = _block_diagonal(Vy, W, Vv), _block_diagonal(Vy, W * mask[None, :], Vv)
+        D_X = _block_diagonal(shift_operator(p + 1, n), shift_operator(d + 1, r))
+    D_data = _block_diagonal(shift_operator(p + 1, m), shift_operator(d + 1, r))
+    size, width = E.shape[1], H.shape[1]
+    jacobian = np.block([[D_X - E.T @ Pi @ E, -E.T @ Pi @ H], [np.zeros((width, size)), D_data]])
+    total = size + width
+    block = np.zeros((2 * total, 2 * total))
+    block[:total, :total], block[:total, total:] = jacobian * observer.dt, np.eye(total) * observer.dt
+    with np.errstate(over="ignore", invalid="ignore"):
+        psi = expm(block)[:size, total:]  # rows of X in int_0^dt expm(J_aug t) dt
+    transition = np.eye(size) + psi[:, :size] @ (D_X - E.T @ Pi_M @ E)
+    gain = psi[:, :size] @ (-E.T @ Pi_M @ H) + psi[:, size:] @ D_data
+    return transition, gain
+
+
+def _block_diagonal(*blocks) -> np.ndarray:
+    """blkdiag(blocks) of square matrices."""
+    size = sum(block.shape[0] for block in blocks)
+    out = np.zeros((size, size))
+    start = 0
+    for block in blocks:
+        out[start: start + block.shape[0], start: start + block.shape[0]] = block
+        start += block.shape[0]
+    return out
+
+
+def known_input_error(observer, signals: np.ndarray, segment: int) -> np.ndarray:
+    """Mean square (n,) of the DEM filter's own error on the noise-free response to the known
+    inputs, over the middle 80 % of the log.
+
+    The plant x[k] = Ad x[k-1] + Bd u[k-1] (from x = 0) and DEM's generalised motion
+    dx/dt = A x + B u (embedded u) respond differently to the same input (sample-and-hold
+    delay, finite-difference derivatives); that deterministic error depends on the input
+    signal, so it is measured on the given one and added to the noise-driven variance.
+    observer: the DEMObserver; signals: (N, m + r) samples [y, u]; segment: samples per segment
+    of its batch run."""
+    system = observer.system
+    m, n = system.n_outputs, system.n_states
+    u = signals[:, m:]
+    Ad, Bd = system.discretize(observer.dt)
+    response = np.zeros((signals.shape[0], n))
+    with np.errstate(over="ignore", invalid="ignore"):
+        response[1:] = linear_recurrence(Ad, u[:-1] @ Bd.T, np.zeros(n))
+        clean = np.hstack([response @ system.C.T, u])
+        states = observer._run(clean, None, False, segment)[0]
+    middle = slice(signals.shape[0] // 10, signals.shape[0] - signals.shape[0] // 10)
+    error = np.mean((states[middle] - response[middle]) ** 2, axis=0)
+    return np.where(np.isfinite(error), error, np.inf)
 
 
 def fold_embedding(observer, gain: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray]:

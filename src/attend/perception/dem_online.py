@@ -50,12 +50,14 @@ class OnlineDEM:
             drive = self._gain @ data
         if self._state is None:
             self._state = self.observer._start_state(self._buffer, self._before, edge)
+        before = self._state
         self._state = self._transition @ self._state + drive
-        states = self._state[: self._n].copy()
+        reported = before if self.observer.integration == "spm" else self._state  # docs/spm.md
+        states = reported[: self._n].copy()
         if self.observer.known_inputs:
             inputs = self._buffer[self._before, -self._r:].copy()
         else:
-            inputs = self._state[self._n_x: self._n_x + self._r].copy()
+            inputs = reported[self._n_x: self._n_x + self._r].copy()
         return states, inputs
 
     def step(self, output, input_value=None):

@@ -23,6 +23,9 @@ dX/dt = D X + dF/dX is integrated over one sample dt by its local linearisation 
 with the data held at the sample's embedded values y~[k], eta~[k] over the step. For a linear f, g
 this is exactly the zero-order-hold discretisation of attend's linear observer
 (:class:`attend.perception.dem.DEMObserver`): the two agree to rounding.
+``integration="spm"`` follows spm_DEM's D-step instead: the data ride along their generalised
+motion (d/dt y~ = D y~) jointly with X over the step, row k is the state before the step with
+sample k, and the top order's motion error is 0 (docs/spm.md: equal to SPM's outputs to rounding).
 
 Units are attend's: seconds. f is a rate [state unit / s], kernel_width s is in seconds
 (SPM works in bins: s_bins = s / dt).

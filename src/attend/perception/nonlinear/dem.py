@@ -82,6 +82,13 @@ class NonlinearDEM:
     Jacobians recomputed, the data held at the sample's values.
     divergence_limit: an estimate with |x| or |v| above this [state/input units] (or non-finite)
     stops the run with an :class:`AttendInputError` naming the settings to change.
+    integration: how the data enter the one-sample step (docs/spm.md). "attend" (default): y~,
+    eta~ held at sample k's values, row k the state after the step with sample k. "spm" (spm_DEM's
+    D-step): the data ride along their own motion over the step, d/dt [X; y~; u~] =
+    [D X + dF/dX; D y~; D u~], integrated jointly by the exponential of the Jacobian
+    [[J, -E' Pi de/dy~, -E' Pi de/du~], [0, D, 0], [0, 0, D]]; row k is the state before the step
+    with sample k (row 0 = the start, ``initial_state`` taken as given with higher orders 0, as
+    SPM's M(1).x); the top order's motion error is set to 0 (its Jacobian kept).
     Precisions are scalars (times I), vectors (diagonal) or matrices.
 
     Reported standard deviations: ``state_std``/``input_std`` are the square roots of the diagonal
@@ -110,6 +117,7 @@ class NonlinearDEM:
     substeps: int = 1
     motion: str = "linearized"
     input_kernel_width: float | None = None
+    integration: str = "attend"
     _matrices: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -141,6 +149,8 @@ class NonlinearDEM:
             set_(self, "input_kernel_width", positive_scalar(self.input_kernel_width, "input_kernel_width", "s"))
         if self.motion not in ("linearized", "path"):
             raise AttendInputError(f"motion: expected 'linearized' or 'path', got {self.motion!r}")
+        if self.integration not in ("attend", "spm"):
+            raise AttendInputError(f"integration: expected 'attend' or 'spm', got {self.integration!r}")
         if self.flow_time not in ("samples", "seconds"):
             raise AttendInputError(f"flow_time: expected 'samples' or 'seconds', got {self.flow_time!r}")
         self._matrices.update(self._build())
@@ -171,7 +181,7 @@ class NonlinearDEM:
         return int(self._matrices["offsets"][-1])
 
     def _build(self) -> dict:
-        n, r = self.system.n_states, self.system.n_inputs
+        n, r, m = self.system.n_states, self.system.n_inputs, self.system.n_outputs
         p, d = self.embedding_order, self.input_order
         S_p, S_d = block_precisions(p, d, self.kernel_width, self.precision_convention)
         if self.input_kernel_width is not None:
@@ -197,7 +207,8 @@ class NonlinearDEM:
             Ey=embedding_weights(p + 1, self.dt), Eu=embedding_weights(d + 1, self.dt),
             Vy=np.kron(S_p, self.sensor_precision), W=np.kron(S_p, self.process_precision),
             Vv=np.kron(S_d, self.input_prior_precision), D_X=D_X,
-            Dx=shift_operator(p + 1, n),
+            Dx=shift_operator(p + 1, n), Dy=shift_operator(p + 1, m), Du=shift_operator(d + 1, r),
+            y_scale=np.repeat(self.dt ** np.arange(p + 1), m), u_scale=np.repeat(self.dt ** np.arange(d + 1), r),
             order_scale=np.concatenate([np.repeat(self.dt ** np.arange(p + 1), n),
                                         np.repeat(self.dt ** np.arange(d + 1), r) if n_v else []]),
         )
@@ -221,8 +232,13 @@ class NonlinearDEM:
         Returns (e, E, Pi) with e = [e_y; e_x; e_v] (e_v only for unknown inputs), E = de/dX and
         Pi = blkdiag(Vy, W, Vv). X: the generalised state [x~; v~]; y_tilde: the embedded outputs
         y~ ((p + 1) m values); u_tilde: the embedded input prior eta~ (unknown inputs) or the
-        embedded measured inputs u~ (known inputs), (d + 1) r values.
+        embedded measured inputs u~ (known inputs), (d + 1) r values. With integration="spm"
+        the top order's motion error is 0.
         """
+        return self._errors(X, y_tilde, u_tilde)[:3]
+
+    def _errors(self, X, y_tilde, u_tilde, data_jacobian: bool = False):
+        """(e, E, Pi, de/du~) as :meth:`errors`; de/du~ only with ``data_jacobian`` (else None)."""
         mats = self._matrices
         system = self.system
         n, r, m = system.n_states, system.n_inputs, system.n_outputs
@@ -243,6 +259,8 @@ class NonlinearDEM:
         x_next = np.vstack([x[1:], np.zeros((1, n))])
         e_y = y_tilde - g_t.ravel()
         e_x = (x_next - f_t).ravel()
+        if self.integration == "spm":
+            e_x[-n:] = 0.0  # spm_DEM: no motion error at the top order
         Eyx = -Gx
         Exx = mats["Dx"] - Fx
         if self._estimates_inputs:
@@ -253,11 +271,13 @@ class NonlinearDEM:
             E = np.block([[Eyx, Eyv], [Exx, Exv], [np.zeros((n_v, Exx.shape[1])), np.eye(n_v)]])
             e = np.concatenate([e_y, e_x, e_v])
             Pi = (mats["Vy"], mats["W"], mats["Vv"])
+            E_u = np.vstack([np.zeros((E.shape[0] - n_v, n_v)), -np.eye(n_v)]) if data_jacobian else None
         else:
             E = np.vstack([Eyx, Exx])
             e = np.concatenate([e_y, e_x])
             Pi = (mats["Vy"], mats["W"])
-        return e, E, Pi
+            E_u = np.vstack([-Gv, -Fv]) if data_jacobian else None
+        return e, E, Pi, E_u
 
     def _path_predictions(self, x, v_pad):
         """f~, g~ as the derivatives of f and g along the path x(tau) = sum_i x^(i) tau^i / i!
@@ -287,8 +307,9 @@ class NonlinearDEM:
             Gv[:, : n_v * r] = blocks(gv, n_v)
         return E @ F, E @ G, blocks(fx, p + 1), Fv, blocks(gx, p + 1), Gv
 
-    def _gradient_curvature(self, X, y_tilde, u_tilde):
-        e, E, Pi = self.errors(X, y_tilde, u_tilde)
+    @staticmethod
+    def _weighted(e, E, Pi):
+        """(Pi e, Pi E) with Pi = blkdiag(Pi) applied block by block."""
         weighted_E = np.empty_like(E)
         weighted_e = np.empty_like(e)
         start = 0
@@ -297,6 +318,11 @@ class NonlinearDEM:
             weighted_E[start:stop] = block @ E[start:stop]
             weighted_e[start:stop] = block @ e[start:stop]
             start = stop
+        return weighted_e, weighted_E
+
+    def _gradient_curvature(self, X, y_tilde, u_tilde):
+        e, E, Pi = self.errors(X, y_tilde, u_tilde)
+        weighted_e, weighted_E = self._weighted(e, E, Pi)
         gradient = -E.T @ weighted_e           # dF/dX
         curvature = E.T @ weighted_E           # -d2F/dX2 (Gauss-Newton)
         free_energy = -0.5 * e @ weighted_e
@@ -323,12 +349,39 @@ class NonlinearDEM:
                 increment = expm(block)[:size, size]
         return X + increment, curvature
 
-    def initial_state(self, y_tilde, u_tilde, guess=None, iterations: int = 20) -> np.ndarray:
-        """Start of the flow: the static mode of F for the first sample's data (no generalised
-        motion), by Gauss-Newton from ``guess`` (order-0 states (n,), or a full X; default zeros)
-        with step halving so F never decreases. For a linear model one step reaches
-        inv(Pi_X) B_obs Y[0], the linear observer's start. y_tilde, u_tilde: the first sample's
-        embedded outputs and inputs (see :meth:`errors`); iterations: the most Gauss-Newton steps."""
+    def _step_spm(self, X, y_tilde, u_tilde):
+        """spm_DEM's D-step over dt/substeps: [X; y~; u~] flowed jointly by the exponential of
+        [[J, -E' Pi de/dy~, -E' Pi de/du~], [0, D, 0], [0, 0, D]] (class docstring); in sample
+        units with flow_time="samples". Returns (X, y~, u~ at the end of the step, curvature)."""
+        mats = self._matrices
+        e, E, Pi, E_u = self._errors(X, y_tilde, u_tilde, data_jacobian=True)
+        weighted_e, weighted_E = self._weighted(e, E, Pi)
+        gradient, curvature = -E.T @ weighted_e, E.T @ weighted_E
+        n_y = y_tilde.shape[0]
+        couplings = (-weighted_E[:n_y].T, -weighted_E.T @ E_u)     # d(dF/dX)/dy~, d(dF/du~)
+        if self.flow_time == "samples":
+            scales, duration = (mats["order_scale"], mats["y_scale"], mats["u_scale"]), 1.0 / self.substeps
+        else:
+            scales, duration = (np.ones(X.shape[0]), np.ones(n_y), np.ones(u_tilde.shape[0])), self.dt / self.substeps
+        parts = (X, y_tilde, u_tilde)
+        sizes = np.cumsum([0] + [part.shape[0] for part in parts])
+        total = int(sizes[-1])
+        block = np.zeros((total + 1, total + 1))
+        sX = scales[0]
+        block[: sizes[1], : sizes[1]] = mats["D_X"] - curvature / np.outer(sX, sX)
+        for i, coupling in ((1, couplings[0]), (2, couplings[1])):
+            block[: sizes[1], sizes[i]: sizes[i + 1]] = coupling / np.outer(sX, scales[i])
+        block[sizes[1]: sizes[2], sizes[1]: sizes[2]] = mats["Dy"]
+        block[sizes[2]: sizes[3], sizes[2]: sizes[3]] = mats["Du"]
+        block[:total, total] = np.concatenate([mats["D_X"] @ (X * sX) + gradient / sX, mats["Dy"] @ (y_tilde * scales[1]),
+                                               mats["Du"] @ (u_tilde * scales[2])])
+        with np.errstate(over="ignore", invalid="ignore"):
+            increment = expm(block * duration)[:total, total]
+        moved = [part + increment[sizes[i]: sizes[i + 1]] / scales[i] for i, part in enumerate(parts)]
+        return moved[0], moved[1], moved[2], curvature
+
+    def _guess_state(self, guess) -> np.ndarray:
+        """A generalised state from ``guess``: order-0 states (n,) with the rest 0, a full X, or zeros."""
         size = self.n_state_coordinates + self.n_input_coordinates
         X = np.zeros(size)
         if guess is not None:
@@ -341,6 +394,15 @@ class NonlinearDEM:
                 raise AttendInputError(f"initial_state: expected {self.system.n_states} order-0 states or a "
                                        f"generalised state of {size} values, got {guess.shape[0]}")
             require_finite(X, "initial_state")
+        return X
+
+    def initial_state(self, y_tilde, u_tilde, guess=None, iterations: int = 20) -> np.ndarray:
+        """Start of the flow: the static mode of F for the first sample's data (no generalised
+        motion), by Gauss-Newton from ``guess`` (order-0 states (n,), or a full X; default zeros)
+        with step halving so F never decreases. For a linear model one step reaches
+        inv(Pi_X) B_obs Y[0], the linear observer's start. y_tilde, u_tilde: the first sample's
+        embedded outputs and inputs (see :meth:`errors`); iterations: the most Gauss-Newton steps."""
+        X = self._guess_state(guess)
         gradient, curvature, energy = self._gradient_curvature(X, y_tilde, u_tilde)
         for _ in range(iterations):
             step = _scaled_solve(curvature, gradient)

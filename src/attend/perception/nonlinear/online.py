@@ -44,6 +44,8 @@ class OnlineNonlinearDEM:
         row = self._row
         edge = self._order0 and (row < self._before or at_end)
         y_t, u_t = est._embed_row(self._buffer, edge, self._buffer[self._before])
+        if est.integration == "spm":
+            return self._advance_spm(y_t, u_t)
         if self._state is None:
             self._state = est.initial_state(y_t, u_t, self._guess)
         X = self._state
@@ -53,6 +55,23 @@ class OnlineNonlinearDEM:
         self._state = X
         self._row += 1
         return (*est._outputs(X, curvature, u_t), X.copy())
+
+    def _advance_spm(self, y_t, u_t):
+        """integration="spm": report the state reached before this sample, then step with the
+        data moving along their generalised motion (substeps continue the motion)."""
+        est = self.estimator
+        if self._state is None:
+            self._state = est._guess_state(self._guess)
+        reported = X = self._state
+        y_moving, u_moving = y_t, u_t
+        for substep in range(est.substeps):
+            X, y_moving, u_moving, curvature_step = est._step_spm(X, y_moving, u_moving)
+            if substep == 0:
+                curvature = curvature_step
+        est._check(X, self._row)
+        self._state = X
+        self._row += 1
+        return (*est._outputs(reported, curvature, u_t), reported.copy())
 
     def _push(self, sample):
         # before the first sample, the window holds the first sample repeated (as in batch mode)

@@ -58,8 +58,12 @@ def observer_to_statespace(observer: DEMObserver):
 
     Inputs: [y (m); u or eta (r)] at sample k. Outputs: [x (n); v (r)] at sample k - delay
     (for known inputs the v outputs repeat the measured inputs). States: X, then the W - 1
-    previous raw samples, oldest first.
+    previous raw samples, oldest first. Only for ``integration="attend"`` (an SPM-convention
+    observer reports the state before each step, which this form does not hold).
     """
+    if getattr(observer, "integration", "attend") != "attend":
+        raise AttendInputError(f"observer.integration: {observer.integration!r} cannot be exported; expected "
+                               "'attend' (the SPM convention reports the state before each step)")
     control = _control()
     mats = observer.generalized_matrices()
     transition, gain = mats["transition"], mats["window_gain"]

@@ -1,4 +1,4 @@
-"""Shared test fixtures: where the shared data lives."""
+"""Shared test fixtures: where the shared data lives; benchmarks loaded as modules."""
 
 import os
 from pathlib import Path
@@ -18,6 +18,20 @@ def quadrotor_data() -> Path:
     if not QUADROTOR_DATA.is_dir():
         pytest.skip(f"quadrotor flight data not found at {QUADROTOR_DATA} (set ATTEND_SHARED)")
     return QUADROTOR_DATA
+
+
+def load_benchmark(name: str):
+    """The module benchmarks/NAME.py (benchmarks are scripts, not a package), loaded once."""
+    import importlib.util
+    import sys
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+    return sys.modules[name]
 
 
 def model_file_text(*sections) -> str:

@@ -3,23 +3,14 @@ valid cases and the coloured-noise Kalman smoother matches the exact posterior o
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
-
-BENCH = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_bank.py"
+from conftest import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def bank():
-    spec = importlib.util.spec_from_file_location("bench_bank", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("bench_bank", module)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("bench_bank")
 
 
 @pytest.mark.parametrize("index", [0, 2, 3])  # known sines; unknown GP input; unknown pulses

@@ -4,13 +4,11 @@ written apart from attend's observers) and the stored spm_DEM outputs (benchmark
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import load_benchmark
 
 from attend._validation import AttendInputError
 from attend.perception.dem import DEMObserver
@@ -18,16 +16,10 @@ from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem, simulate_
 from attend.problems import convolution_model, mass_spring_damper
 from attend.systems import ModelWarning, simulate
 
-BENCH = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_spm.py"
-
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("bench_spm", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("bench_spm", module)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("bench_spm")
 
 
 def _lorenz_dem(bench, **settings):

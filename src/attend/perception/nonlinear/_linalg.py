@@ -57,21 +57,27 @@ def scaled_solve(matrix, vector):
     return d * np.linalg.lstsq(matrix * np.outer(d, d), vector * d, rcond=None)[0]
 
 
-def scaled_inverse_diagonal(matrix, indices) -> np.ndarray:
-    """diag(inv(matrix))[indices] with Jacobi scaling: d_i^2 [inv(D M D)]_ii, D = diag(d), by a
-    solve against the needed unit columns only (pseudo-inverse if M is singular).
+def scaled_inverse_diagonals(matrices, indices) -> np.ndarray:
+    """diag(inv(M))[indices] of each M in a stack, with Jacobi scaling: d_i^2 [inv(D M D)]_ii,
+    D = diag(d), d = 1 / sqrt|diag(M)| (pseudo-inverse for a singular D M D).
 
-    matrix: square (k, k); indices: integer array of the diagonal entries wanted."""
-    d = jacobi_scaling(matrix)
-    outer = np.outer(d, d)
-    scaled = matrix * outer
-    units = np.zeros((matrix.shape[0], len(indices)))
-    units[indices, np.arange(len(indices))] = 1.0
+    matrices: (K, k, k) square matrices; indices: integer array of the diagonal entries wanted.
+    Returns (K, len(indices))."""
+    diagonal = np.sqrt(np.abs(np.diagonal(matrices, axis1=1, axis2=2)))
+    d = np.where(diagonal > 0, 1.0 / np.where(diagonal > 0, diagonal, 1.0), 1.0)
+    scaled = matrices * (d[:, :, None] * d[:, None, :])
     try:
-        columns = np.linalg.solve(scaled, units)
+        inverses = np.linalg.inv(scaled)
     except np.linalg.LinAlgError:
-        columns = np.linalg.pinv(scaled) @ units
-    return columns[indices, np.arange(len(indices))] * d[indices] ** 2
+        inverses = np.array([_inverse_or_pseudo(matrix) for matrix in scaled])
+    return np.diagonal(inverses, axis1=1, axis2=2)[:, indices] * (d * d)[:, indices]
+
+
+def _inverse_or_pseudo(matrix) -> np.ndarray:
+    try:
+        return np.linalg.inv(matrix)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(matrix)
 
 
 def expm_last_column(block) -> np.ndarray:

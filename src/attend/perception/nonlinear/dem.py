@@ -13,7 +13,7 @@ from attend._validation import AttendInputError, as_matrix, order, positive_scal
 from attend.generalized import block_precisions, embedding_weights, shift_operator, smoothness_precision
 from attend.perception.dem import DEMEstimate
 from attend.perception.nonlinear._linalg import (block_diagonal_positions, diagonal_blocks, expm_last_column,
-                                                  scaled_inverse_diagonal, scaled_solve)
+                                                  scaled_inverse_diagonals, scaled_solve)
 from attend.perception.nonlinear.model import NonlinearSystem
 from attend.perception.nonlinear.online import OnlineNonlinearDEM
 
@@ -502,13 +502,24 @@ class NonlinearDEM:
                 "nearer the data (initial_state), or raise divergence_limit if such values are expected.")
 
     def _outputs(self, X, curvature, u_tilde):
+        """(order-0 states, inputs, curvature) of a sample; the std comes later from the curvature
+        (:meth:`_with_std`, many samples in one call)."""
         n, r = self.system.n_states, self.system.n_inputs
         n_x = self.n_state_coordinates
         if self._estimates_inputs:
-            std = np.sqrt(np.clip(scaled_inverse_diagonal(curvature, self._matrices["reported"]), 0, None))
-            return X[:n], X[n_x: n_x + r], std[:n], std[n:]
-        std = np.sqrt(np.clip(scaled_inverse_diagonal(curvature, self._matrices["reported"]), 0, None))
-        return X[:n], u_tilde[:r], std, np.zeros(r)
+            return X[:n], X[n_x: n_x + r], curvature
+        return X[:n], u_tilde[:r], curvature
+
+    def _with_std(self, rows) -> list:
+        """Rows (states, inputs, curvature, X) -> (states, inputs, state std, input std, X): the
+        std are sqrt(diag(inv(E' Pi E))) of the order-0 states (and inputs), all rows at once."""
+        if not rows:
+            return []
+        n, r = self.system.n_states, self.system.n_inputs
+        std = np.sqrt(np.clip(scaled_inverse_diagonals(np.array([row[2] for row in rows]),
+                                                       self._matrices["reported"]), 0, None))
+        input_std = std[:, n:] if self._estimates_inputs else np.zeros((len(rows), r))
+        return [(row[0], row[1], std[i, :n], input_std[i], row[3]) for i, row in enumerate(rows)]
 
     def estimate(self, outputs, inputs=None, *, keep_generalized: bool = False, initial_state=None) -> DEMEstimate:
         """Batch estimation over a whole log (same fields as the linear observer's DEMEstimate).
@@ -522,13 +533,17 @@ class NonlinearDEM:
         """
         signals = self._signals(outputs, inputs)
         online = OnlineNonlinearDEM(self, initial_state=initial_state)
-        rows = []
+        rows, pending = [], []
         with single_blas_thread():  # small matrices: one BLAS thread is 10-20x faster (attend._threads)
             for sample in signals:
                 out = online._push(sample)
                 if out is not None:
-                    rows.append(out)
-            rows.extend(online._flush())
+                    pending.append(out)
+                if len(pending) == 256:  # the std of a chunk of samples in one call (bounded memory)
+                    rows.extend(self._with_std(pending))
+                    pending = []
+            pending.extend(online._flush())
+            rows.extend(self._with_std(pending))
         return self._collect(rows, keep_generalized)
 
     def _collect(self, rows, keep_generalized):

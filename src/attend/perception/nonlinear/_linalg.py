@@ -80,15 +80,23 @@ def _inverse_or_pseudo(matrix) -> np.ndarray:
         return np.linalg.pinv(matrix)
 
 
+def _surely_not_triangular(matrix) -> bool:
+    """True when ``matrix`` has nonzeros on both sides of its diagonal (cheap test on the first
+    row and column, else scipy.linalg.bandwidth). matrix: square."""
+    if matrix[1:, 0].any() and matrix[0, 1:].any():
+        return True
+    lower, upper = bandwidth(matrix)
+    return lower > 0 and upper > 0
+
+
 def expm_last_column(block) -> np.ndarray:
     """expm(block)[:-1, -1], as scipy.linalg.expm computes it (the same Pade approximant and
     scaling, Al-Mohy & Higham 2009), without its per-call overhead when ``block`` is a general
-    (not triangular) finite matrix; otherwise by scipy.linalg.expm itself.
+    (not triangular) matrix; otherwise by scipy.linalg.expm itself.
 
     block: square (k + 1, k + 1), the augmented matrix [[J dt, b dt], [0, 0]]; its last column of
     the exponential is (expm(J dt) - I) inv(J) b."""
-    lower, upper = bandwidth(block) if pick_pade_structure is not None else (0, 0)
-    if lower == 0 or upper == 0 or not np.isfinite(block).all():
+    if pick_pade_structure is None or not _surely_not_triangular(block):
         return expm(block)[:-1, -1]
     work = np.empty((5,) + block.shape)
     work[0] = block

@@ -346,7 +346,7 @@ class NonlinearDEM:
     def _gradient_curvature(self, X, y_tilde, u_tilde):
         e, E, Pi = self.errors(X, y_tilde, u_tilde)
         weighted_e, weighted_E = self._weighted(e, E, Pi)
-        gradient = -E.T @ weighted_e           # dF/dX
+        gradient = -(E.T @ weighted_e)         # dF/dX
         curvature = E.T @ weighted_E           # -d2F/dX2 (Gauss-Newton)
         free_energy = -0.5 * e @ weighted_e
         return gradient, curvature, free_energy
@@ -360,9 +360,10 @@ class NonlinearDEM:
         if self.flow_time == "samples":
             # the flow in sample units: X_k -> X_k dt^k, gradient / dt^k, one unit of time per sample
             scale = self._matrices["order_scale"]
-            J = D_X - curvature / self._matrices["scale_outer"]
-            block[:size, :size] = J / self.substeps
-            block[:size, size] = (D_X @ (X * scale) + gradient / scale) / self.substeps
+            np.subtract(D_X, curvature / self._matrices["scale_outer"], out=block[:size, :size])
+            block[:size, size] = D_X @ (X * scale) + gradient / scale
+            if self.substeps != 1:
+                block /= self.substeps
             with np.errstate(over="ignore", invalid="ignore"):
                 increment = expm_last_column(block) / scale
         else:
@@ -379,7 +380,7 @@ class NonlinearDEM:
         mats = self._matrices
         e, E, Pi, E_u = self._errors(X, y_tilde, u_tilde, data_jacobian=True)
         weighted_e, weighted_E = self._weighted(e, E, Pi)
-        gradient, curvature = -E.T @ weighted_e, E.T @ weighted_E
+        gradient, curvature = -(E.T @ weighted_e), E.T @ weighted_E
         n_y = y_tilde.shape[0]
         couplings = (-weighted_E[:n_y].T, -weighted_E.T @ E_u)     # d(dF/dX)/dy~, d(dF/du~)
         if self.flow_time == "samples":

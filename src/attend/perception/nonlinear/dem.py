@@ -248,9 +248,11 @@ class NonlinearDEM:
             E, E_u = self._jacobian_from_blocks(*blocks, data_jacobian)
         else:
             fx, fv, gx, gv = system.jacobians(x[0], v[0])
-            g_t = x @ gx.T + v_pad @ gv.T
+            g_t, f_t = x @ gx.T, x @ fx.T
+            if r:  # (without inputs the terms are zeros)
+                g_t += v_pad @ gv.T
+                f_t += v_pad @ fv.T
             g_t[0] = system.observe(x[0], v[0])
-            f_t = x @ fx.T + v_pad @ fv.T
             f_t[0] = system.flow(x[0], v[0])
             E, E_u = self._jacobian_from_local(fx, fv, gx, gv, data_jacobian)
         e_parts = [y_tilde - g_t.ravel(), np.empty(n * (p + 1))]
@@ -338,8 +340,8 @@ class NonlinearDEM:
         start = 0
         for block in Pi:
             stop = start + block.shape[0]
-            weighted_E[start:stop] = block @ E[start:stop]
-            weighted_e[start:stop] = block @ e[start:stop]
+            np.matmul(block, E[start:stop], out=weighted_E[start:stop])
+            np.matmul(block, e[start:stop], out=weighted_e[start:stop])
             start = stop
         return weighted_e, weighted_E
 
@@ -491,9 +493,7 @@ class NonlinearDEM:
         return y_t.ravel(), u_t.ravel()
 
     def _check(self, X, sample: int) -> None:
-        n = self.system.n_states
-        n_x = self.n_state_coordinates
-        order0 = X[:n] if not self._estimates_inputs else np.concatenate([X[:n], X[n_x: n_x + self.system.n_inputs]])
+        order0 = X[self._matrices["reported"]]
         if not np.isfinite(X).all() or np.abs(order0).max() > self.divergence_limit:
             raise AttendInputError(
                 f"NonlinearDEM: the estimate diverged at sample {sample} (max |order-0 estimate| = "

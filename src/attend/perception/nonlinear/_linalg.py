@@ -89,21 +89,40 @@ def _surely_not_triangular(matrix) -> bool:
     return lower > 0 and upper > 0
 
 
-def expm_last_column(block) -> np.ndarray:
-    """expm(block)[:-1, -1], as scipy.linalg.expm computes it (the same Pade approximant and
-    scaling, Al-Mohy & Higham 2009), without its per-call overhead when ``block`` is a general
-    (not triangular) matrix; otherwise by scipy.linalg.expm itself.
-
-    block: square (k + 1, k + 1), the augmented matrix [[J dt, b dt], [0, 0]]; its last column of
-    the exponential is (expm(J dt) - I) inv(J) b."""
-    if pick_pade_structure is None or not _surely_not_triangular(block):
-        return expm(block)[:-1, -1]
+def _pade_last_column(block):
+    """expm(block)[:-1, -1] by SciPy's Pade kernels (the steps of scipy.linalg.expm for a general
+    matrix), or None if they report a failure. block: square, not triangular."""
     work = np.empty((5,) + block.shape)
     work[0] = block
     order, squarings = pick_pade_structure(work)
     if order < 0 or pade_UV_calc(work, order) != 0:
-        return expm(block)[:-1, -1]
+        return None
     result = work[0]
     for _ in range(squarings):  # all full products: the column alone would round differently
         result = result @ result
     return result[:-1, -1]
+
+
+_fast_path = {"checked": False, "usable": pick_pade_structure is not None}
+
+
+def expm_last_column(block) -> np.ndarray:
+    """expm(block)[:-1, -1], as scipy.linalg.expm computes it (the same Pade approximant and
+    scaling, Al-Mohy & Higham 2009), without its per-call overhead when ``block`` is a general
+    (not triangular) matrix; otherwise by scipy.linalg.expm itself. The first use compares the
+    two on its block and keeps scipy.linalg.expm if they differ (another SciPy version).
+
+    block: square (k + 1, k + 1), the augmented matrix [[J dt, b dt], [0, 0]]; its last column of
+    the exponential is (expm(J dt) - I) inv(J) b."""
+    if not _fast_path["usable"] or not _surely_not_triangular(block):
+        return expm(block)[:-1, -1]
+    try:
+        column = _pade_last_column(block)
+    except (TypeError, ValueError):  # pragma: no cover - another SciPy's private signature
+        column = None
+    if not _fast_path["checked"] and column is not None:
+        _fast_path["checked"] = True
+        _fast_path["usable"] = bool(np.array_equal(column, expm(block)[:-1, -1], equal_nan=True))
+    if column is None or not _fast_path["usable"]:
+        return expm(block)[:-1, -1]
+    return column

@@ -173,7 +173,7 @@ class NonlinearDEM:
             np.kron(S_d, self.input_prior_precision)
         return dict(
             **self._jacobian_templates(), Pi=(Vy, W, Vv) if n_v else (Vy, W),
-            reported=np.r_[0:n, n_x: n_x + (r if n_v else 0)], scale_outer=np.outer(*(2 * [self._order_scale()])), path_taylor=taylor, path_weights=np.linalg.inv(taylor),
+            sizes=(n, r, p, d, min(p, d) + 1), estimates_inputs=bool(n_v), reported=np.r_[0:n, n_x: n_x + (r if n_v else 0)], scale_outer=np.outer(*(2 * [self._order_scale()])), path_taylor=taylor, path_weights=np.linalg.inv(taylor),
             S_p=S_p, S_d=S_d, offsets=offsets, y_positions=y_positions, u_positions=u_positions,
             Ey=embedding_weights(p + 1, self.dt), Eu=embedding_weights(d + 1, self.dt),
             Vy=Vy, W=W, Vv=Vv, D_X=D_X,
@@ -214,14 +214,11 @@ class NonlinearDEM:
 
     def _split(self, X, u_tilde):
         """(x~ (p+1, n), v~ (d+1, r)) from X, or v~ = the embedded known inputs."""
-        n, r = self.system.n_states, self.system.n_inputs
-        p, d = self.embedding_order, self.input_order
+        n, r, p, d, _ = self._matrices["sizes"]
         x = X[: n * (p + 1)].reshape(p + 1, n)
-        if self._estimates_inputs:
-            v = X[n * (p + 1):].reshape(d + 1, r)
-        else:
-            v = u_tilde.reshape(d + 1, r)
-        return x, v
+        if self._matrices["estimates_inputs"]:
+            return x, X[n * (p + 1):].reshape(d + 1, r)
+        return x, u_tilde.reshape(d + 1, r)
 
     def errors(self, X, y_tilde, u_tilde):
         """Prediction errors and their Jacobian at X, Jacobians of f, g held at order 0 of X.
@@ -238,11 +235,10 @@ class NonlinearDEM:
         """(e, E, Pi, de/du~) as :meth:`errors`; de/du~ only with ``data_jacobian`` (else None)."""
         mats = self._matrices
         system = self.system
-        n, r = system.n_states, system.n_inputs
-        p, d = self.embedding_order, self.input_order
+        n, r, p, _, top = mats["sizes"]
         x, v = self._split(X, u_tilde)
         v_pad = np.zeros((p + 1, r))
-        v_pad[: min(p, d) + 1] = v[: min(p, d) + 1]
+        v_pad[:top] = v[:top]
         if self.motion == "path":
             f_t, g_t, *blocks = self._path_predictions(x, v_pad)
             E, E_u = self._jacobian_from_blocks(*blocks, data_jacobian)
@@ -260,8 +256,8 @@ class NonlinearDEM:
         np.subtract(x[1:], f_t[:-1], out=motion_error[:-1])
         # spm_DEM: no motion error at the top order
         motion_error[-1] = 0.0 if self.integration == "spm" else -f_t[-1]
-        if self._estimates_inputs:
-            e_parts.append(X[self.n_state_coordinates:] - u_tilde)
+        if mats["estimates_inputs"]:
+            e_parts.append(X[n * (p + 1):] - u_tilde)
         return np.concatenate(e_parts), E, mats["Pi"], E_u
 
     def _jacobian_from_local(self, fx, fv, gx, gv, data_jacobian: bool):

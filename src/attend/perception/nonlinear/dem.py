@@ -7,47 +7,15 @@ from dataclasses import dataclass, field
 from math import factorial
 
 import numpy as np
-from scipy.linalg import expm
 
 from attend._threads import single_blas_thread
 from attend._validation import AttendInputError, as_matrix, order, positive_scalar, precision_matrix, require_finite
 from attend.generalized import block_precisions, embedding_weights, shift_operator, smoothness_precision
 from attend.perception.dem import DEMEstimate
+from attend.perception.nonlinear._linalg import (block_diagonal_positions, diagonal_blocks, expm_last_column,
+                                                  scaled_inverse_diagonals, scaled_solve)
 from attend.perception.nonlinear.model import NonlinearSystem
 from attend.perception.nonlinear.online import OnlineNonlinearDEM
-
-
-def _diagonal_blocks(block, rows: int, cols: int) -> np.ndarray:
-    """kron(eye(rows, cols), block) without the multiplications: ``block`` on the first
-    min(rows, cols) diagonal places of a rows x cols grid of blocks (4x faster than np.kron)."""
-    a, b = block.shape
-    if a == 0 or b == 0:
-        return np.zeros((rows * a, cols * b))
-    out = np.zeros((rows, a, cols, b))
-    places = np.arange(min(rows, cols))
-    out[places, :, places, :] = block
-    return out.reshape(rows * a, cols * b)
-
-
-def _jacobi(matrix):
-    diagonal = np.sqrt(np.abs(np.diag(matrix)))
-    return np.where(diagonal > 0, 1.0 / np.where(diagonal > 0, diagonal, 1.0), 1.0)
-
-
-def _scaled_solve(matrix, vector):
-    """inv(matrix) vector with Jacobi scaling (units of the coordinates may differ by 1e12)."""
-    d = _jacobi(matrix)
-    return d * np.linalg.lstsq(matrix * np.outer(d, d), vector * d, rcond=None)[0]
-
-
-def _scaled_inverse(matrix):
-    d = _jacobi(matrix)
-    scaled = matrix * np.outer(d, d)
-    try:
-        inverse = np.linalg.inv(scaled)
-    except np.linalg.LinAlgError:
-        inverse = np.linalg.pinv(scaled)
-    return inverse * np.outer(d, d)
 
 
 # --- the D-step -----------------------------------------------------------------------------
@@ -201,30 +169,56 @@ class NonlinearDEM:
         D_X[n_x:, n_x:] = shift_operator(d + 1, r) if n_v else np.zeros((0, 0))
         grid = (np.arange(p + 1) - (p + 1) // 2) * self.dt
         taylor = np.array([[t**i / factorial(i) for i in range(p + 1)] for t in grid])
+        Vy, W, Vv = np.kron(S_p, self.sensor_precision), np.kron(S_p, self.process_precision), \
+            np.kron(S_d, self.input_prior_precision)
         return dict(
-            path_taylor=taylor, path_weights=np.linalg.inv(taylor),
+            **self._jacobian_templates(), Pi=(Vy, W, Vv) if n_v else (Vy, W),
+            sizes=(n, r, p, d, min(p, d) + 1), estimates_inputs=bool(n_v), reported=np.r_[0:n, n_x: n_x + (r if n_v else 0)], scale_outer=np.outer(*(2 * [self._order_scale()])), path_taylor=taylor, path_weights=np.linalg.inv(taylor),
             S_p=S_p, S_d=S_d, offsets=offsets, y_positions=y_positions, u_positions=u_positions,
             Ey=embedding_weights(p + 1, self.dt), Eu=embedding_weights(d + 1, self.dt),
-            Vy=np.kron(S_p, self.sensor_precision), W=np.kron(S_p, self.process_precision),
-            Vv=np.kron(S_d, self.input_prior_precision), D_X=D_X,
+            Vy=Vy, W=W, Vv=Vv, D_X=D_X,
             Dx=shift_operator(p + 1, n), Dy=shift_operator(p + 1, m), Du=shift_operator(d + 1, r),
             y_scale=np.repeat(self.dt ** np.arange(p + 1), m), u_scale=np.repeat(self.dt ** np.arange(d + 1), r),
-            order_scale=np.concatenate([np.repeat(self.dt ** np.arange(p + 1), n),
-                                        np.repeat(self.dt ** np.arange(d + 1), r) if n_v else []]),
+            order_scale=self._order_scale(),
         )
+
+    def _order_scale(self) -> np.ndarray:
+        """dt^k for each coordinate of X (k its order): the change to sample units."""
+        n, r, p, d = self.system.n_states, self.system.n_inputs, self.embedding_order, self.input_order
+        return np.concatenate([np.repeat(self.dt ** np.arange(p + 1), n),
+                               np.repeat(self.dt ** np.arange(d + 1), r) if self.n_input_coordinates else []])
+
+    def _jacobian_templates(self) -> dict:
+        """The constant part of E = de/dX (D on the motion rows, I on the input-prior rows), of
+        de/du~ for unknown inputs, and the flat places of the Jacobian blocks of f and g in them."""
+        n, r, m = self.system.n_states, self.system.n_inputs, self.system.n_outputs
+        p, d = self.embedding_order, self.input_order
+        n_y, n_x, n_v = m * (p + 1), self.n_state_coordinates, self.n_input_coordinates
+        n_u = r * (d + 1)
+        E = np.zeros((n_y + n_x + n_v, n_x + n_v))
+        E[n_y: n_y + n_x, :n_x] = shift_operator(p + 1, n)
+        E[n_y + n_x:, n_x:] = np.eye(n_v)
+        E_u = np.zeros((E.shape[0], n_u))
+        E_u[n_y + n_x:] = -np.eye(n_v, n_u)
+        # the input blocks sit in E's v columns (unknown inputs) or in de/du~ (known inputs)
+        shape_v, column_v = (E.shape, n_x) if n_v else ((n_y + n_x, n_u), 0)
+        if not n_v:
+            E_u = E_u[: n_y + n_x]
+        places = dict(gx=block_diagonal_positions(E.shape, 0, 0, (m, n), p + 1),
+                      fx=block_diagonal_positions(E.shape, n_y, 0, (n, n), p + 1),
+                      gv=block_diagonal_positions(shape_v, 0, column_v, (m, r), min(p, d) + 1),
+                      fv=block_diagonal_positions(shape_v, n_y, column_v, (n, r), min(p, d) + 1))
+        return dict(E_template=E, E_u_template=E_u, E_places=places)
 
     # one sample ------------------------------------------------------------------------------
 
     def _split(self, X, u_tilde):
         """(x~ (p+1, n), v~ (d+1, r)) from X, or v~ = the embedded known inputs."""
-        n, r = self.system.n_states, self.system.n_inputs
-        p, d = self.embedding_order, self.input_order
+        n, r, p, d, _ = self._matrices["sizes"]
         x = X[: n * (p + 1)].reshape(p + 1, n)
-        if self._estimates_inputs:
-            v = X[n * (p + 1):].reshape(d + 1, r)
-        else:
-            v = u_tilde.reshape(d + 1, r)
-        return x, v
+        if self._matrices["estimates_inputs"]:
+            return x, X[n * (p + 1):].reshape(d + 1, r)
+        return x, u_tilde.reshape(d + 1, r)
 
     def errors(self, X, y_tilde, u_tilde):
         """Prediction errors and their Jacobian at X, Jacobians of f, g held at order 0 of X.
@@ -241,43 +235,70 @@ class NonlinearDEM:
         """(e, E, Pi, de/du~) as :meth:`errors`; de/du~ only with ``data_jacobian`` (else None)."""
         mats = self._matrices
         system = self.system
-        n, r, m = system.n_states, system.n_inputs, system.n_outputs
-        p, d = self.embedding_order, self.input_order
+        n, r, p, _, top = mats["sizes"]
         x, v = self._split(X, u_tilde)
         v_pad = np.zeros((p + 1, r))
-        v_pad[: min(p, d) + 1] = v[: min(p, d) + 1]
+        v_pad[:top] = v[:top]
         if self.motion == "path":
-            f_t, g_t, Fx, Fv, Gx, Gv = self._path_predictions(x, v_pad)
+            f_t, g_t, *blocks = self._path_predictions(x, v_pad)
+            E, E_u = self._jacobian_from_blocks(*blocks, data_jacobian)
         else:
             fx, fv, gx, gv = system.jacobians(x[0], v[0])
-            g_t = x @ gx.T + v_pad @ gv.T
+            g_t, f_t = x @ gx.T, x @ fx.T
+            if r:  # (without inputs the terms are zeros)
+                g_t += v_pad @ gv.T
+                f_t += v_pad @ fv.T
             g_t[0] = system.observe(x[0], v[0])
-            f_t = x @ fx.T + v_pad @ fv.T
             f_t[0] = system.flow(x[0], v[0])
-            Fx, Gx = _diagonal_blocks(fx, p + 1, p + 1), _diagonal_blocks(gx, p + 1, p + 1)
-            Fv, Gv = _diagonal_blocks(fv, p + 1, d + 1), _diagonal_blocks(gv, p + 1, d + 1)
-        x_next = np.vstack([x[1:], np.zeros((1, n))])
-        e_y = y_tilde - g_t.ravel()
-        e_x = (x_next - f_t).ravel()
-        if self.integration == "spm":
-            e_x[-n:] = 0.0  # spm_DEM: no motion error at the top order
-        Eyx = -Gx
-        Exx = mats["Dx"] - Fx
+            E, E_u = self._jacobian_from_local(fx, fv, gx, gv, data_jacobian)
+        e_parts = [y_tilde - g_t.ravel(), np.empty(n * (p + 1))]
+        motion_error = e_parts[1].reshape(p + 1, n)
+        np.subtract(x[1:], f_t[:-1], out=motion_error[:-1])
+        # spm_DEM: no motion error at the top order
+        motion_error[-1] = 0.0 if self.integration == "spm" else -f_t[-1]
+        if mats["estimates_inputs"]:
+            e_parts.append(X[n * (p + 1):] - u_tilde)
+        return np.concatenate(e_parts), E, mats["Pi"], E_u
+
+    def _jacobian_from_local(self, fx, fv, gx, gv, data_jacobian: bool):
+        """(E, de/du~) for motion="linearized": the template of the constant blocks (D, I) with
+        -g_x, -f_x, -g_v, -f_v written on their block diagonals (kron(I, J) without building it).
+        fx, fv, gx, gv: the Jacobians of f and g at order 0; data_jacobian: also return de/du~."""
+        mats = self._matrices
+        E = mats["E_template"].copy()
+        flat = E.reshape(-1)
+        places = mats["E_places"]
+        flat[places["gx"]] = -gx
+        flat[places["fx"]] = -fx
+        E_u = None
         if self._estimates_inputs:
-            e_v = (v.ravel() - u_tilde)
-            Eyv = -Gv
-            Exv = -Fv
-            n_v = r * (d + 1)
-            E = np.block([[Eyx, Eyv], [Exx, Exv], [np.zeros((n_v, Exx.shape[1])), np.eye(n_v)]])
-            e = np.concatenate([e_y, e_x, e_v])
-            Pi = (mats["Vy"], mats["W"], mats["Vv"])
-            E_u = np.vstack([np.zeros((E.shape[0] - n_v, n_v)), -np.eye(n_v)]) if data_jacobian else None
-        else:
-            E = np.vstack([Eyx, Exx])
-            e = np.concatenate([e_y, e_x])
-            Pi = (mats["Vy"], mats["W"])
-            E_u = np.vstack([-Gv, -Fv]) if data_jacobian else None
-        return e, E, Pi, E_u
+            flat[places["gv"]] = -gv
+            flat[places["fv"]] = -fv
+            if data_jacobian:
+                E_u = mats["E_u_template"]
+        elif data_jacobian:
+            E_u = np.zeros(mats["E_u_template"].shape)
+            flat_u = E_u.reshape(-1)
+            flat_u[places["gv"]] = -gv
+            flat_u[places["fv"]] = -fv
+        return E, E_u
+
+    def _jacobian_from_blocks(self, Fx, Fv, Gx, Gv, data_jacobian: bool):
+        """(E, de/du~) from full generalised Jacobian blocks F~_x, F~_v, G~_x, G~_v (motion="path").
+        Fx, Fv, Gx, Gv: the blocks; data_jacobian: also return de/du~."""
+        mats = self._matrices
+        n_y, n_x = Gx.shape[0], self.n_state_coordinates
+        E = mats["E_template"].copy()
+        E[:n_y, :n_x] = -Gx
+        E[n_y: n_y + n_x, :n_x] = mats["Dx"] - Fx
+        E_u = None
+        if self._estimates_inputs:
+            E[:n_y, n_x:] = -Gv
+            E[n_y: n_y + n_x, n_x:] = -Fv
+            E_u = mats["E_u_template"] if data_jacobian else None
+        elif data_jacobian:
+            E_u = np.vstack([-Gv, -Fv])
+        return E, E_u
 
     def _path_predictions(self, x, v_pad):
         """f~, g~ as the derivatives of f and g along the path x(tau) = sum_i x^(i) tau^i / i!
@@ -315,15 +336,15 @@ class NonlinearDEM:
         start = 0
         for block in Pi:
             stop = start + block.shape[0]
-            weighted_E[start:stop] = block @ E[start:stop]
-            weighted_e[start:stop] = block @ e[start:stop]
+            np.matmul(block, E[start:stop], out=weighted_E[start:stop])
+            np.matmul(block, e[start:stop], out=weighted_e[start:stop])
             start = stop
         return weighted_e, weighted_E
 
     def _gradient_curvature(self, X, y_tilde, u_tilde):
         e, E, Pi = self.errors(X, y_tilde, u_tilde)
         weighted_e, weighted_E = self._weighted(e, E, Pi)
-        gradient = -E.T @ weighted_e           # dF/dX
+        gradient = -(E.T @ weighted_e)         # dF/dX
         curvature = E.T @ weighted_E           # -d2F/dX2 (Gauss-Newton)
         free_energy = -0.5 * e @ weighted_e
         return gradient, curvature, free_energy
@@ -337,16 +358,17 @@ class NonlinearDEM:
         if self.flow_time == "samples":
             # the flow in sample units: X_k -> X_k dt^k, gradient / dt^k, one unit of time per sample
             scale = self._matrices["order_scale"]
-            J = D_X - curvature / np.outer(scale, scale)
-            block[:size, :size] = J / self.substeps
-            block[:size, size] = (D_X @ (X * scale) + gradient / scale) / self.substeps
+            np.subtract(D_X, curvature / self._matrices["scale_outer"], out=block[:size, :size])
+            block[:size, size] = D_X @ (X * scale) + gradient / scale
+            if self.substeps != 1:
+                block /= self.substeps
             with np.errstate(over="ignore", invalid="ignore"):
-                increment = expm(block)[:size, size] / scale
+                increment = expm_last_column(block) / scale
         else:
             block[:size, :size] = (D_X - curvature) * (self.dt / self.substeps)
             block[:size, size] = (D_X @ X + gradient) * (self.dt / self.substeps)
             with np.errstate(over="ignore", invalid="ignore"):
-                increment = expm(block)[:size, size]
+                increment = expm_last_column(block)
         return X + increment, curvature
 
     def _step_spm(self, X, y_tilde, u_tilde):
@@ -356,7 +378,7 @@ class NonlinearDEM:
         mats = self._matrices
         e, E, Pi, E_u = self._errors(X, y_tilde, u_tilde, data_jacobian=True)
         weighted_e, weighted_E = self._weighted(e, E, Pi)
-        gradient, curvature = -E.T @ weighted_e, E.T @ weighted_E
+        gradient, curvature = -(E.T @ weighted_e), E.T @ weighted_E
         n_y = y_tilde.shape[0]
         couplings = (-weighted_E[:n_y].T, -weighted_E.T @ E_u)     # d(dF/dX)/dy~, d(dF/du~)
         if self.flow_time == "samples":
@@ -376,7 +398,7 @@ class NonlinearDEM:
         block[:total, total] = np.concatenate([mats["D_X"] @ (X * sX) + gradient / sX, mats["Dy"] @ (y_tilde * scales[1]),
                                                mats["Du"] @ (u_tilde * scales[2])])
         with np.errstate(over="ignore", invalid="ignore"):
-            increment = expm(block * duration)[:total, total]
+            increment = expm_last_column(block * duration)
         moved = [part + increment[sizes[i]: sizes[i + 1]] / scales[i] for i, part in enumerate(parts)]
         return moved[0], moved[1], moved[2], curvature
 
@@ -405,7 +427,7 @@ class NonlinearDEM:
         X = self._guess_state(guess)
         gradient, curvature, energy = self._gradient_curvature(X, y_tilde, u_tilde)
         for _ in range(iterations):
-            step = _scaled_solve(curvature, gradient)
+            step = scaled_solve(curvature, gradient)
             accepted = False
             for _ in range(30):
                 candidate = X + step
@@ -467,9 +489,7 @@ class NonlinearDEM:
         return y_t.ravel(), u_t.ravel()
 
     def _check(self, X, sample: int) -> None:
-        n = self.system.n_states
-        n_x = self.n_state_coordinates
-        order0 = X[:n] if not self._estimates_inputs else np.concatenate([X[:n], X[n_x: n_x + self.system.n_inputs]])
+        order0 = X[self._matrices["reported"]]
         if not np.isfinite(X).all() or np.abs(order0).max() > self.divergence_limit:
             raise AttendInputError(
                 f"NonlinearDEM: the estimate diverged at sample {sample} (max |order-0 estimate| = "
@@ -479,12 +499,24 @@ class NonlinearDEM:
                 "nearer the data (initial_state), or raise divergence_limit if such values are expected.")
 
     def _outputs(self, X, curvature, u_tilde):
+        """(order-0 states, inputs, curvature) of a sample; the std comes later from the curvature
+        (:meth:`_with_std`, many samples in one call)."""
         n, r = self.system.n_states, self.system.n_inputs
         n_x = self.n_state_coordinates
-        std = np.sqrt(np.clip(np.diag(_scaled_inverse(curvature)), 0, None))
         if self._estimates_inputs:
-            return X[:n], X[n_x: n_x + r], std[:n], std[n_x: n_x + r]
-        return X[:n], u_tilde[:r], std[:n], np.zeros(r)
+            return X[:n], X[n_x: n_x + r], curvature
+        return X[:n], u_tilde[:r], curvature
+
+    def _with_std(self, rows) -> list:
+        """Rows (states, inputs, curvature, X) -> (states, inputs, state std, input std, X): the
+        std are sqrt(diag(inv(E' Pi E))) of the order-0 states (and inputs), all rows at once."""
+        if not rows:
+            return []
+        n, r = self.system.n_states, self.system.n_inputs
+        std = np.sqrt(np.clip(scaled_inverse_diagonals(np.array([row[2] for row in rows]),
+                                                       self._matrices["reported"]), 0, None))
+        input_std = std[:, n:] if self._estimates_inputs else np.zeros((len(rows), r))
+        return [(row[0], row[1], std[i, :n], input_std[i], row[3]) for i, row in enumerate(rows)]
 
     def estimate(self, outputs, inputs=None, *, keep_generalized: bool = False, initial_state=None) -> DEMEstimate:
         """Batch estimation over a whole log (same fields as the linear observer's DEMEstimate).
@@ -498,13 +530,17 @@ class NonlinearDEM:
         """
         signals = self._signals(outputs, inputs)
         online = OnlineNonlinearDEM(self, initial_state=initial_state)
-        rows = []
+        rows, pending = [], []
         with single_blas_thread():  # small matrices: one BLAS thread is 10-20x faster (attend._threads)
             for sample in signals:
                 out = online._push(sample)
                 if out is not None:
-                    rows.append(out)
-            rows.extend(online._flush())
+                    pending.append(out)
+                if len(pending) == 256:  # the std of a chunk of samples in one call (bounded memory)
+                    rows.extend(self._with_std(pending))
+                    pending = []
+            pending.extend(online._flush())
+            rows.extend(self._with_std(pending))
         return self._collect(rows, keep_generalized)
 
     def _collect(self, rows, keep_generalized):

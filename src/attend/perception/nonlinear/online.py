@@ -75,8 +75,11 @@ class OnlineNonlinearDEM:
 
     def _push(self, sample):
         # before the first sample, the window holds the first sample repeated (as in batch mode)
-        self._buffer = np.vstack([self._buffer[1:] if self._count else np.tile(sample, (self._window - 1, 1)),
-                                  sample[None, :]])
+        if self._count:
+            self._buffer[:-1] = self._buffer[1:]
+            self._buffer[-1] = sample
+        else:
+            self._buffer[:] = sample
         self._count += 1
         if self._count <= self._lead:
             return None

@@ -1,0 +1,128 @@
+"""Small dense linear algebra of the nonlinear D-step, lean enough to run once per sample.
+
+The matrices are ~20-60 rows, so NumPy's and SciPy's per-call checks cost more than the
+arithmetic; these helpers give the same numbers as the general routines with fewer calls.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import bandwidth, expm
+
+try:  # SciPy's own Pade kernels (scipy.linalg.expm calls them); absent in other SciPy versions
+    from scipy.linalg._matfuncs_expm import pade_UV_calc, pick_pade_structure
+except ImportError:  # pragma: no cover - depends on the installed SciPy
+    pade_UV_calc = pick_pade_structure = None
+
+
+def diagonal_blocks(block, rows: int, cols: int) -> np.ndarray:
+    """kron(eye(rows, cols), block) without the multiplications: ``block`` on the first
+    min(rows, cols) diagonal places of a rows x cols grid of blocks (4x faster than np.kron).
+
+    block: (a, b) matrix; rows, cols: the number of block rows and block columns."""
+    a, b = block.shape
+    if a == 0 or b == 0:
+        return np.zeros((rows * a, cols * b))
+    out = np.zeros((rows, a, cols, b))
+    places = np.arange(min(rows, cols))
+    out[places, :, places, :] = block
+    return out.reshape(rows * a, cols * b)
+
+
+def block_diagonal_positions(shape: tuple, row0: int, col0: int, block: tuple, count: int) -> np.ndarray:
+    """Flat indices (count, a, b) into a C-ordered array of ``shape`` of ``count`` blocks of
+    ``block`` = (a, b) on a block diagonal starting at (row0, col0): the places that
+    kron(eye(count), J) fills, so that ``flat[indices] = J`` writes all of them in one call.
+
+    shape: (rows, cols) of the whole matrix; row0, col0: top-left corner of the first block;
+    block: (a, b) size of one block; count: how many blocks."""
+    a, b = block
+    k = np.arange(count)[:, None, None]
+    rows = row0 + k * a + np.arange(a)[None, :, None]
+    cols = col0 + k * b + np.arange(b)[None, None, :]
+    return rows * shape[1] + cols
+
+
+def jacobi_scaling(matrix) -> np.ndarray:
+    """1 / sqrt|diag(matrix)| (1 where the diagonal is 0). matrix: square."""
+    diagonal = np.sqrt(np.abs(np.diag(matrix)))
+    return np.where(diagonal > 0, 1.0 / np.where(diagonal > 0, diagonal, 1.0), 1.0)
+
+
+def scaled_solve(matrix, vector):
+    """inv(matrix) vector with Jacobi scaling (units of the coordinates may differ by 1e12).
+
+    matrix: square (k, k); vector: (k,)."""
+    d = jacobi_scaling(matrix)
+    return d * np.linalg.lstsq(matrix * np.outer(d, d), vector * d, rcond=None)[0]
+
+
+def scaled_inverse_diagonals(matrices, indices) -> np.ndarray:
+    """diag(inv(M))[indices] of each M in a stack, with Jacobi scaling: d_i^2 [inv(D M D)]_ii,
+    D = diag(d), d = 1 / sqrt|diag(M)| (pseudo-inverse for a singular D M D).
+
+    matrices: (K, k, k) square matrices; indices: integer array of the diagonal entries wanted.
+    Returns (K, len(indices))."""
+    diagonal = np.sqrt(np.abs(np.diagonal(matrices, axis1=1, axis2=2)))
+    d = np.where(diagonal > 0, 1.0 / np.where(diagonal > 0, diagonal, 1.0), 1.0)
+    scaled = matrices * (d[:, :, None] * d[:, None, :])
+    try:
+        inverses = np.linalg.inv(scaled)
+    except np.linalg.LinAlgError:
+        inverses = np.array([_inverse_or_pseudo(matrix) for matrix in scaled])
+    return np.diagonal(inverses, axis1=1, axis2=2)[:, indices] * (d * d)[:, indices]
+
+
+def _inverse_or_pseudo(matrix) -> np.ndarray:
+    try:
+        return np.linalg.inv(matrix)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(matrix)
+
+
+def _surely_not_triangular(matrix) -> bool:
+    """True when ``matrix`` has nonzeros on both sides of its diagonal (cheap test on the first
+    row and column, else scipy.linalg.bandwidth). matrix: square."""
+    if matrix[1:, 0].any() and matrix[0, 1:].any():
+        return True
+    lower, upper = bandwidth(matrix)
+    return lower > 0 and upper > 0
+
+
+def _pade_last_column(block):
+    """expm(block)[:-1, -1] by SciPy's Pade kernels (the steps of scipy.linalg.expm for a general
+    matrix), or None if they report a failure. block: square, not triangular."""
+    work = np.empty((5,) + block.shape)
+    work[0] = block
+    order, squarings = pick_pade_structure(work)
+    if order < 0 or pade_UV_calc(work, order) != 0:
+        return None
+    result = work[0]
+    for _ in range(squarings):  # all full products: the column alone would round differently
+        result = result @ result
+    return result[:-1, -1]
+
+
+_fast_path = {"checked": False, "usable": pick_pade_structure is not None}
+
+
+def expm_last_column(block) -> np.ndarray:
+    """expm(block)[:-1, -1], as scipy.linalg.expm computes it (the same Pade approximant and
+    scaling, Al-Mohy & Higham 2009), without its per-call overhead when ``block`` is a general
+    (not triangular) matrix; otherwise by scipy.linalg.expm itself. The first use compares the
+    two on its block and keeps scipy.linalg.expm if they differ (another SciPy version).
+
+    block: square (k + 1, k + 1), the augmented matrix [[J dt, b dt], [0, 0]]; its last column of
+    the exponential is (expm(J dt) - I) inv(J) b."""
+    if not _fast_path["usable"] or not _surely_not_triangular(block):
+        return expm(block)[:-1, -1]
+    try:
+        column = _pade_last_column(block)
+    except (TypeError, ValueError):  # pragma: no cover - another SciPy's private signature
+        column = None
+    if not _fast_path["checked"] and column is not None:
+        _fast_path["checked"] = True
+        _fast_path["usable"] = bool(np.array_equal(column, expm(block)[:-1, -1], equal_nan=True))
+    if column is None or not _fast_path["usable"]:
+        return expm(block)[:-1, -1]
+    return column

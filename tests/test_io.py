@@ -51,6 +51,24 @@ def test_round_trip_estimate(tmp_path):
     np.testing.assert_allclose(table[:, 1:3], estimate.states, rtol=1e-9)
 
 
+def test_spm_conventions_from_the_model_file(tmp_path):
+    """[observer] integration = "spm" and edges = "clamp" reach the DEM observer: the estimates are
+    those of DEMObserver built with the same options, and differ from attend's default step."""
+    from attend.perception.dem import DEMObserver
+
+    spm = MODEL.replace("kernel_width = 0.5", 'kernel_width = 0.5\nmethod = "dem"\nintegration = "spm"\nedges = "clamp"')
+    model_path, log_path = _write(tmp_path, spm)
+    model, log = io.read_model(model_path), io.read_log(log_path)
+    observer, estimate = io.estimate_from_files(model, log)
+    assert (observer.integration, observer.edges) == ("spm", "clamp")
+    direct = DEMObserver(model.system, 0.1, 0.5, 2980.0, 2980.0, [0.01], 4, 2, integration="spm", edges="clamp")
+    np.testing.assert_allclose(estimate.states, direct.estimate(log.matrix(["y1", "y2"]), np.zeros((50, 1))).states,
+                               rtol=1e-12, atol=1e-12)
+    _, default = io.estimate_from_files(io.read_model(_write(tmp_path, MODEL.replace(
+        "kernel_width = 0.5", 'kernel_width = 0.5\nmethod = "dem"'))[0]), log)
+    assert np.max(np.abs(default.states - estimate.states)) > 1e-6
+
+
 def test_demo_matches_shared_flight(quadrotor_data):
     """The bundled demo is the shared flight exp_21_WW_WM_1: same samples, same estimates."""
     model_path, demo_log = demo_paths()
@@ -85,6 +103,10 @@ def test_demo_matches_shared_flight(quadrotor_data):
         (lambda m: m.replace("sensor_precision = 2980.0", "sensor_precision = -5.0"), "sensor_precision: expected non-negative"),
         (lambda m: m.replace("process_precision = 2980.0", "process_precision = nan"), "process_precision: expected finite"),
         (lambda m: m.replace("[model]", "[model\n"), "not valid TOML"),
+        (lambda m: m.replace("kernel_width = 0.5", "kernel_width = 0.5\nmethod = \"dem\"\nintegration = \"SPM\""),
+         "integration: expected 'attend' or 'spm', got 'SPM'"),
+        (lambda m: m.replace("kernel_width = 0.5", "kernel_width = 0.5\nedges = \"clamp\""),
+         'edges: a setting of DEM; add method = "dem"'),
     ],
 )
 def test_bad_model_files_name_the_field(tmp_path, edit, message):

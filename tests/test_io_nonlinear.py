@@ -142,6 +142,24 @@ def test_lorenz_without_inputs_by_dem_beats_the_raw_data(tmp_path, capsys):
     assert error < raw
 
 
+def test_spm_integration_from_a_nonlinear_model_file(tmp_path):
+    """[observer] integration = "spm", edges = "clamp", initial_state reach NonlinearDEM: the
+    estimates are those of NonlinearDEM built with the same options (docs/spm.md)."""
+    from attend.perception.nonlinear import NonlinearDEM
+
+    extra = 'method = "dem"\nembedding_order = 6\nintegration = "spm"\nedges = "clamp"\ninitial_state = [1.0, 1.0, 24.0]\n'
+    model_path, log_path, _ = _lorenz_files(tmp_path, LORENZ_TOML + extra)
+    model, log = io.read_model(model_path), io.read_log(log_path)
+    estimator, estimate = io.estimate_from_files(model, log)
+    dem = estimator.dem()
+    assert (dem.integration, dem.edges) == ("spm", "clamp")
+    direct = NonlinearDEM(dem.system, dem.dt, dem.kernel_width, dem.sensor_precision, dem.process_precision,
+                          embedding_order=6, integration="spm", edges="clamp")
+    expected = direct.estimate(log.matrix(["y1", "y2", "y3"]), initial_state=[1.0, 1.0, 24.0])
+    np.testing.assert_allclose(estimate.states, expected.states, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(estimate.states[0], [1.0, 1.0, 24.0])  # SPM: row 0 is the start
+
+
 def test_parameters_from_the_model_file_override_the_python_file(tmp_path):
     model_path, _, _ = _pendulum_files(tmp_path, PENDULUM_TOML.replace(
         'states = ["theta", "omega"]', 'states = ["theta", "omega"]\nparameters = { damping = 2.0 }'))

@@ -36,6 +36,8 @@ Model file (all times in seconds)::
     precision_convention = "size"   # DEM only: "size" (SPM) or "max" (Meera)
     known_input_precision = 7.9e13  # DEM only: prior precision given to measured inputs when some
                                     # inputs are unknown (default exp(32))
+    # integration = "spm"           # DEM only: "attend" (default) or "spm": spm_DEM's one-sample step
+    # edges = "clamp"               # DEM only: "order0" (default) or "clamp" (SPM's; docs/spm.md)
 
     [log]
     time_column = "t"               # CSV column with time stamps [s], uniform spacing

@@ -51,7 +51,9 @@ class ModelFile:
     input_kernel_width: s_u [s], each overriding kernel_width for w, z and the unknown inputs'
     prior (None: not given); initial_state: prior mean of x[0] (n,) (None: a broad prior);
     initial_state_std: its std [state unit], scalar or (n,); python_path: the resolved Python
-    file of a nonlinear model ("" for a linear one).
+    file of a nonlinear model ("" for a linear one); integration: DEM's one-sample step, "attend"
+    or "spm" (spm_DEM's conventions, docs/spm.md); edges: DEM's windows at the ends of the log,
+    "order0" or "clamp" (SPM's).
     """
 
     system: LinearSystem
@@ -75,6 +77,8 @@ class ModelFile:
     initial_state: tuple | None = None
     initial_state_std: object = None
     python_path: str = ""  # the Python file of a nonlinear model ([model] python), resolved
+    integration: str = "attend"
+    edges: str = "order0"
 
     @property
     def nonlinear(self) -> bool:
@@ -155,6 +159,7 @@ class ModelFile:
                 process_kernel_width=self.process_kernel_width, sensor_kernel_width=self.sensor_kernel_width,
                 input_kernel_width=self.input_kernel_width,
                 initial_state=None if self.initial_state is None else np.array(self.initial_state),
+                integration=self.integration, edges=self.edges,
             )
         except AttendInputError as error:
             raise AttendInputError(f"{self.path}: [observer] {error}") from None
@@ -203,6 +208,7 @@ class NonlinearFileEstimator:
             self.system, self.dt, model.kernel_width, model.sensor_precision, model.process_precision, prior,
             self.embedding_order, model.input_order, known_inputs=all_known,
             precision_convention=model.precision_convention, input_kernel_width=model.input_kernel_width,
+            integration=model.integration, edges=model.edges,
         )
 
     @property

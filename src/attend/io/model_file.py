@@ -42,7 +42,7 @@ _SECTIONS = {
     "observer": {
         "method", "kernel_width", "process_kernel_width", "sensor_kernel_width", "input_kernel_width",
         "embedding_order", "input_order", "sensor_precision", "process_precision", "precision_convention",
-        "known_input_precision", "initial_state", "initial_state_std",
+        "known_input_precision", "initial_state", "initial_state_std", "integration", "edges",
     },
     "log": {"time_column"},
     "learning": {
@@ -85,6 +85,7 @@ def read_model(path: str | Path) -> ModelFile:
     outputs = _output_columns(data, system.n_outputs, nonlinear, path)
     observer = data.get("observer", {})
     method = _observer_method(observer, nonlinear, path)
+    _check_dem_conventions(observer, method, f"{path}: [observer]")
     widths = _kernel_widths(observer, method, nonlinear, path)
     initial_state, initial_std = _initial_state(observer, system.n_states, path)
     _check_observer(observer, system, f"{path}: [observer]")
@@ -120,6 +121,8 @@ def read_model(path: str | Path) -> ModelFile:
         initial_state=initial_state,
         initial_state_std=initial_std,
         python_path=str(system.f.source) if nonlinear else "",
+        integration=observer.get("integration", "attend"),
+        edges=observer.get("edges", "order0"),
     )
 
 
@@ -324,6 +327,19 @@ def _check_observer(observer: dict, system: LinearSystem, where: str) -> None:
     convention = observer.get("precision_convention", "size")
     if convention not in ("size", "max"):
         raise AttendInputError(f"{where} precision_convention: expected \"size\" or \"max\", got {convention!r}")
+
+
+def _check_dem_conventions(observer: dict, method: str, where: str) -> None:
+    """[observer] integration ("attend" or "spm": how the data enter DEM's one-sample step, see
+    docs/spm.md) and edges ("order0" or "clamp"), which only method = "dem" has."""
+    for key, allowed in (("integration", ("attend", "spm")), ("edges", ("order0", "clamp"))):
+        if key not in observer:
+            continue
+        if observer[key] not in allowed:
+            raise AttendInputError(f"{where} {key}: expected {' or '.join(map(repr, allowed))}, got {observer[key]!r}")
+        if method != "dem":
+            raise AttendInputError(f"{where} {key}: a setting of DEM; add method = \"dem\" (the {method} "
+                                   "estimator has no such choice)")
 
 
 def _check_learning(learning: dict, where: str) -> None:

@@ -113,6 +113,7 @@ class _Problem(NamedTuple):
     fisher: np.ndarray  # (2,) N/2 [m (p+1), n (p+1)]
     raw: tuple  # (outputs (T, m), inputs (T, r)) as given
     used: np.ndarray  # (T,) bool: samples whose embedding window lies inside the log
+    motion: str  # NonlinearDEM's motion: "linearized" or "path"
 
 
 class _Point(NamedTuple):
@@ -128,14 +129,17 @@ class _Point(NamedTuple):
     F: float
 
 
-def _where(theta, iteration, step) -> str:
-    return f"at theta = {np.array2string(np.asarray(theta), precision=6)} ({step}, iteration {iteration})"
+def _where(problem, theta, iteration, step) -> str:
+    """'at theta = [name=value, ...] (step, iteration i)' for messages."""
+    names = problem.model.parameter_names or tuple(f"theta{j + 1}" for j in range(len(theta)))
+    values = ", ".join(f"{name}={value:.6g}" for name, value in zip(names, np.asarray(theta, dtype=float)))
+    return f"at theta = [{values}] ({step}, iteration {iteration})"
 
 
 def _dem(problem: _Problem, theta, iteration: int, step: str) -> NonlinearDEM:
     """NonlinearDEM at theta with unit precisions (its errors(); precisions are applied here)."""
     return NonlinearDEM(problem.model.at(theta), problem.dt, problem.s, sensor_precision=1.0, process_precision=1.0,
-                        embedding_order=problem.p, input_order=problem.p, known_inputs=True)
+                        embedding_order=problem.p, input_order=problem.p, known_inputs=True, motion=problem.motion)
 
 
 def _errors(problem: _Problem, theta, mu, iteration: int, step: str):
@@ -144,9 +148,7 @@ def _errors(problem: _Problem, theta, mu, iteration: int, step: str):
     try:
         pairs = [dem.errors(mu[t], problem.Y[t], problem.U[t])[:2] for t in range(mu.shape[0])]
     except AttendInputError as error:
-        names = problem.model.parameter_names
-        label = f" [{', '.join(names)}]" if names else ""
-        raise AttendInputError(f"{error} {_where(theta, iteration, step)}{label}") from None
+        raise AttendInputError(f"{error} {_where(problem, theta, iteration, step)}") from None
     return np.array([pair[0] for pair in pairs]), np.array([pair[1] for pair in pairs])
 
 
@@ -236,7 +238,7 @@ def _gauss_newton_states(problem: _Problem, theta, lam, mu, iterations: int, ite
         L = np.linalg.cholesky(np.linalg.inv(curvature))
     except np.linalg.LinAlgError:
         raise AttendInputError(f"D-step: the state precision E' Pi E is not positive definite "
-                               f"{_where(theta, iteration, 'D-step')}; the states are not observable") from None
+                               f"{_where(problem, theta, iteration, 'D-step')}; the states are not observable") from None
     return mu, L
 
 
@@ -277,7 +279,7 @@ def _e_step(problem, point: _Point, iteration: int) -> _Point:
         step = step * 0.5
     if not any_finite:
         raise AttendInputError(f"f/g: non-finite values or free energy for every trial step "
-                               f"{_where(point.theta, iteration, 'E-step')}")
+                               f"{_where(problem, point.theta, iteration, 'E-step')}")
     return point
 
 
@@ -330,7 +332,7 @@ def learn_nonlinear(model: ParametrisedSystem, outputs, inputs, dt: float, *, ke
                     prior_precision, initial=None, noise_prior_mean=(0.0, 0.0), noise_prior_precision=(1.0, 1.0),
                     embedding_order: int = 6, max_iterations: int = 50, tolerance: float = 1e-3,
                     state_iterations: int = 3, top_order: str = "marginal",
-                    overrelax: bool = True) -> NonlinearLearningResult:
+                    overrelax: bool = True, motion: str = "linearized") -> NonlinearLearningResult:
     """Alternating D-, E- and M-steps on the free energy of the module docstring, until an
     iteration raises F by less than ``tolerance`` [nats] or ``max_iterations`` have run.
 
@@ -344,11 +346,12 @@ def learn_nonlinear(model: ParametrisedSystem, outputs, inputs, dt: float, *, ke
     top-order motion error is integrated out, W = kron(S_w, I_n) over orders 0..p-1) or
     "truncate" (eq. 8 as published: x^(p+1) = 0 with all p + 1 orders weighted); overrelax: after
     each sweep try its move in (theta, lambda) extended beta times (the linear learner's option 3,
-    module docstring). Raises AttendInputError on bad shapes or values, and naming theta and
+    module docstring); motion: how f~, g~ are formed (:class:`NonlinearDEM`'s ``motion``:
+    "linearized", SPM's Jacobians held at order 0, or "path", which keeps the curvature terms). Raises AttendInputError on bad shapes or values, and naming theta and
     the iteration when f or g raise at a theta or give a non-finite free energy there.
     """
     problem, theta0 = _setup(model, outputs, inputs, dt, kernel_width, prior_mean, prior_precision, initial,
-                             noise_prior_mean, noise_prior_precision, embedding_order, top_order)
+                             noise_prior_mean, noise_prior_precision, embedding_order, top_order, motion)
     point = _start(problem, theta0, state_iterations)
     history, beta = [point.F], 1.0
     converged, iteration, message = False, 0, f"stopped after max_iterations = {max_iterations} (not converged)"
@@ -373,17 +376,17 @@ def _start(problem: _Problem, theta0: np.ndarray, state_iterations: int) -> _Poi
     system = problem.model.at(theta0)
     dem = NonlinearDEM(system, problem.dt, problem.s, sensor_precision=np.exp(lam[0]),
                        process_precision=np.exp(lam[1]), embedding_order=problem.p, input_order=problem.p,
-                       known_inputs=True)
+                       known_inputs=True, motion=problem.motion)
     try:
         estimate = dem.estimate(problem.raw[0], problem.raw[1] if problem.model.n_inputs else None,
                                 keep_generalized=True)
     except AttendInputError as error:
-        raise AttendInputError(f"{error} {_where(theta0, 0, 'start')}") from None
+        raise AttendInputError(f"{error} {_where(problem, theta0, 0, 'start')}") from None
     mu = estimate.generalized[problem.used]
     mu, L = _gauss_newton_states(problem, theta0, lam, mu, state_iterations, 0)
     point = _evaluate(problem, mu, L, theta0, lam, 0, "start")
     if not np.isfinite(point.F):
-        raise AttendInputError(f"learn_nonlinear: the free energy is not finite {_where(theta0, 0, 'start')}")
+        raise AttendInputError(f"learn_nonlinear: the free energy is not finite {_where(problem, theta0, 0, 'start')}")
     return point
 
 
@@ -421,10 +424,12 @@ def _vector(value, size: int, name: str, allow_inf: bool = False) -> np.ndarray:
 
 
 def _setup(model, outputs, inputs, dt, kernel_width, prior_mean, prior_precision, initial, noise_prior_mean,
-           noise_prior_precision, embedding_order, top_order):
+           noise_prior_precision, embedding_order, top_order, motion):
     """Validate the arguments of :func:`learn_nonlinear`; the :class:`_Problem` and the starting theta."""
     if top_order not in ("marginal", "truncate"):
         raise AttendInputError(f"top_order: expected 'marginal' or 'truncate', got {top_order!r}")
+    if motion not in ("linearized", "path"):
+        raise AttendInputError(f"motion: expected 'linearized' or 'path', got {motion!r}")
     if not isinstance(model, ParametrisedSystem):
         raise AttendInputError("model: expected an attend ParametrisedSystem (f(x, u, theta), g(x, u, theta), sizes)")
     dt = positive_scalar(dt, "dt", "s")
@@ -468,7 +473,7 @@ def _setup(model, outputs, inputs, dt, kernel_width, prior_mean, prior_precision
     N = int(used.sum())
     problem = _Problem(model, dt, s, p, Y, U, np.linalg.cholesky(Vy).T, np.linalg.cholesky(W).T,
                        float(np.linalg.slogdet(Vy)[1] + np.linalg.slogdet(W)[1]), eta, P, active, eta_lam, P_lam,
-                       0.5 * N * np.array([m * (p + 1), W.shape[0]], dtype=float), (y, u), used)
+                       0.5 * N * np.array([m * (p + 1), W.shape[0]], dtype=float), (y, u), used, motion)
     return problem, theta0
 
 

@@ -136,7 +136,7 @@ def _where(problem, theta, iteration, step) -> str:
     return f"at theta = [{values}] ({step}, iteration {iteration})"
 
 
-def _dem(problem: _Problem, theta, iteration: int, step: str) -> NonlinearDEM:
+def _dem(problem: _Problem, theta) -> NonlinearDEM:
     """NonlinearDEM at theta with unit precisions (its errors(); precisions are applied here)."""
     return NonlinearDEM(problem.model.at(theta), problem.dt, problem.s, sensor_precision=1.0, process_precision=1.0,
                         embedding_order=problem.p, input_order=problem.p, known_inputs=True, motion=problem.motion)
@@ -144,7 +144,7 @@ def _dem(problem: _Problem, theta, iteration: int, step: str) -> NonlinearDEM:
 
 def _errors(problem: _Problem, theta, mu, iteration: int, step: str):
     """(e (N, dim e), E (N, dim e, dim X)) at every used sample; an error naming theta if f/g raise."""
-    dem = _dem(problem, theta, iteration, step)
+    dem = _dem(problem, theta)
     try:
         pairs = [dem.errors(mu[t], problem.Y[t], problem.U[t])[:2] for t in range(mu.shape[0])]
     except AttendInputError as error:
@@ -177,12 +177,9 @@ def _evaluate(problem: _Problem, mu, L, theta, lam, iteration: int, step: str) -
         rz_down, rw_down = _residuals(problem, down, mu, L, iteration, step)
         columns_z.append((rz_up - rz_down) / (2 * h))
         columns_w.append((rw_up - rw_down) / (2 * h))
-    N = mu.shape[0]
-    k = int(problem.active.sum())
     jac = tuple(np.stack(c, axis=2) if c else np.zeros(r.shape + (0,)) for c, r in zip((columns_z, columns_w), rho))
     energy = np.array([np.sum(rho[0] ** 2), np.sum(rho[1] ** 2)])
     point = _Point(mu, L, theta, lam, energy, rho, jac, -np.inf)
-    assert jac[0].shape == (N, rho[0].shape[1], k)
     return point._replace(F=_free_energy(problem, point, lam))
 
 

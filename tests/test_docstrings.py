@@ -27,6 +27,7 @@ MODULES = [
     "attend.perception.sample_window",
     "attend.perception.kalman",
     "attend.perception.nonlinear",
+    "attend.perception.nonlinear.learning",
     "attend.perception.nonlinear_baselines",
     "attend.action",
     "attend.action.planners",

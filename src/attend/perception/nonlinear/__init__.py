@@ -27,11 +27,15 @@ this is exactly the zero-order-hold discretisation of attend's linear observer
 motion (d/dt y~ = D y~) jointly with X over the step, row k is the state before the step with
 sample k, and the top order's motion error is 0 (docs/spm.md: equal to SPM's outputs to rounding).
 
+Learning (:mod:`.learning`): :func:`learn_nonlinear` alternates this model's D-step with an
+E-step for theta and an M-step for the noise log-precisions (the linear learner's free energy).
+
 Units are attend's: seconds. f is a rate [state unit / s], kernel_width s is in seconds
 (SPM works in bins: s_bins = s / dt).
 """
 
 from attend.perception.nonlinear.dem import NonlinearDEM
+from attend.perception.nonlinear.learning import NonlinearLearningResult, ParametrisedSystem, learn_nonlinear
 from attend.perception.nonlinear.model import NonlinearSystem, finite_difference_jacobian, simulate_nonlinear
 from attend.perception.nonlinear.online import OnlineNonlinearDEM
 
@@ -41,4 +45,7 @@ __all__ = [
     "OnlineNonlinearDEM",
     "simulate_nonlinear",
     "finite_difference_jacobian",
+    "ParametrisedSystem",
+    "NonlinearLearningResult",
+    "learn_nonlinear",
 ]

@@ -35,7 +35,8 @@ def cholesky(Dg: np.ndarray, Off: np.ndarray):
 
 
 def solve(Linv: np.ndarray, Bk: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """Solve (L L') x = rhs for block lower bidiagonal L (given L_k^{-1} and B_k); rhs (R, K, b)."""
+    """Solve (L L') x = rhs for block lower bidiagonal L. Linv: the inverses L_k^{-1} (R, K, b, b)
+    and Bk: the sub-diagonal blocks B_k (R, K - 1, b, b), both from :func:`cholesky`; rhs (R, K, b)."""
     R, K, b = rhs.shape
     y = np.empty_like(rhs)
     for k in range(K):

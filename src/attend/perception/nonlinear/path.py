@@ -210,13 +210,13 @@ def _optimise(problem: _Problem, z: np.ndarray, max_iterations: int, tolerance: 
                     trial = None
             if (trial is not None and trial[0] <= cost) or damping > 1e10:
                 break
-            damping *= 10.0
+            damping = max(10.0 * damping, 1e-9)
         if trial is None or not trial[0] <= cost:  # no step lowers -F: z is the maximiser
             return z, (Dg, Off), iteration, True
         decrease = cost - trial[0]
         z = candidate
         cost, Dg, Off, gradient = trial
-        damping = max(damping / 10.0, 1e-9)
+        damping = damping / 10.0 if damping > 1e-12 else 0.0  # Gauss-Newton once the steps succeed
         if decrease <= tolerance * max(1.0, cost):
             return z, (Dg, Off), iteration, True
     return z, (Dg, Off), max_iterations, False

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.linalg import bandwidth, expm
+from scipy.linalg.blas import dgemm
 
 try:  # SciPy's own Pade kernels (scipy.linalg.expm calls them); absent in other SciPy versions
     from scipy.linalg._matfuncs_expm import pade_UV_calc, pick_pade_structure
@@ -89,35 +90,41 @@ def _surely_not_triangular(matrix) -> bool:
     return lower > 0 and upper > 0
 
 
-def _pade_last_column(block):
+def _pade_last_column(work):
     """expm(block)[:-1, -1] by SciPy's Pade kernels (the steps of scipy.linalg.expm for a general
-    matrix), or None if they report a failure. block: square, not triangular."""
-    work = np.empty((5,) + block.shape)
-    work[0] = block
+    matrix), or None if they report a failure. work: (5, k, k) scratch with the block (square,
+    not triangular) in work[0]; overwritten.
+
+    The squarings A <- A A run on the transpose, (A A)' = A' A', which is Fortran-ordered, so
+    BLAS dgemm takes it without copies: the same products as scipy.linalg.expm's, to the bit."""
     order, squarings = pick_pade_structure(work)
     if order < 0 or pade_UV_calc(work, order) != 0:
         return None
-    result = work[0]
+    transposed = work[0].T
     for _ in range(squarings):  # all full products: the column alone would round differently
-        result = result @ result
-    return result[:-1, -1]
+        transposed = dgemm(1.0, transposed, transposed)
+    return transposed[-1, :-1].copy()
 
 
 _fast_path = {"checked": False, "usable": pick_pade_structure is not None}
 
 
-def expm_last_column(block) -> np.ndarray:
+def expm_last_column(block, work=None) -> np.ndarray:
     """expm(block)[:-1, -1], as scipy.linalg.expm computes it (the same Pade approximant and
     scaling, Al-Mohy & Higham 2009), without its per-call overhead when ``block`` is a general
     (not triangular) matrix; otherwise by scipy.linalg.expm itself. The first use compares the
     two on its block and keeps scipy.linalg.expm if they differ (another SciPy version).
 
     block: square (k + 1, k + 1), the augmented matrix [[J dt, b dt], [0, 0]]; its last column of
-    the exponential is (expm(J dt) - I) inv(J) b."""
+    the exponential is (expm(J dt) - I) inv(J) b. work: optional (5, k + 1, k + 1) scratch reused
+    between calls (overwritten; ``block`` is not)."""
     if not _fast_path["usable"] or not _surely_not_triangular(block):
         return expm(block)[:-1, -1]
+    if work is None:
+        work = np.empty((5,) + block.shape)
+    work[0] = block
     try:
-        column = _pade_last_column(block)
+        column = _pade_last_column(work)
     except (TypeError, ValueError):  # pragma: no cover - another SciPy's private signature
         column = None
     if not _fast_path["checked"] and column is not None:

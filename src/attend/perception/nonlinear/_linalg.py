@@ -58,33 +58,33 @@ def scaled_solve(matrix, vector):
     return d * np.linalg.lstsq(matrix * np.outer(d, d), vector * d, rcond=None)[0]
 
 
-def scaled_inverse_diagonals(matrices, indices) -> np.ndarray:
-    """diag(inv(M))[indices] of each M in a stack, with Jacobi scaling: d_i^2 [inv(D M D)]_ii,
-    D = diag(d), d = 1 / sqrt|diag(M)|.
+def inverse_diagonals(matrices, indices) -> np.ndarray:
+    """diag(inv(M))[indices] of each M in a stack.
 
     For positive definite M (the Gauss-Newton curvature E' Pi E), by Cholesky with the wanted
-    coordinates ordered last: P' D M D P = L L', and the trailing block of inv(L) is inv(L_t) of
-    L's trailing block L_t, so [inv(D M D)]_jj = sum_i inv(L_t)_ij^2 (no full inverse). Otherwise
-    (a stack with a singular or indefinite M) by the inverse, or the pseudo-inverse of a singular
-    D M D. matrices: (K, k, k) symmetric matrices; indices: integer array of the diagonal entries
-    wanted. Returns (K, len(indices))."""
+    coordinates ordered last: P' M P = L L', and the trailing block of inv(L) is inv(L_t) of L's
+    trailing block L_t, so [inv(M)]_jj = sum_i inv(L_t)_ij^2 (no full inverse; Cholesky's error is
+    relative to sqrt(M_ii M_jj), so the units of the coordinates, which may differ by 1e12, do not
+    matter). Otherwise (a stack with a singular or indefinite M) with Jacobi scaling,
+    d_i^2 [inv(D M D)]_ii with D = diag(d), d = 1 / sqrt|diag(M)|, by the inverse, or the
+    pseudo-inverse of a singular D M D. matrices: (K, k, k) symmetric matrices; indices: integer
+    array of the diagonal entries wanted. Returns (K, len(indices))."""
+    indices = np.asarray(indices, dtype=int)
+    last = np.concatenate([np.setdiff1d(np.arange(matrices.shape[1]), indices), indices])
+    try:
+        factor = np.linalg.cholesky(matrices[:, last[:, None], last])
+        trailing = np.linalg.inv(factor[:, -len(indices):, -len(indices):])
+        return (trailing * trailing).sum(axis=1)
+    except np.linalg.LinAlgError:
+        pass
     diagonal = np.sqrt(np.abs(np.diagonal(matrices, axis1=1, axis2=2)))
     d = np.where(diagonal > 0, 1.0 / np.where(diagonal > 0, diagonal, 1.0), 1.0)
     scaled = matrices * (d[:, :, None] * d[:, None, :])
-    indices = np.asarray(indices, dtype=int)
-    wanted = (d * d)[:, indices]
-    last = np.concatenate([np.setdiff1d(np.arange(scaled.shape[1]), indices), indices])
-    try:
-        factor = np.linalg.cholesky(scaled[:, last[:, None], last])
-        trailing = np.linalg.inv(factor[:, -len(indices):, -len(indices):])
-        return (trailing * trailing).sum(axis=1) * wanted
-    except np.linalg.LinAlgError:
-        pass
     try:
         inverses = np.linalg.inv(scaled)
     except np.linalg.LinAlgError:
         inverses = np.array([_inverse_or_pseudo(matrix) for matrix in scaled])
-    return np.diagonal(inverses, axis1=1, axis2=2)[:, indices] * wanted
+    return np.diagonal(inverses, axis1=1, axis2=2)[:, indices] * (d * d)[:, indices]
 
 
 def _inverse_or_pseudo(matrix) -> np.ndarray:
@@ -97,6 +97,8 @@ def _inverse_or_pseudo(matrix) -> np.ndarray:
 def _surely_not_triangular(matrix) -> bool:
     """True when ``matrix`` has nonzeros on both sides of its diagonal (cheap test on the first
     row and column, else scipy.linalg.bandwidth). matrix: square."""
+    if matrix[1, 0] != 0 and matrix[0, 1] != 0:  # the common case, without array calls
+        return True
     if matrix[1:, 0].any() and matrix[0, 1:].any():
         return True
     lower, upper = bandwidth(matrix)

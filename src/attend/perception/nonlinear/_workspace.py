@@ -2,11 +2,15 @@
 samples (:class:`StepWorkspace`): the same equations as ``NonlinearDEM._step`` for
 motion="linearized" and integration="attend", with fewer NumPy calls per sample.
 
-The constant parts of E = de/dX (D on the motion rows, I on the input-prior rows) are written once;
-each sample overwrites only the Jacobian blocks (through strided views of their block diagonals)
-and the error column. The errors ride as the last column of [E | e], so that one product gives
-[E | e]' Pi [E | e] = [[E' Pi E, E' Pi e], [e' Pi E, e' Pi e]]: the curvature and the gradient
--E' Pi e together.
+The step works in the flow's units: X_s = S X with S = diag(dt^k) (k the order of each coordinate;
+S = I with flow_time="seconds"), and E_s = E inv(S), so that E_s' Pi E_s = inv(S) E' Pi E inv(S)
+(the curvature in sample units) and E_s X_s = E X. The constant parts of E_s (D on the motion
+rows, I on the input-prior rows) are written once; each sample overwrites only the Jacobian
+blocks (through strided views of their block diagonals) and the error column. The errors ride as
+the last column of [E_s | e], so that one product gives [[E_s' Pi E_s, E_s' Pi e], [., e' Pi e]]:
+the curvature and the gradient -E_s' Pi e together. For linearized motion the errors are affine
+in X given the Jacobians: e = E X + [y~; 0; -eta~] at orders >= 1, and the order-0 rows take
+f(x, v), g(x, v) themselves.
 """
 
 from __future__ import annotations
@@ -35,67 +39,64 @@ class StepWorkspace:
 
     def __init__(self, estimator):
         mats = estimator._matrices
-        system = estimator.system
         n, r, p, d, top = mats["sizes"]
-        m = system.n_outputs
-        self.estimator, self.system = estimator, system
-        self.n, self.r, self.p, self.d, self.top = n, r, p, d, top
-        self.n_x = estimator.n_state_coordinates
+        m = estimator.system.n_outputs
+        self.estimator, self.system = estimator, estimator.system
+        self.n, self.r, self.p, self.d, self.top, self.m = n, r, p, d, top, m
+        self.n_x, self.n_y = estimator.n_state_coordinates, m * (p + 1)
         self.estimates_inputs = mats["estimates_inputs"]
         template = mats["E_template"]
         rows, size = template.shape
-        self.size, self.n_y = size, m * (p + 1)
-        self.augmented = np.zeros((rows, size + 1))  # [E | e]
-        self.augmented[:, :size] = template
-        self.errors = self.augmented[:, size]
+        self.size = size
+        self.samples = estimator.flow_time == "samples"
+        self.scale = mats["order_scale"] if self.samples else np.ones(size)
+        self.augmented = np.zeros((rows, size + 1))  # [E_s | e]
+        self.augmented[:, :size] = template / self.scale
+        self.jacobian = self.augmented[:, :size]
         self.weighted = np.empty_like(self.augmented)
         self.Pi, self.D_X = mats["Pi"], mats["D_X"]
-        n_y = self.n_y
-        view = _diagonal_view
-        self.views = dict(gx=view(self.augmented, 0, 0, (m, n), p + 1),
-                          fx=view(self.augmented, n_y, 0, (n, n), p + 1))
+        orders = -1.0 / (estimator.dt ** np.arange(p + 1) if self.samples else np.ones(p + 1))
+        self.factors = orders[:, None, None], orders[:top, None, None]  # -1 / dt^k per block
+        self.views = dict(gx=_diagonal_view(self.augmented, 0, 0, (m, n), p + 1),
+                          fx=_diagonal_view(self.augmented, self.n_y, 0, (n, n), p + 1))
         if self.estimates_inputs:
-            self.views.update(gv=view(self.augmented, 0, self.n_x, (m, r), top),
-                              fv=view(self.augmented, n_y, self.n_x, (n, r), top))
+            self.views.update(gv=_diagonal_view(self.augmented, 0, self.n_x, (m, r), top),
+                              fv=_diagonal_view(self.augmented, self.n_y, self.n_x, (n, r), top))
         self.v_pad = np.zeros((p + 1, r))
-        self.samples = estimator.flow_time == "samples"
-        self.scale, self.scale_outer = mats["order_scale"], mats["scale_outer"]
         self.block = np.zeros((size + 1, size + 1))
         self.scratch = np.empty((5, size + 1, size + 1))
 
-    def _fill(self, X, y_tilde, u_tilde) -> None:
-        """Write E and e at X into [E | e] (as NonlinearDEM._errors, integration="attend")."""
-        n, r, p, top, n_x, n_y = self.n, self.r, self.p, self.top, self.n_x, self.n_y
+    def _errors(self, X, X_scaled, y_tilde, u_tilde) -> None:
+        """Write E_s and e at X into [E_s | e] (as NonlinearDEM._errors, integration="attend")."""
+        n, r, m, n_x, n_y = self.n, self.r, self.m, self.n_x, self.n_y
         system = self.system
-        x = X[:n_x].reshape(p + 1, n)
-        v = X[n_x:].reshape(self.d + 1, r) if self.estimates_inputs else u_tilde.reshape(self.d + 1, r)
-        fx, fv, gx, gv = system.jacobians(x[0], v[0])
-        views = self.views
-        np.negative(gx, out=views["gx"])
-        np.negative(fx, out=views["fx"])
-        g_t, f_t = x @ gx.T, x @ fx.T
-        if r:
-            v_pad = self.v_pad
-            v_pad[:top] = v[:top]
-            g_t += v_pad @ gv.T
-            f_t += v_pad @ fv.T
-            if self.estimates_inputs:
-                np.negative(gv, out=views["gv"])
-                np.negative(fv, out=views["fv"])
-        g_t[0] = system.observe(x[0], v[0])
-        f_t[0] = system.flow(x[0], v[0])
-        errors = self.errors
-        np.subtract(y_tilde, g_t.ravel(), out=errors[:n_y])
-        motion = errors[n_y: n_y + n_x]
-        np.subtract(x[1:].ravel(), f_t[:-1].ravel(), out=motion[:-n])
-        np.negative(f_t[-1], out=motion[-n:])
+        x0, v0 = X[:n], X[n_x: n_x + r] if self.estimates_inputs else u_tilde[:r]
+        fx, fv, gx, gv = system.jacobians(x0, v0)
+        views, (factor_x, factor_v) = self.views, self.factors
+        np.multiply(gx, factor_x, out=views["gx"])
+        np.multiply(fx, factor_x, out=views["fx"])
         if self.estimates_inputs:
-            np.subtract(X[n_x:], u_tilde, out=errors[n_y + n_x:])
+            np.multiply(gv, factor_v, out=views["gv"])
+            np.multiply(fv, factor_v, out=views["fv"])
+        errors = self.jacobian @ X_scaled  # orders >= 1: y~ - g~, x~' - f~ with y~ and eta~ added below
+        errors[:n_y] += y_tilde
+        errors[:m] = y_tilde[:m] - system.observe(x0, v0)
+        errors[n_y: n_y + n] = X[n: 2 * n] - system.flow(x0, v0)
+        if self.estimates_inputs:
+            errors[n_y + n_x:] -= u_tilde
+        elif r:  # known inputs: their part of g~ and f~ at orders >= 1
+            v_pad = self.v_pad
+            v_pad[: self.top] = u_tilde.reshape(self.d + 1, r)[: self.top]
+            errors[m:n_y] -= (v_pad[1:] @ gv.T).ravel()
+            errors[n_y + n: n_y + n_x] -= (v_pad[1:] @ fv.T).ravel()
+        self.augmented[:, self.size] = errors
 
     def step(self, X, y_tilde, u_tilde, substeps: int):
-        """One D-step over dt / substeps (NonlinearDEM._step): returns (X, curvature).
+        """One D-step over dt / substeps (NonlinearDEM._step): returns (X, curvature), the curvature
+        in the flow's units (inv(S) E' Pi E inv(S); the order-0 entries are E' Pi E's own).
         X: the generalised state; y_tilde, u_tilde: the embedded data; substeps: per sample."""
-        self._fill(X, y_tilde, u_tilde)
+        X_scaled = X * self.scale
+        self._errors(X, X_scaled, y_tilde, u_tilde)
         augmented, weighted = self.augmented, self.weighted
         start = 0
         for block in self.Pi:
@@ -103,21 +104,16 @@ class StepWorkspace:
             np.matmul(block, augmented[start:stop], out=weighted[start:stop])
             start = stop
         products = augmented.T @ weighted
-        size = self.size
-        curvature, minus_gradient = products[:size, :size], products[:size, size]
-        block = self.block
-        if self.samples:
-            scale = self.scale
-            np.subtract(self.D_X, curvature / self.scale_outer, out=block[:size, :size])
-            np.subtract(self.D_X @ (X * scale), minus_gradient / scale, out=block[:size, size])
-            if substeps != 1:
-                block /= substeps
-            with np.errstate(over="ignore", invalid="ignore"):
-                increment = expm_last_column(block, self.scratch) / scale
-        else:
-            duration = self.estimator.dt / substeps
-            np.multiply(self.D_X - curvature, duration, out=block[:size, :size])
-            np.multiply(self.D_X @ X - minus_gradient, duration, out=block[:size, size])
-            with np.errstate(over="ignore", invalid="ignore"):
-                increment = expm_last_column(block, self.scratch)
+        size, block = self.size, self.block
+        curvature = products[:size, :size]
+        np.subtract(self.D_X, curvature, out=block[:size, :size])
+        np.subtract(self.D_X @ X_scaled, products[:size, size], out=block[:size, size])
+        if not self.samples:
+            block *= self.estimator.dt / substeps
+        elif substeps != 1:
+            block /= substeps
+        with np.errstate(over="ignore", invalid="ignore"):
+            increment = expm_last_column(block, self.scratch)
+            if self.samples:
+                increment /= self.scale
         return X + increment, curvature

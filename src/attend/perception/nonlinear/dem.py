@@ -13,7 +13,7 @@ from attend._validation import AttendInputError, as_matrix, order, positive_scal
 from attend.generalized import block_precisions, embedding_weights, shift_operator, smoothness_precision
 from attend.perception.dem import DEMEstimate
 from attend.perception.nonlinear._linalg import (block_diagonal_positions, diagonal_blocks, expm_last_column,
-                                                  scaled_inverse_diagonals, scaled_solve)
+                                                  inverse_diagonals, scaled_solve)
 from attend.perception.nonlinear.model import NonlinearSystem
 from attend.perception.nonlinear.online import OnlineNonlinearDEM
 
@@ -513,7 +513,7 @@ class NonlinearDEM:
         if not rows:
             return []
         n, r = self.system.n_states, self.system.n_inputs
-        std = np.sqrt(np.clip(scaled_inverse_diagonals(np.array([row[2] for row in rows]),
+        std = np.sqrt(np.clip(inverse_diagonals(np.array([row[2] for row in rows]),
                                                        self._matrices["reported"]), 0, None))
         input_std = std[:, n:] if self._estimates_inputs else np.zeros((len(rows), r))
         return [(row[0], row[1], std[i, :n], input_std[i], row[3]) for i, row in enumerate(rows)]

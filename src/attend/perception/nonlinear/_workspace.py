@@ -71,7 +71,7 @@ class StepWorkspace:
         n, r, m, n_x, n_y = self.n, self.r, self.m, self.n_x, self.n_y
         system = self.system
         x0, v0 = X[:n], X[n_x: n_x + r] if self.estimates_inputs else u_tilde[:r]
-        fx, fv, gx, gv = system.jacobians(x0, v0)
+        fx, fv, gx, gv = system._jacobians(x0, v0)
         views, (factor_x, factor_v) = self.views, self.factors
         np.multiply(gx, factor_x, out=views["gx"])
         np.multiply(fx, factor_x, out=views["fx"])
@@ -80,8 +80,8 @@ class StepWorkspace:
             np.multiply(fv, factor_v, out=views["fv"])
         errors = self.jacobian @ X_scaled  # orders >= 1: y~ - g~, x~' - f~ with y~ and eta~ added below
         errors[:n_y] += y_tilde
-        errors[:m] = y_tilde[:m] - system.observe(x0, v0)
-        errors[n_y: n_y + n] = X[n: 2 * n] - system.flow(x0, v0)
+        errors[:m] = y_tilde[:m] - system._value("g", x0, v0)
+        errors[n_y: n_y + n] = X[n: 2 * n] - system._value("f", x0, v0)
         if self.estimates_inputs:
             errors[n_y + n_x:] -= u_tilde
         elif r:  # known inputs: their part of g~ and f~ at orders >= 1

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from math import factorial
+from math import factorial, isfinite
 
 import numpy as np
 
@@ -483,14 +483,18 @@ class NonlinearDEM:
             u_t = np.zeros((d + 1, r))
             y_t[0] = centre[:m]
             u_t[0] = centre[m:]
-        else:
-            y_t = mats["Ey"] @ window[mats["y_positions"], :m]
-            u_t = mats["Eu"] @ window[mats["u_positions"], m:]
+        else:  # the positions are consecutive: slices, not index arrays
+            first_y, first_u = mats["y_positions"][0], mats["u_positions"][0]
+            y_t = mats["Ey"] @ window[first_y: first_y + p + 1, :m]
+            if not r:
+                return y_t.ravel(), np.empty(0)
+            u_t = mats["Eu"] @ window[first_u: first_u + d + 1, m:]
         return y_t.ravel(), u_t.ravel()
 
     def _check(self, X, sample: int) -> None:
         order0 = X[self._matrices["reported"]]
-        if not np.isfinite(X).all() or np.abs(order0).max() > self.divergence_limit:
+        # X @ X is finite when all of X is (one call; its overflow falls back to the exact test)
+        if np.abs(order0).max() > self.divergence_limit or not (isfinite(X @ X) or np.isfinite(X).all()):
             raise AttendInputError(
                 f"NonlinearDEM: the estimate diverged at sample {sample} (max |order-0 estimate| = "
                 f"{np.max(np.abs(order0)):.3g} > divergence_limit = {self.divergence_limit:.3g}). The local "

@@ -139,8 +139,10 @@ class NonlinearSystem:
 
     def jacobians(self, x, v=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(fx, fv, gx, gv) at (x, v): analytic when given, else finite differences."""
-        x = np.asarray(x, dtype=float)
-        v = self._inputs(v)
+        return self._jacobians(np.asarray(x, dtype=float), self._inputs(v))
+
+    def _jacobians(self, x, v) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`jacobians` at float arrays x (n,), v (r,) (no conversion)."""
         n, r, m = self.n_states, self.n_inputs, self.n_outputs
         out = []
         for which, analytic, size in (("f", self.jacobian_f, n), ("g", self.jacobian_g, m)):

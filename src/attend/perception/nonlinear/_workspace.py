@@ -64,6 +64,8 @@ class StepWorkspace:
                               fv=_diagonal_view(self.augmented, self.n_y, self.n_x, (n, r), top))
         self.v_pad = np.zeros((p + 1, r))
         self.block = np.zeros((size + 1, size + 1))
+        self.motion = np.zeros((size, size + 1))  # [D | D X_s]
+        self.motion[:, :size] = self.D_X
         self.scratch = np.empty((5, size + 1, size + 1))
 
     def _errors(self, X, X_scaled, y_tilde, u_tilde) -> None:
@@ -104,10 +106,9 @@ class StepWorkspace:
             np.matmul(block, augmented[start:stop], out=weighted[start:stop])
             start = stop
         products = augmented.T @ weighted
-        size, block = self.size, self.block
-        curvature = products[:size, :size]
-        np.subtract(self.D_X, curvature, out=block[:size, :size])
-        np.subtract(self.D_X @ X_scaled, products[:size, size], out=block[:size, size])
+        size, block, motion = self.size, self.block, self.motion
+        np.matmul(self.D_X, X_scaled, out=motion[:, size])
+        np.subtract(motion, products[:size], out=block[:size])  # [D - curvature | D X_s + gradient]
         if not self.samples:
             block *= self.estimator.dt / substeps
         elif substeps != 1:
@@ -116,4 +117,4 @@ class StepWorkspace:
             increment = expm_last_column(block, self.scratch)
             if self.samples:
                 increment /= self.scale
-        return X + increment, curvature
+        return X + increment, products[:size, :size]

@@ -28,6 +28,7 @@ MODULES = [
     "attend.perception.kalman",
     "attend.perception.nonlinear",
     "attend.perception.nonlinear.learning",
+    "attend.perception.nonlinear._workspace",
     "attend.perception.nonlinear_baselines",
     "attend.action",
     "attend.action.planners",

@@ -540,7 +540,7 @@ class NonlinearDEM:
                 out = online._push(sample)
                 if out is not None:
                     pending.append(out)
-                if len(pending) == 256:  # the std of a chunk of samples in one call (bounded memory)
+                if len(pending) == 32:  # the std of a chunk of samples in one call (bounded memory)
                     rows.extend(self._with_std(pending))
                     pending = []
             pending.extend(online._flush())

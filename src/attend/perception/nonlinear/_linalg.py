@@ -70,7 +70,9 @@ def inverse_diagonals(matrices, indices) -> np.ndarray:
     pseudo-inverse of a singular D M D. matrices: (K, k, k) symmetric matrices; indices: integer
     array of the diagonal entries wanted. Returns (K, len(indices))."""
     indices = np.asarray(indices, dtype=int)
-    last = np.concatenate([np.setdiff1d(np.arange(matrices.shape[1]), indices), indices])
+    others = np.ones(matrices.shape[1], dtype=bool)
+    others[indices] = False
+    last = np.concatenate([np.flatnonzero(others), indices])
     try:
         factor = np.linalg.cholesky(matrices[:, last[:, None], last])
         trailing = np.linalg.inv(factor[:, -len(indices):, -len(indices):])

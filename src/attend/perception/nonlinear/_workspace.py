@@ -93,11 +93,8 @@ class StepWorkspace:
             errors[n_y + n: n_y + n_x] -= (v_pad[1:] @ fv.T).ravel()
         self.augmented[:, self.size] = errors
 
-    def step(self, X, y_tilde, u_tilde, substeps: int):
-        """One D-step over dt / substeps (NonlinearDEM._step): returns (X, curvature), the curvature
-        in the flow's units (inv(S) E' Pi E inv(S); the order-0 entries are E' Pi E's own).
-        X: the generalised state; y_tilde, u_tilde: the embedded data; substeps: per sample."""
-        X_scaled = X * self.scale
+    def _products(self, X, X_scaled, y_tilde, u_tilde) -> np.ndarray:
+        """[E_s | e]' Pi [E_s | e] at X (X_scaled = S X; y_tilde, u_tilde: the embedded data)."""
         self._errors(X, X_scaled, y_tilde, u_tilde)
         augmented, weighted = self.augmented, self.weighted
         start = 0
@@ -105,7 +102,23 @@ class StepWorkspace:
             stop = start + block.shape[0]
             np.matmul(block, augmented[start:stop], out=weighted[start:stop])
             start = stop
-        products = augmented.T @ weighted
+        return augmented.T @ weighted
+
+    def gradient_curvature(self, X, y_tilde, u_tilde):
+        """(dF/dX, E' Pi E, F) at X, as NonlinearDEM._gradient_curvature: the gradient -E' Pi e,
+        the Gauss-Newton curvature and the free energy -e' Pi e / 2, in the units of X.
+        X: the generalised state; y_tilde, u_tilde: the embedded data."""
+        scale, size = self.scale, self.size
+        products = self._products(X, X * scale, y_tilde, u_tilde)
+        return (-products[:size, size] * scale, products[:size, :size] * np.outer(scale, scale),
+                -0.5 * products[size, size])
+
+    def step(self, X, y_tilde, u_tilde, substeps: int):
+        """One D-step over dt / substeps (NonlinearDEM._step): returns (X, curvature), the curvature
+        in the flow's units (inv(S) E' Pi E inv(S); the order-0 entries are E' Pi E's own).
+        X: the generalised state; y_tilde, u_tilde: the embedded data; substeps: per sample."""
+        X_scaled = X * self.scale
+        products = self._products(X, X_scaled, y_tilde, u_tilde)
         size, block, motion = self.size, self.block, self.motion
         np.matmul(self.D_X, X_scaled, out=motion[:, size])
         np.subtract(motion, products[:size], out=block[:size])  # [D - curvature | D X_s + gradient]

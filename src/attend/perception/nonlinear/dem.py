@@ -14,6 +14,7 @@ from attend.generalized import block_precisions, embedding_weights, shift_operat
 from attend.perception.dem import DEMEstimate
 from attend.perception.nonlinear._linalg import (block_diagonal_positions, diagonal_blocks, expm_last_column,
                                                   inverse_diagonals, scaled_solve)
+from attend.perception.nonlinear._workspace import StepWorkspace
 from attend.perception.nonlinear.model import NonlinearSystem
 from attend.perception.nonlinear.online import OnlineNonlinearDEM
 
@@ -425,14 +426,17 @@ class NonlinearDEM:
         inv(Pi_X) B_obs Y[0], the linear observer's start. y_tilde, u_tilde: the first sample's
         embedded outputs and inputs (see :meth:`errors`); iterations: the most Gauss-Newton steps."""
         X = self._guess_state(guess)
-        gradient, curvature, energy = self._gradient_curvature(X, y_tilde, u_tilde)
+        evaluate = self._gradient_curvature
+        if self.motion == "linearized" and self.integration == "attend":  # the same, with fewer calls
+            evaluate = StepWorkspace(self).gradient_curvature
+        gradient, curvature, energy = evaluate(X, y_tilde, u_tilde)
         for _ in range(iterations):
             step = scaled_solve(curvature, gradient)
             accepted = False
             for _ in range(30):
                 candidate = X + step
                 try:
-                    g_new, c_new, e_new = self._gradient_curvature(candidate, y_tilde, u_tilde)
+                    g_new, c_new, e_new = evaluate(candidate, y_tilde, u_tilde)
                 except AttendInputError:
                     e_new = -np.inf
                 if np.isfinite(e_new) and e_new >= energy:
@@ -540,7 +544,7 @@ class NonlinearDEM:
                 out = online._push(sample)
                 if out is not None:
                     pending.append(out)
-                if len(pending) == 32:  # the std of a chunk of samples in one call (bounded memory)
+                if len(pending) == 32:  # the std of a chunk of samples in one call (the stack stays in cache)
                     rows.extend(self._with_std(pending))
                     pending = []
             pending.extend(online._flush())

@@ -44,6 +44,11 @@ def test_lean_step_equals_the_reference_step(case, flow_time, substeps):
         # the lean step's curvature is in the flow's units: inv(S) E' Pi E inv(S)
         np.testing.assert_allclose(curvature * np.outer(scale, scale), curvature_ref, rtol=1e-11,
                                    atol=1e-12 * np.abs(curvature_ref).max())
+        gradient, curvature, energy = workspace.gradient_curvature(X, y_tilde, u_tilde)
+        gradient_ref, curvature_ref, energy_ref = dem._gradient_curvature(X, y_tilde, u_tilde)
+        np.testing.assert_allclose(gradient, gradient_ref, rtol=1e-11, atol=1e-12 * np.abs(gradient_ref).max())
+        np.testing.assert_allclose(curvature, curvature_ref, rtol=1e-11, atol=1e-12 * np.abs(curvature_ref).max())
+        assert energy == pytest.approx(energy_ref, rel=1e-12)
 
 
 def test_inverse_diagonals_equal_the_inverse_and_survive_a_singular_matrix():

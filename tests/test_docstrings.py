@@ -28,6 +28,8 @@ MODULES = [
     "attend.perception.kalman",
     "attend.perception.nonlinear",
     "attend.perception.nonlinear.learning",
+    "attend.perception.nonlinear.path",
+    "attend.perception.block_tridiagonal",
     "attend.perception.nonlinear._workspace",
     "attend.perception.nonlinear_baselines",
     "attend.action",

@@ -160,6 +160,34 @@ def test_spm_integration_from_a_nonlinear_model_file(tmp_path):
     np.testing.assert_allclose(estimate.states[0], [1.0, 1.0, 24.0])  # SPM: row 0 is the start
 
 
+def test_path_mode_from_a_nonlinear_model_file(tmp_path, capsys):
+    """[observer] states = "path" (with method = "dem") reaches NonlinearDEM(states="path"): the
+    CLI's estimates are those of the estimator built directly, std included."""
+    from attend.perception.nonlinear import NonlinearDEM
+
+    extra = 'method = "dem"\nembedding_order = 6\nstates = "path"\n'
+    model_path, log_path, truth = _lorenz_files(tmp_path, LORENZ_TOML + extra)
+    model, log = io.read_model(model_path), io.read_log(log_path)
+    estimator, estimate = io.estimate_from_files(model, log)
+    dem = estimator.dem()
+    assert dem.states == "path"
+    direct = NonlinearDEM(dem.system, dem.dt, dem.kernel_width, dem.sensor_precision, dem.process_precision,
+                          embedding_order=6, states="path").estimate(log.matrix(["y1", "y2", "y3"]))
+    np.testing.assert_allclose(estimate.states, direct.states, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(estimate.state_std, direct.state_std, rtol=1e-12)
+    out = tmp_path / "path.csv"
+    assert main(["estimate", str(model_path), str(log_path), "--out", str(out)]) == 0, capsys.readouterr().err
+    assert out.exists()
+
+
+def test_path_mode_is_refused_for_linear_models(tmp_path, capsys):
+    (tmp_path / "m.toml").write_text('[model]\nA = [[-1.0]]\nB = [[1.0]]\nC = [[1.0]]\n\n[outputs]\ncolumns = ["y"]\n\n'
+                                     '[[inputs]]\nname = "u"\n\n[observer]\nmethod = "dem"\nstates = "path"\n'
+                                     'kernel_width = 0.1\nsensor_precision = 1.0\nprocess_precision = 1.0\n')
+    with pytest.raises(AttendInputError, match="states: DEM's path mode is for nonlinear models"):
+        io.read_model(tmp_path / "m.toml")
+
+
 def test_parameters_from_the_model_file_override_the_python_file(tmp_path):
     model_path, _, _ = _pendulum_files(tmp_path, PENDULUM_TOML.replace(
         'states = ["theta", "omega"]', 'states = ["theta", "omega"]\nparameters = { damping = 2.0 }'))
@@ -249,6 +277,10 @@ def _error(tmp_path, capsys, model=PENDULUM_TOML, code=PENDULUM_PY):
     (lambda m: m.replace("input_kernel_width = 0.7", "input_kernel_width = 0"), None,
      "input_kernel_width: expected a number > 0"),
     (lambda m: m.replace("n_states = 2", "n_states = 2\nparameters = 3"), None, "[model] parameters: expected a table"),
+    (lambda m: m.replace("[observer]", '[observer]\nstates = "path"'), None,
+     "[observer] states: DEM's path mode is for nonlinear models with method = \"dem\""),
+    (lambda m: m.replace("[observer]", '[observer]\nmethod = "dem"\nstates = "paths"'), None,
+     "[observer] states: expected 'sample' or 'path', got 'paths'"),
     (lambda m: m.replace("process_precision = [400.0, 4.0]", "process_precision = [400.0, 0.0]"), None,
      "method \"ukf\" needs a positive definite precision"),
 ])

@@ -38,6 +38,8 @@ Model file (all times in seconds)::
                                     # inputs are unknown (default exp(32))
     # integration = "spm"           # DEM only: "attend" (default) or "spm": spm_DEM's one-sample step
     # edges = "clamp"               # DEM only: "order0" (default) or "clamp" (SPM's; docs/spm.md)
+    # states = "path"               # nonlinear DEM only: "sample" (default, the D-step) or "path"
+                                    # (one trajectory for the whole log: a smoother; docs/nonlinear.md)
 
     [log]
     time_column = "t"               # CSV column with time stamps [s], uniform spacing

@@ -53,7 +53,8 @@ class ModelFile:
     initial_state_std: its std [state unit], scalar or (n,); python_path: the resolved Python
     file of a nonlinear model ("" for a linear one); integration: DEM's one-sample step, "attend"
     or "spm" (spm_DEM's conventions, docs/spm.md); edges: DEM's windows at the ends of the log,
-    "order0" or "clamp" (SPM's).
+    "order0" or "clamp" (SPM's); dem_states: nonlinear DEM's "sample" (D-step) or "path" (one
+    trajectory, a smoother; :mod:`attend.perception.nonlinear.path`).
     """
 
     system: LinearSystem
@@ -79,6 +80,7 @@ class ModelFile:
     python_path: str = ""  # the Python file of a nonlinear model ([model] python), resolved
     integration: str = "attend"
     edges: str = "order0"
+    dem_states: str = "sample"
 
     @property
     def nonlinear(self) -> bool:
@@ -208,7 +210,7 @@ class NonlinearFileEstimator:
             self.system, self.dt, model.kernel_width, model.sensor_precision, model.process_precision, prior,
             self.embedding_order, model.input_order, known_inputs=all_known,
             precision_convention=model.precision_convention, input_kernel_width=model.input_kernel_width,
-            integration=model.integration, edges=model.edges,
+            integration=model.integration, edges=model.edges, states=model.dem_states,
         )
 
     @property

@@ -42,7 +42,7 @@ _SECTIONS = {
     "observer": {
         "method", "kernel_width", "process_kernel_width", "sensor_kernel_width", "input_kernel_width",
         "embedding_order", "input_order", "sensor_precision", "process_precision", "precision_convention",
-        "known_input_precision", "initial_state", "initial_state_std", "integration", "edges",
+        "known_input_precision", "initial_state", "initial_state_std", "integration", "edges", "states",
     },
     "log": {"time_column"},
     "learning": {
@@ -85,7 +85,7 @@ def read_model(path: str | Path) -> ModelFile:
     outputs = _output_columns(data, system.n_outputs, nonlinear, path)
     observer = data.get("observer", {})
     method = _observer_method(observer, nonlinear, path)
-    _check_dem_conventions(observer, method, f"{path}: [observer]")
+    _check_dem_conventions(observer, method, nonlinear, f"{path}: [observer]")
     widths = _kernel_widths(observer, method, nonlinear, path)
     initial_state, initial_std = _initial_state(observer, system.n_states, path)
     _check_observer(observer, system, f"{path}: [observer]")
@@ -123,6 +123,7 @@ def read_model(path: str | Path) -> ModelFile:
         python_path=str(system.f.source) if nonlinear else "",
         integration=observer.get("integration", "attend"),
         edges=observer.get("edges", "order0"),
+        dem_states=observer.get("states", "sample"),
     )
 
 
@@ -329,9 +330,10 @@ def _check_observer(observer: dict, system: LinearSystem, where: str) -> None:
         raise AttendInputError(f"{where} precision_convention: expected \"size\" or \"max\", got {convention!r}")
 
 
-def _check_dem_conventions(observer: dict, method: str, where: str) -> None:
+def _check_dem_conventions(observer: dict, method: str, nonlinear: bool, where: str) -> None:
     """[observer] integration ("attend" or "spm": how the data enter DEM's one-sample step, see
-    docs/spm.md) and edges ("order0" or "clamp"), which only method = "dem" has."""
+    docs/spm.md) and edges ("order0" or "clamp"), which only method = "dem" has, and states
+    ("sample" or "path", nonlinear DEM only). nonlinear: the model is f, g ([model] python)."""
     for key, allowed in (("integration", ("attend", "spm")), ("edges", ("order0", "clamp"))):
         if key not in observer:
             continue
@@ -340,6 +342,12 @@ def _check_dem_conventions(observer: dict, method: str, where: str) -> None:
         if method != "dem":
             raise AttendInputError(f"{where} {key}: a setting of DEM; add method = \"dem\" (the {method} "
                                    "estimator has no such choice)")
+    if "states" in observer:
+        if observer["states"] not in ("sample", "path"):
+            raise AttendInputError(f"{where} states: expected 'sample' or 'path', got {observer['states']!r}")
+        if method != "dem" or not nonlinear:
+            raise AttendInputError(f"{where} states: DEM's path mode is for nonlinear models with method = \"dem\" "
+                                   "(for a linear model, method = \"kalman\" is already the exact smoother)")
 
 
 def _check_learning(learning: dict, where: str) -> None:

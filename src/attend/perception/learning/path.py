@@ -7,6 +7,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from attend.perception.block_tridiagonal import cholesky as _block_tridiagonal_cholesky
+from attend.perception.block_tridiagonal import solve as _block_tridiagonal_solve
 from attend.perception.learning.problem import _observer, _Structure
 
 
@@ -31,24 +33,6 @@ def _path_layout(T: int, st_used: np.ndarray, P: int):
         covered[starts + i] = True
     return starts, w, covered
 
-
-def _block_tridiagonal_cholesky(Dg: np.ndarray, Off: np.ndarray):
-    """Batched block Cholesky of a block-tridiagonal SPD matrix: diagonal blocks Dg (R, K, b, b),
-    sub-diagonal blocks Off (R, K - 1, b, b) (block k + 1, k). Returns L_k, B_k and L_k^{-1} with
-    Pi = L L', L block lower bidiagonal (diagonal L_k, sub-diagonal B_k)."""
-    R, K, b, _ = Dg.shape
-    Lk = np.empty_like(Dg)
-    Linv = np.empty_like(Dg)
-    Bk = np.empty_like(Off)
-    prev = np.zeros((R, b, b))
-    eye = np.broadcast_to(np.eye(b), (R, b, b))
-    for k in range(K):
-        Lk[:, k] = np.linalg.cholesky(Dg[:, k] - prev)
-        Linv[:, k] = np.linalg.solve(Lk[:, k], eye)
-        if k + 1 < K:
-            Bk[:, k] = Off[:, k] @ np.swapaxes(Linv[:, k], 1, 2)  # B_k = Off_k L_k^{-T}
-            prev = Bk[:, k] @ np.swapaxes(Bk[:, k], 1, 2)
-    return Lk, Bk, Linv
 
 
 def _block_tridiagonal_selected_inverse(Linv: np.ndarray, Bk: np.ndarray):
@@ -145,17 +129,3 @@ def _path_posterior(theta, lam, Ytil, Util, st: "_Structure", want_mean: bool = 
             windows = np.stack([x[:, s_all + i] for i in range(P)], axis=2)  # (R', T, P, n) samples
             mean[idx] = np.einsum("ji,rtia->rtja", st.E, windows)
     return _PathPosterior(mean, sigma_mean, entropy)
-
-
-def _block_tridiagonal_solve(Linv: np.ndarray, Bk: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """Solve (L L') x = rhs for block lower bidiagonal L (given L_k^{-1} and B_k); rhs (R, K, b)."""
-    R, K, b = rhs.shape
-    y = np.empty_like(rhs)
-    for k in range(K):
-        v = rhs[:, k] - (np.einsum("rab,rb->ra", Bk[:, k - 1], y[:, k - 1]) if k else 0.0)
-        y[:, k] = np.einsum("rab,rb->ra", Linv[:, k], v)
-    x = np.empty_like(rhs)
-    for k in range(K - 1, -1, -1):
-        v = y[:, k] - (np.einsum("rba,rb->ra", Bk[:, k], x[:, k + 1]) if k < K - 1 else 0.0)
-        x[:, k] = np.einsum("rba,rb->ra", Linv[:, k], v)
-    return x

@@ -17,6 +17,7 @@ from attend.perception.nonlinear._linalg import (block_diagonal_positions, diago
 from attend.perception.nonlinear._workspace import StepWorkspace
 from attend.perception.nonlinear.model import NonlinearSystem
 from attend.perception.nonlinear.online import OnlineNonlinearDEM
+from attend.perception.nonlinear.path import estimate_path
 
 
 # --- the D-step -----------------------------------------------------------------------------
@@ -58,6 +59,11 @@ class NonlinearDEM:
     [[J, -E' Pi de/dy~, -E' Pi de/du~], [0, D, 0], [0, 0, D]]; row k is the state before the step
     with sample k (row 0 = the start, ``initial_state`` taken as given with higher orders 0, as
     SPM's M(1).x); the top order's motion error is set to 0 (its Jacobian kept).
+    states: "sample" (default, the D-step: every sample's generalised state flows on its own
+    window, a filter about p/2 samples ahead; :meth:`online` gives the same) or "path" (one
+    trajectory for the whole log, the D-step's free energy summed over all windows and maximised
+    by Gauss-Newton from the D-step's estimate: a smoother, batch only;
+    :mod:`attend.perception.nonlinear.path`).
     Precisions are scalars (times I), vectors (diagonal) or matrices.
 
     Reported standard deviations: ``state_std``/``input_std`` are the square roots of the diagonal
@@ -87,6 +93,7 @@ class NonlinearDEM:
     motion: str = "linearized"
     input_kernel_width: float | None = None
     integration: str = "attend"
+    states: str = "sample"
     _matrices: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -120,6 +127,8 @@ class NonlinearDEM:
             raise AttendInputError(f"motion: expected 'linearized' or 'path', got {self.motion!r}")
         if self.integration not in ("attend", "spm"):
             raise AttendInputError(f"integration: expected 'attend' or 'spm', got {self.integration!r}")
+        if self.states not in ("sample", "path"):
+            raise AttendInputError(f"states: expected 'sample' or 'path', got {self.states!r}")
         if self.flow_time not in ("samples", "seconds"):
             raise AttendInputError(f"flow_time: expected 'samples' or 'seconds', got {self.flow_time!r}")
         self._matrices.update(self._build())
@@ -533,10 +542,18 @@ class NonlinearDEM:
         mean eta (unknown inputs; default 0); initial_state: a guess of the order-0 states (n,)
         (or a full generalised state) where the Gauss-Newton start is sought (default zeros).
         Row k is the estimate at sample k after the flow over that sample (it uses samples up to
-        k + delay). Batch and :meth:`online` agree sample by sample. keep_generalized: also return
+        k + delay). Batch and :meth:`online` agree sample by sample. With states="path" row k is
+        the trajectory at sample k given the whole log, and its std is the estimator's spread
+        (:mod:`attend.perception.nonlinear.path`). keep_generalized: also return
         the generalised state [x~; v~] of every sample (``generalized``, (N, n (p + 1) + r (d + 1))).
         """
         signals = self._signals(outputs, inputs)
+        if self.states == "path":
+            return estimate_path(self, signals, initial_state, keep_generalized=keep_generalized)
+        return self._sample_estimate(signals, keep_generalized, initial_state)
+
+    def _sample_estimate(self, signals, keep_generalized: bool, initial_state) -> DEMEstimate:
+        """The D-step over validated ``signals`` (N, m + r) (see :meth:`estimate`)."""
         online = OnlineNonlinearDEM(self, initial_state=initial_state)
         rows, pending = [], []
         with single_blas_thread():  # small matrices: one BLAS thread is 10-20x faster (attend._threads)
@@ -563,4 +580,7 @@ class NonlinearDEM:
     def online(self, initial_state=None) -> "OnlineNonlinearDEM":
         """A fixed-memory estimator fed one sample at a time (see :class:`OnlineNonlinearDEM`);
         initial_state: a guess of the order-0 states (n,) for the start (default zeros)."""
+        if self.states == "path":
+            raise AttendInputError("states: 'path' needs the whole log; online() runs the D-step sample by sample "
+                                   "(build the estimator with states='sample')")
         return OnlineNonlinearDEM(self, initial_state=initial_state)

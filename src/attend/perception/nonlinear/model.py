@@ -149,8 +149,9 @@ class NonlinearSystem:
             if analytic is not None:
                 try:
                     dx, dv = self._call(analytic, x, v)
-                    dx = np.asarray(dx, dtype=float).reshape(size, n)
-                    dv = np.asarray(dv, dtype=float).reshape(size, r)
+                    dx, dv = np.asarray(dx, dtype=float), np.asarray(dv, dtype=float)
+                    if dx.shape != (size, n) or dv.shape != (size, r):
+                        dx, dv = dx.reshape(size, n), dv.reshape(size, r)
                 except (TypeError, ValueError) as error:
                     raise AttendInputError(f"jacobian_{which}: expected the pair (d{which}/dx ({size}, {n}), "
                                            f"d{which}/dv ({size}, {r})) ({error})") from None

@@ -19,6 +19,9 @@ CASES = {
     "lorenz": lambda **kw: NonlinearDEM(lorenz.lorenz_system(), 0.01, 0.02, 1.0, 1 / 400, **kw),
     "pendulum unknown input": lambda **kw: _pendulum(input_prior_precision=0.1, input_kernel_width=0.7, **kw),
     "pendulum known input": lambda **kw: _pendulum(known_inputs=True, **kw),
+    "lorenz p = 0": lambda **kw: NonlinearDEM(lorenz.lorenz_system(), 0.01, 0.02, 1.0, 1 / 400, embedding_order=0, **kw),
+    "pendulum p = 1 < d": lambda **kw: NonlinearDEM(pendulum.pendulum_system(), 0.05, 0.1, 400.0, 4.0, 0.1,
+                                                    embedding_order=1, input_order=3, **kw),
 }
 
 

@@ -83,7 +83,11 @@ class StepWorkspace:
         errors = self.jacobian @ X_scaled  # orders >= 1: y~ - g~, x~' - f~ with y~ and eta~ added below
         errors[:n_y] += y_tilde
         errors[:m] = y_tilde[:m] - system._value("g", x0, v0)
-        errors[n_y: n_y + n] = X[n: 2 * n] - system._value("f", x0, v0)
+        f0 = system._value("f", x0, v0)
+        if self.p:
+            errors[n_y: n_y + n] = X[n: 2 * n] - f0
+        else:  # order 0 is the top order: its motion error is -f
+            np.negative(f0, out=errors[n_y: n_y + n])
         if self.estimates_inputs:
             errors[n_y + n_x:] -= u_tilde
         elif r:  # known inputs: their part of g~ and f~ at orders >= 1

@@ -120,7 +120,7 @@ def _pade_last_column(work):
     transposed = work[0].T
     for _ in range(squarings):  # all full products: the column alone would round differently
         transposed = dgemm(1.0, transposed, transposed)
-    return transposed[-1, :-1].copy()
+    return transposed[-1, :-1].copy() if squarings == 0 else transposed[-1, :-1]  # a new array: no copy
 
 
 _fast_path = {"checked": False, "usable": pick_pade_structure is not None}

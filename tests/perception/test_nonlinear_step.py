@@ -80,3 +80,24 @@ def test_expm_last_column_reuses_its_work_array_and_equals_scipy():
         column = expm_last_column(block, work)
         np.testing.assert_array_equal(block, kept)
         np.testing.assert_allclose(column, expm(block)[:-1, -1], rtol=1e-12, atol=1e-14)
+
+
+def test_expm_last_column_checks_its_route_once_and_falls_back(monkeypatch):
+    from attend.perception.nonlinear import _linalg
+
+    rng = np.random.default_rng(2)
+    block = np.zeros((6, 6))
+    block[:5] = rng.standard_normal((5, 6)) * 50.0  # norm ~ 100: squarings
+    reference = expm(block)[:-1, -1]
+    # a dgemm that rounds differently from NumPy's products: the check keeps NumPy's squaring
+    monkeypatch.setattr(_linalg, "_fast_path", dict(checked=False, usable=True, squaring="dgemm"))
+    monkeypatch.setattr(_linalg, "dgemm", lambda alpha, a, b: (a @ b) * (1 + 1e-15))
+    np.testing.assert_array_equal(expm_last_column(block), reference)
+    assert _linalg._fast_path == dict(checked=True, usable=True, squaring="matmul")
+    np.testing.assert_array_equal(expm_last_column(block), reference)
+    # neither route equals scipy.linalg.expm: scipy.linalg.expm from then on
+    monkeypatch.setattr(_linalg, "_fast_path", dict(checked=False, usable=True, squaring="dgemm"))
+    monkeypatch.setattr(_linalg, "expm", lambda matrix: expm(matrix) * (1 + 1e-12))
+    np.testing.assert_array_equal(expm_last_column(block), reference * (1 + 1e-12))
+    assert _linalg._fast_path["usable"] is False
+    np.testing.assert_array_equal(expm_last_column(block), reference * (1 + 1e-12))

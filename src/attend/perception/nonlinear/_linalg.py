@@ -107,30 +107,57 @@ def _surely_not_triangular(matrix) -> bool:
     return lower > 0 and upper > 0
 
 
-def _pade_last_column(work):
+def _pade_last_column(work, squaring):
     """expm(block)[:-1, -1] by SciPy's Pade kernels (the steps of scipy.linalg.expm for a general
     matrix), or None if they report a failure. work: (5, k, k) scratch with the block (square,
-    not triangular) in work[0]; overwritten.
+    not triangular) in work[0]; overwritten. squaring: "dgemm" or "matmul" (below).
 
-    The squarings A <- A A run on the transpose, (A A)' = A' A', which is Fortran-ordered, so
-    BLAS dgemm takes it without copies: the same products as scipy.linalg.expm's, to the bit."""
+    "dgemm": the squarings A <- A A run on the transpose, (A A)' = A' A', which is Fortran-ordered,
+    so SciPy's BLAS dgemm takes it without copies (the fastest call); "matmul": NumPy's A @ A, as
+    scipy.linalg.expm squares (the same numbers where NumPy and SciPy share a BLAS kernel)."""
     order, squarings = pick_pade_structure(work)
     if order < 0 or pade_UV_calc(work, order) != 0:
         return None
+    if squarings == 0:
+        return work[0][:-1, -1].copy()
+    if squaring == "matmul":
+        result = work[0]
+        for _ in range(squarings):  # all full products: the column alone would round differently
+            result = result @ result
+        return result[:-1, -1]
     transposed = work[0].T
-    for _ in range(squarings):  # all full products: the column alone would round differently
+    for _ in range(squarings):
         transposed = dgemm(1.0, transposed, transposed)
-    return transposed[-1, :-1].copy() if squarings == 0 else transposed[-1, :-1]  # a new array: no copy
+    return transposed[-1, :-1]  # a view of a new array: no copy
 
 
-_fast_path = {"checked": False, "usable": pick_pade_structure is not None}
+# the fast route is checked once against scipy.linalg.expm: dgemm squarings, else NumPy's, else none
+_fast_path = {"checked": False, "usable": pick_pade_structure is not None, "squaring": "dgemm"}
+
+
+def _checked_column(block, work):
+    """The first use: the fast route's column if it equals scipy.linalg.expm's to the bit with
+    either squaring (kept for later calls), else scipy.linalg.expm's. block, work: as below."""
+    _fast_path["checked"] = True
+    reference = expm(block)[:-1, -1]
+    for squaring in ("dgemm", "matmul"):
+        work[0] = block
+        try:
+            column = _pade_last_column(work, squaring)
+        except (TypeError, ValueError):  # pragma: no cover - another SciPy's private signature
+            column = None
+        if column is not None and np.array_equal(column, reference, equal_nan=True):
+            _fast_path["squaring"] = squaring
+            return column
+    _fast_path["usable"] = False
+    return reference
 
 
 def expm_last_column(block, work=None) -> np.ndarray:
     """expm(block)[:-1, -1], as scipy.linalg.expm computes it (the same Pade approximant and
     scaling, Al-Mohy & Higham 2009), without its per-call overhead when ``block`` is a general
     (not triangular) matrix; otherwise by scipy.linalg.expm itself. The first use compares the
-    two on its block and keeps scipy.linalg.expm if they differ (another SciPy version).
+    two on its block and keeps scipy.linalg.expm if they differ (another SciPy version or BLAS).
 
     block: square (k + 1, k + 1), the augmented matrix [[J dt, b dt], [0, 0]]; its last column of
     the exponential is (expm(J dt) - I) inv(J) b. work: optional (5, k + 1, k + 1) scratch reused
@@ -139,14 +166,8 @@ def expm_last_column(block, work=None) -> np.ndarray:
         return expm(block)[:-1, -1]
     if work is None:
         work = np.empty((5,) + block.shape)
+    if not _fast_path["checked"]:
+        return _checked_column(block, work)
     work[0] = block
-    try:
-        column = _pade_last_column(work)
-    except (TypeError, ValueError):  # pragma: no cover - another SciPy's private signature
-        column = None
-    if not _fast_path["checked"] and column is not None:
-        _fast_path["checked"] = True
-        _fast_path["usable"] = bool(np.array_equal(column, expm(block)[:-1, -1], equal_nan=True))
-    if column is None or not _fast_path["usable"]:
-        return expm(block)[:-1, -1]
-    return column
+    column = _pade_last_column(work, _fast_path["squaring"])
+    return expm(block)[:-1, -1] if column is None else column

@@ -82,10 +82,10 @@ class StepWorkspace:
             np.multiply(fv, factor_v, out=views["fv"])
         errors = self.jacobian @ X_scaled  # orders >= 1: y~ - g~, x~' - f~ with y~ and eta~ added below
         errors[:n_y] += y_tilde
-        errors[:m] = y_tilde[:m] - system._value("g", x0, v0)
+        np.subtract(y_tilde[:m], system._value("g", x0, v0), out=errors[:m])
         f0 = system._value("f", x0, v0)
         if self.p:
-            errors[n_y: n_y + n] = X[n: 2 * n] - f0
+            np.subtract(X[n: 2 * n], f0, out=errors[n_y: n_y + n])
         else:  # order 0 is the top order: its motion error is -f
             np.negative(f0, out=errors[n_y: n_y + n])
         if self.estimates_inputs:

@@ -30,6 +30,7 @@ MODULES = [
     "attend.perception.nonlinear.learning",
     "attend.perception.nonlinear.path",
     "attend.perception.block_tridiagonal",
+    "attend.perception.nonlinear._workspace",
     "attend.perception.nonlinear_baselines",
     "attend.action",
     "attend.action.planners",

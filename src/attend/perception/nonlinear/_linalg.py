@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.linalg import bandwidth, expm
+from scipy.linalg.blas import dgemm
 
 try:  # SciPy's own Pade kernels (scipy.linalg.expm calls them); absent in other SciPy versions
     from scipy.linalg._matfuncs_expm import pade_UV_calc, pick_pade_structure
@@ -57,12 +58,27 @@ def scaled_solve(matrix, vector):
     return d * np.linalg.lstsq(matrix * np.outer(d, d), vector * d, rcond=None)[0]
 
 
-def scaled_inverse_diagonals(matrices, indices) -> np.ndarray:
-    """diag(inv(M))[indices] of each M in a stack, with Jacobi scaling: d_i^2 [inv(D M D)]_ii,
-    D = diag(d), d = 1 / sqrt|diag(M)| (pseudo-inverse for a singular D M D).
+def inverse_diagonals(matrices, indices) -> np.ndarray:
+    """diag(inv(M))[indices] of each M in a stack.
 
-    matrices: (K, k, k) square matrices; indices: integer array of the diagonal entries wanted.
-    Returns (K, len(indices))."""
+    For positive definite M (the Gauss-Newton curvature E' Pi E), by Cholesky with the wanted
+    coordinates ordered last: P' M P = L L', and the trailing block of inv(L) is inv(L_t) of L's
+    trailing block L_t, so [inv(M)]_jj = sum_i inv(L_t)_ij^2 (no full inverse; Cholesky's error is
+    relative to sqrt(M_ii M_jj), so the units of the coordinates, which may differ by 1e12, do not
+    matter). Otherwise (a stack with a singular or indefinite M) with Jacobi scaling,
+    d_i^2 [inv(D M D)]_ii with D = diag(d), d = 1 / sqrt|diag(M)|, by the inverse, or the
+    pseudo-inverse of a singular D M D. matrices: (K, k, k) symmetric matrices; indices: integer
+    array of the diagonal entries wanted. Returns (K, len(indices))."""
+    indices = np.asarray(indices, dtype=int)
+    others = np.ones(matrices.shape[1], dtype=bool)
+    others[indices] = False
+    last = np.concatenate([np.flatnonzero(others), indices])
+    try:
+        factor = np.linalg.cholesky(matrices[:, last[:, None], last])
+        trailing = np.linalg.inv(factor[:, -len(indices):, -len(indices):])
+        return (trailing * trailing).sum(axis=1)
+    except np.linalg.LinAlgError:
+        pass
     diagonal = np.sqrt(np.abs(np.diagonal(matrices, axis1=1, axis2=2)))
     d = np.where(diagonal > 0, 1.0 / np.where(diagonal > 0, diagonal, 1.0), 1.0)
     scaled = matrices * (d[:, :, None] * d[:, None, :])
@@ -83,46 +99,75 @@ def _inverse_or_pseudo(matrix) -> np.ndarray:
 def _surely_not_triangular(matrix) -> bool:
     """True when ``matrix`` has nonzeros on both sides of its diagonal (cheap test on the first
     row and column, else scipy.linalg.bandwidth). matrix: square."""
+    if matrix[1, 0] != 0 and matrix[0, 1] != 0:  # the common case, without array calls
+        return True
     if matrix[1:, 0].any() and matrix[0, 1:].any():
         return True
     lower, upper = bandwidth(matrix)
     return lower > 0 and upper > 0
 
 
-def _pade_last_column(block):
+def _pade_last_column(work, squaring):
     """expm(block)[:-1, -1] by SciPy's Pade kernels (the steps of scipy.linalg.expm for a general
-    matrix), or None if they report a failure. block: square, not triangular."""
-    work = np.empty((5,) + block.shape)
-    work[0] = block
+    matrix), or None if they report a failure. work: (5, k, k) scratch with the block (square,
+    not triangular) in work[0]; overwritten. squaring: "dgemm" or "matmul" (below).
+
+    "dgemm": the squarings A <- A A run on the transpose, (A A)' = A' A', which is Fortran-ordered,
+    so SciPy's BLAS dgemm takes it without copies (the fastest call); "matmul": NumPy's A @ A, as
+    scipy.linalg.expm squares (the same numbers where NumPy and SciPy share a BLAS kernel)."""
     order, squarings = pick_pade_structure(work)
     if order < 0 or pade_UV_calc(work, order) != 0:
         return None
-    result = work[0]
-    for _ in range(squarings):  # all full products: the column alone would round differently
-        result = result @ result
-    return result[:-1, -1]
+    if squarings == 0:
+        return work[0][:-1, -1].copy()
+    if squaring == "matmul":
+        result = work[0]
+        for _ in range(squarings):  # all full products: the column alone would round differently
+            result = result @ result
+        return result[:-1, -1]
+    transposed = work[0].T
+    for _ in range(squarings):
+        transposed = dgemm(1.0, transposed, transposed)
+    return transposed[-1, :-1]  # a view of a new array: no copy
 
 
-_fast_path = {"checked": False, "usable": pick_pade_structure is not None}
+# the fast route is checked once against scipy.linalg.expm: dgemm squarings, else NumPy's, else none
+_fast_path = {"checked": False, "usable": pick_pade_structure is not None, "squaring": "dgemm"}
 
 
-def expm_last_column(block) -> np.ndarray:
+def _checked_column(block, work):
+    """The first use: the fast route's column if it equals scipy.linalg.expm's to the bit with
+    either squaring (kept for later calls), else scipy.linalg.expm's. block, work: as below."""
+    _fast_path["checked"] = True
+    reference = expm(block)[:-1, -1]
+    for squaring in ("dgemm", "matmul"):
+        work[0] = block
+        try:
+            column = _pade_last_column(work, squaring)
+        except (TypeError, ValueError):  # pragma: no cover - another SciPy's private signature
+            column = None
+        if column is not None and np.array_equal(column, reference, equal_nan=True):
+            _fast_path["squaring"] = squaring
+            return column
+    _fast_path["usable"] = False
+    return reference
+
+
+def expm_last_column(block, work=None) -> np.ndarray:
     """expm(block)[:-1, -1], as scipy.linalg.expm computes it (the same Pade approximant and
     scaling, Al-Mohy & Higham 2009), without its per-call overhead when ``block`` is a general
     (not triangular) matrix; otherwise by scipy.linalg.expm itself. The first use compares the
-    two on its block and keeps scipy.linalg.expm if they differ (another SciPy version).
+    two on its block and keeps scipy.linalg.expm if they differ (another SciPy version or BLAS).
 
     block: square (k + 1, k + 1), the augmented matrix [[J dt, b dt], [0, 0]]; its last column of
-    the exponential is (expm(J dt) - I) inv(J) b."""
+    the exponential is (expm(J dt) - I) inv(J) b. work: optional (5, k + 1, k + 1) scratch reused
+    between calls (overwritten; ``block`` is not)."""
     if not _fast_path["usable"] or not _surely_not_triangular(block):
         return expm(block)[:-1, -1]
-    try:
-        column = _pade_last_column(block)
-    except (TypeError, ValueError):  # pragma: no cover - another SciPy's private signature
-        column = None
-    if not _fast_path["checked"] and column is not None:
-        _fast_path["checked"] = True
-        _fast_path["usable"] = bool(np.array_equal(column, expm(block)[:-1, -1], equal_nan=True))
-    if column is None or not _fast_path["usable"]:
-        return expm(block)[:-1, -1]
-    return column
+    if work is None:
+        work = np.empty((5,) + block.shape)
+    if not _fast_path["checked"]:
+        return _checked_column(block, work)
+    work[0] = block
+    column = _pade_last_column(work, _fast_path["squaring"])
+    return expm(block)[:-1, -1] if column is None else column

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from math import factorial
+from math import factorial, isfinite
 
 import numpy as np
 
@@ -13,7 +13,8 @@ from attend._validation import AttendInputError, as_matrix, order, positive_scal
 from attend.generalized import block_precisions, embedding_weights, shift_operator, smoothness_precision
 from attend.perception.dem import DEMEstimate
 from attend.perception.nonlinear._linalg import (block_diagonal_positions, diagonal_blocks, expm_last_column,
-                                                  scaled_inverse_diagonals, scaled_solve)
+                                                  inverse_diagonals, scaled_solve)
+from attend.perception.nonlinear._workspace import StepWorkspace
 from attend.perception.nonlinear.model import NonlinearSystem
 from attend.perception.nonlinear.online import OnlineNonlinearDEM
 from attend.perception.nonlinear.path import estimate_path
@@ -434,14 +435,17 @@ class NonlinearDEM:
         inv(Pi_X) B_obs Y[0], the linear observer's start. y_tilde, u_tilde: the first sample's
         embedded outputs and inputs (see :meth:`errors`); iterations: the most Gauss-Newton steps."""
         X = self._guess_state(guess)
-        gradient, curvature, energy = self._gradient_curvature(X, y_tilde, u_tilde)
+        evaluate = self._gradient_curvature
+        if self.motion == "linearized" and self.integration == "attend":  # the same, with fewer calls
+            evaluate = StepWorkspace(self).gradient_curvature
+        gradient, curvature, energy = evaluate(X, y_tilde, u_tilde)
         for _ in range(iterations):
             step = scaled_solve(curvature, gradient)
             accepted = False
             for _ in range(30):
                 candidate = X + step
                 try:
-                    g_new, c_new, e_new = self._gradient_curvature(candidate, y_tilde, u_tilde)
+                    g_new, c_new, e_new = evaluate(candidate, y_tilde, u_tilde)
                 except AttendInputError:
                     e_new = -np.inf
                 if np.isfinite(e_new) and e_new >= energy:
@@ -492,14 +496,18 @@ class NonlinearDEM:
             u_t = np.zeros((d + 1, r))
             y_t[0] = centre[:m]
             u_t[0] = centre[m:]
-        else:
-            y_t = mats["Ey"] @ window[mats["y_positions"], :m]
-            u_t = mats["Eu"] @ window[mats["u_positions"], m:]
+        else:  # the positions are consecutive: slices, not index arrays
+            first_y, first_u = mats["y_positions"][0], mats["u_positions"][0]
+            y_t = mats["Ey"] @ window[first_y: first_y + p + 1, :m]
+            if not r:
+                return y_t.ravel(), np.empty(0)
+            u_t = mats["Eu"] @ window[first_u: first_u + d + 1, m:]
         return y_t.ravel(), u_t.ravel()
 
     def _check(self, X, sample: int) -> None:
         order0 = X[self._matrices["reported"]]
-        if not np.isfinite(X).all() or np.abs(order0).max() > self.divergence_limit:
+        # X @ X is finite when all of X is (one call; its overflow falls back to the exact test)
+        if np.abs(order0).max() > self.divergence_limit or not (isfinite(X @ X) or np.isfinite(X).all()):
             raise AttendInputError(
                 f"NonlinearDEM: the estimate diverged at sample {sample} (max |order-0 estimate| = "
                 f"{np.max(np.abs(order0)):.3g} > divergence_limit = {self.divergence_limit:.3g}). The local "
@@ -522,7 +530,7 @@ class NonlinearDEM:
         if not rows:
             return []
         n, r = self.system.n_states, self.system.n_inputs
-        std = np.sqrt(np.clip(scaled_inverse_diagonals(np.array([row[2] for row in rows]),
+        std = np.sqrt(np.clip(inverse_diagonals(np.array([row[2] for row in rows]),
                                                        self._matrices["reported"]), 0, None))
         input_std = std[:, n:] if self._estimates_inputs else np.zeros((len(rows), r))
         return [(row[0], row[1], std[i, :n], input_std[i], row[3]) for i, row in enumerate(rows)]
@@ -553,7 +561,7 @@ class NonlinearDEM:
                 out = online._push(sample)
                 if out is not None:
                     pending.append(out)
-                if len(pending) == 256:  # the std of a chunk of samples in one call (bounded memory)
+                if len(pending) == 32:  # the std of a chunk of samples in one call (the stack stays in cache)
                     rows.extend(self._with_std(pending))
                     pending = []
             pending.extend(online._flush())

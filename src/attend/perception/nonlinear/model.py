@@ -139,16 +139,19 @@ class NonlinearSystem:
 
     def jacobians(self, x, v=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(fx, fv, gx, gv) at (x, v): analytic when given, else finite differences."""
-        x = np.asarray(x, dtype=float)
-        v = self._inputs(v)
+        return self._jacobians(np.asarray(x, dtype=float), self._inputs(v))
+
+    def _jacobians(self, x, v) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`jacobians` at float arrays x (n,), v (r,) (no conversion)."""
         n, r, m = self.n_states, self.n_inputs, self.n_outputs
         out = []
         for which, analytic, size in (("f", self.jacobian_f, n), ("g", self.jacobian_g, m)):
             if analytic is not None:
                 try:
                     dx, dv = self._call(analytic, x, v)
-                    dx = np.asarray(dx, dtype=float).reshape(size, n)
-                    dv = np.asarray(dv, dtype=float).reshape(size, r)
+                    dx, dv = np.asarray(dx, dtype=float), np.asarray(dv, dtype=float)
+                    if dx.shape != (size, n) or dv.shape != (size, r):
+                        dx, dv = dx.reshape(size, n), dv.reshape(size, r)
                 except (TypeError, ValueError) as error:
                     raise AttendInputError(f"jacobian_{which}: expected the pair (d{which}/dx ({size}, {n}), "
                                            f"d{which}/dv ({size}, {r})) ({error})") from None

@@ -7,6 +7,7 @@ import numpy as np
 
 from attend._threads import with_single_blas_thread
 from attend._validation import AttendInputError, require_finite
+from attend.perception.nonlinear._workspace import StepWorkspace
 
 
 class OnlineNonlinearDEM:
@@ -38,6 +39,8 @@ class OnlineNonlinearDEM:
         self._state: np.ndarray | None = None
         self._guess = initial_state
         self._order0 = estimator.edges == "order0"
+        lean = estimator.motion == "linearized" and estimator.integration == "attend"
+        self._workspace = StepWorkspace(estimator) if lean else None
 
     def _advance(self, at_end: bool):
         est = self.estimator
@@ -49,8 +52,9 @@ class OnlineNonlinearDEM:
         if self._state is None:
             self._state = est.initial_state(y_t, u_t, self._guess)
         X = self._state
+        workspace = self._workspace
         for _ in range(est.substeps):
-            X, curvature = est._step(X, y_t, u_t)
+            X, curvature = est._step(X, y_t, u_t) if workspace is None else workspace.step(X, y_t, u_t, est.substeps)
         est._check(X, row)
         self._state = X
         self._row += 1

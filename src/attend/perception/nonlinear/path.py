@@ -222,25 +222,43 @@ def _optimise(problem: _Problem, z: np.ndarray, max_iterations: int, tolerance: 
     return z, (Dg, Off), max_iterations, False
 
 
-def _noise_draws(dem, layout: _Layout, n_samples: int, count: int, rng) -> np.ndarray:
-    """count draws of the embedded window noises eps_c (count, C, n_e): sensor, process and (for
-    unknown inputs) input-prior fluctuations, coloured and scaled by the inverse precisions."""
+def _noise_sources(dem, layout: _Layout):
+    """(precision, kernel width, embedding weights, window positions) of each noise the windows
+    carry: sensor, process and (unknown inputs) the input prior's fluctuations."""
     sources = [(dem.sensor_precision, dem.kernel_width, layout.Ey, layout.y_positions),
                (dem.process_precision, dem.kernel_width, layout.Ey, layout.y_positions)]
     if layout.estimates_inputs:
         sources.append((dem.input_prior_precision, dem.input_kernel_width or dem.kernel_width, layout.Eu,
                         layout.u_positions))
-    parts = []
-    for precision, width, weights, positions in sources:
+    return sources
+
+
+def _draw_noises(dem, layout: _Layout, n_samples: int, count: int, rng) -> list:
+    """count draws of each noise (N, count, channels): coloured, scaled by the inverse precision."""
+    out = []
+    for precision, width, _, _ in _noise_sources(dem, layout):
         channels = len(precision)
         noise = coloured_noise(n_samples, count * channels, dem.dt, width, 1.0, rng)
-        noise = noise.reshape(n_samples, count, channels) @ _inverse_root(precision).T  # (N, R, channels)
-        samples = noise[layout.starts[:, None] + positions[None, :]]  # (C, window, R, channels)
+        out.append(noise.reshape(n_samples, count, channels) @ _inverse_root(precision).T)
+    return out
+
+
+def _embedded_noises(dem, layout: _Layout, noises: list, starts) -> np.ndarray:
+    """The window errors eps_c (count, C, n_e) of the windows starting at ``starts``, from the
+    noise draws of :func:`_draw_noises` (top-order motion error 0 with integration="spm")."""
+    parts = []
+    for noise, (_, _, weights, positions) in zip(noises, _noise_sources(dem, layout)):
+        samples = noise[starts[:, None] + positions[None, :]]  # (C, window, R, channels)
         embedded = np.einsum("kj,cjrm->rckm", weights, samples)
-        parts.append(embedded.reshape(count, len(layout.starts), -1))
-    if dem.integration == "spm":  # no motion error at the top order
+        parts.append(embedded.reshape(noise.shape[1], len(starts), -1))
+    if dem.integration == "spm":
         parts[1][:, :, -layout.n:] = 0.0
     return np.concatenate(parts, axis=2)
+
+
+def _noise_draws(dem, layout: _Layout, n_samples: int, count: int, rng) -> np.ndarray:
+    """count draws of the embedded window noises eps_c (count, C, n_e) of every window."""
+    return _embedded_noises(dem, layout, _draw_noises(dem, layout, n_samples, count, rng), layout.starts)
 
 
 def _inverse_root(precision) -> np.ndarray:
@@ -248,24 +266,43 @@ def _inverse_root(precision) -> np.ndarray:
     return np.linalg.cholesky(np.linalg.inv(precision))
 
 
+#: floats of Jacobians kept between noise batches (beyond it they are recomputed per batch)
+JACOBIAN_BUDGET = 25_000_000
+#: floats of noise samples drawn at once
+NOISE_BUDGET = 10_000_000
+
+
 def _spread(problem: _Problem, z, curvature, draws: int, seed) -> np.ndarray:
-    """std (N, q) of z_hat - z under the generative model, linearised at z (module docstring)."""
-    layout = problem.layout
+    """std (N, q) of z_hat - z under the generative model, linearised at z (module docstring):
+    noise drawn in batches, each window chunk's Pi~ J_c computed once when they fit in memory."""
+    layout, dem = problem.layout, problem.dem
     Dg, Off = curvature
     rng = np.random.default_rng(seed)
-    batch = max(1, min(draws, int(2e6 // max(1, problem.n_samples * (layout.q + 4)))))
+    channels = sum(len(source[0]) for source in _noise_sources(dem, layout))
+    batch = max(1, min(draws, int(NOISE_BUDGET // max(1, problem.n_samples * channels))))
+    n_e = layout.precision.shape[0]
+    keep = len(layout.starts) * n_e * layout.W * layout.q <= JACOBIAN_BUDGET
+    kept = {}
+
+    def weighted_jacobian(index, part):
+        if index in kept:
+            return kept[index]
+        _, J = _errors(dem, layout, z, problem.y_tilde[part], problem.u_tilde[part], layout.starts[part], True)
+        weighted = layout.precision @ J
+        if keep:
+            kept[index] = weighted
+        return weighted
+
     total = np.zeros((layout.n_blocks, layout.W * layout.q))
     done = 0
     while done < draws:
         count = min(batch, draws - done)
-        eps = _noise_draws(problem.dem, layout, problem.n_samples, count, rng)  # (R, C, n_e)
+        noises = _draw_noises(dem, layout, problem.n_samples, count, rng)
         rhs = np.zeros((layout.n_blocks, layout.W * layout.q, count))
-        for part in problem.chunks():
-            _, J = _errors(problem.dem, layout, z, problem.y_tilde[part], problem.u_tilde[part],
-                           layout.starts[part], jacobians=True)
-            weighted = layout.precision @ J
-            _accumulate(layout, layout.starts[part], None, np.einsum("cia,rci->car", weighted, eps[:, part]),
-                        None, None, rhs)
+        for index, part in enumerate(problem.chunks()):
+            eps = _embedded_noises(dem, layout, noises, layout.starts[part])
+            _accumulate(layout, layout.starts[part], None,
+                        np.einsum("cia,rci->car", weighted_jacobian(index, part), eps), None, None, rhs)
         deviation = _solve(Dg, Off, np.moveaxis(rhs, 2, 0), 0.0)
         total += np.sum(deviation**2, axis=0)
         done += count

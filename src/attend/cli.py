@@ -27,6 +27,11 @@ width [s], embedding orders p and d, precisions). See README.md ("Your own robot
 format and a worked example on the bundled quadrotor flight:
 
     attend estimate --demo --out roll_estimates.csv
+
+Nonlinear models: [model] python = "model.py" (f(x, v) and g(x, v)) with n_states, n_inputs,
+n_outputs. Default method "ukf" (unscented RTS smoother); [observer] method = "dem" runs
+nonlinear DEM's D-step, and adding states = "path" runs DEM in path mode (one trajectory for
+the whole log: a smoother with a calibrated std; docs/nonlinear.md).
 """
 
 

@@ -47,3 +47,23 @@ def solve(Linv: np.ndarray, Bk: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         v = y[:, k] - (np.einsum("rba,rb->ra", Bk[:, k], x[:, k + 1]) if k < K - 1 else 0.0)
         x[:, k] = np.einsum("rba,rb->ra", Linv[:, k], v)
     return x
+
+
+def selected_inverse(Linv: np.ndarray, Bk: np.ndarray):
+    """Diagonal blocks Sigma_kk and super-diagonal blocks Sigma_k,k+1 of inv(L L') (Takahashi):
+    Sigma_k,k+1 = -L_k^{-T} B_k' Sigma_k+1,k+1,  Sigma_kk = L_k^{-T} (L_k^{-1} - B_k' Sigma_k+1,k).
+    Linv (R, K, b, b) and Bk (R, K - 1, b, b): from :func:`cholesky`. Returns (Sd (R, K, b, b),
+    Su (R, K - 1, b, b))."""
+    R, K, b, _ = Linv.shape
+    Sd = np.empty_like(Linv)
+    Su = np.empty((R, max(K - 1, 0), b, b))
+    for k in range(K - 1, -1, -1):
+        Li, LiT = Linv[:, k], np.swapaxes(Linv[:, k], 1, 2)
+        if k == K - 1:
+            Sd[:, k] = LiT @ Li
+        else:
+            upper = -LiT @ np.swapaxes(Bk[:, k], 1, 2) @ Sd[:, k + 1]
+            Su[:, k] = upper
+            Sd[:, k] = LiT @ (Li - np.swapaxes(Bk[:, k], 1, 2) @ np.swapaxes(upper, 1, 2))
+        Sd[:, k] = 0.5 * (Sd[:, k] + np.swapaxes(Sd[:, k], 1, 2))
+    return Sd, Su

@@ -8,6 +8,7 @@ from typing import NamedTuple
 import numpy as np
 
 from attend.perception.block_tridiagonal import cholesky as _block_tridiagonal_cholesky
+from attend.perception.block_tridiagonal import selected_inverse as _block_tridiagonal_selected_inverse
 from attend.perception.block_tridiagonal import solve as _block_tridiagonal_solve
 from attend.perception.learning.problem import _observer, _Structure
 
@@ -33,24 +34,6 @@ def _path_layout(T: int, st_used: np.ndarray, P: int):
         covered[starts + i] = True
     return starts, w, covered
 
-
-
-def _block_tridiagonal_selected_inverse(Linv: np.ndarray, Bk: np.ndarray):
-    """Diagonal blocks Sigma_kk and super-diagonal blocks Sigma_k,k+1 of inv(L L') (Takahashi):
-    Sigma_k,k+1 = -L_k^{-T} B_k' Sigma_k+1,k+1,  Sigma_kk = L_k^{-T} (L_k^{-1} - B_k' Sigma_k+1,k)."""
-    R, K, b, _ = Linv.shape
-    Sd = np.empty_like(Linv)
-    Su = np.empty((R, max(K - 1, 0), b, b))
-    for k in range(K - 1, -1, -1):
-        Li, LiT = Linv[:, k], np.swapaxes(Linv[:, k], 1, 2)
-        if k == K - 1:
-            Sd[:, k] = LiT @ Li
-        else:
-            upper = -LiT @ np.swapaxes(Bk[:, k], 1, 2) @ Sd[:, k + 1]
-            Su[:, k] = upper
-            Sd[:, k] = LiT @ (Li - np.swapaxes(Bk[:, k], 1, 2) @ np.swapaxes(upper, 1, 2))
-        Sd[:, k] = 0.5 * (Sd[:, k] + np.swapaxes(Sd[:, k], 1, 2))
-    return Sd, Su
 
 
 def _path_posterior(theta, lam, Ytil, Util, st: "_Structure", want_mean: bool = True) -> _PathPosterior:

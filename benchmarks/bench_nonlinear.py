@@ -21,6 +21,9 @@ Part 4 (``--conv-seeds`` seeds): is the particle reference converged? State (and
 ``--particles``/2 and ``--particles`` particles and an independent run at ``--particles``.
 Part 5 (``--linear-seeds`` seeds): is DEM's gap to the posterior inherent? A linear model through the
 nonlinear path (which equals the linear DEM observer to rounding, tests) against the exact posterior.
+Part 6 (``--learn-seeds`` seeds): learn_path's parameter error bars against the seed-to-seed spread
+(Lorenz rho; the pendulum's damping simulated 10x finer than sampled; the mass-spring-damper's
+damping from the zero-order-hold simulator).
 Not part of the test run. No BLAS environment variable is needed (attend._threads).
 """
 
@@ -235,6 +238,73 @@ def part5(seeds: int) -> None:
               flush=True)
 
 
+def _learning_case(name: str, seed: int):
+    """(model, outputs, inputs, learn_path keywords, true theta, active mask) of a part-6 case."""
+    from attend.perception.nonlinear import ParametrisedSystem, simulate_nonlinear
+    from attend.problems import mass_spring_damper
+    from attend.systems import simulate
+
+    if name == "lorenz rho":
+        cfg = lorenz.SETTINGS
+        f = lambda x, v, th: np.array([10 * (x[1] - x[0]), x[0] * (th[0] - x[2]) - x[1], x[0] * x[1] - 8 / 3 * x[2]])  # noqa: E731
+        model = ParametrisedSystem(f, lambda x, v, th: np.asarray(x, float), 3, 0, 3)
+        log = simulate_nonlinear(model.at([28.0]), 400, cfg["dt"], kernel_width=cfg["kernel_width"], process_std=20.0,
+                                 measurement_std=1.0, initial_state=cfg["initial_state"], seed=seed)
+        options = dict(kernel_width=cfg["kernel_width"], sensor_precision=1.0, process_precision=1 / 400,
+                       prior_mean=[20.0], prior_precision=[0.0])
+        return model, log.outputs, None, cfg["dt"], options, np.array([28.0])
+    if name == "pendulum damping (10x finer simulation)":
+        cfg = pendulum.SETTINGS
+        f = lambda x, v, th: np.array([x[1], -9.81 * np.sin(x[0]) - th[0] * x[1] + v[0]])  # noqa: E731
+        model = ParametrisedSystem(f, lambda x, v, th: np.array([np.sin(x[0]), np.cos(x[0])]), 2, 1, 2)
+        fine, dt = 10, cfg["dt"]
+        log = simulate_nonlinear(model.at([0.3]), np.zeros((400 * fine, 1)), dt / fine, kernel_width=cfg["kernel_width"],
+                                 process_std=cfg["process_std"], measurement_std=cfg["measurement_std"],
+                                 initial_state=[1.0, 0.0], seed=seed)
+        sw = np.asarray(cfg["process_std"])
+        options = dict(kernel_width=cfg["kernel_width"], sensor_precision=1 / cfg["measurement_std"] ** 2,
+                       process_precision=1 / sw**2, prior_mean=[1.0], prior_precision=[0.0])
+        return model, log.outputs[::fine], np.zeros((400, 1)), dt, options, np.array([0.3])
+    linear = mass_spring_damper()
+    A, B, C = linear.A, linear.B, linear.C
+
+    def f(x, v, th):
+        A_theta = A.copy()
+        A_theta[1, 1] = th[0]
+        return A_theta @ x + B @ v
+
+    model = ParametrisedSystem(f, lambda x, v, th: C @ x, 2, 1, C.shape[0])
+    u = np.repeat(np.random.default_rng(100 + seed).normal(size=(20, 1)), 10, axis=0)
+    log = simulate(linear, u, 0.1, kernel_width=0.2, process_std=0.3, measurement_std=0.05, seed=seed,
+                   initial_state=[0.5, 0.0])
+    options = dict(kernel_width=0.2, sensor_precision=1 / 0.05**2, process_precision=1 / 0.3**2,
+                   prior_mean=[0.5 * A[1, 1]], prior_precision=[0.0], motion="linearized")
+    return model, log.outputs, u, 0.1, options, np.array([A[1, 1]])
+
+
+def part6(seeds: int) -> None:
+    print(f"\n== learn_path: are the parameters' error bars calibrated? ({seeds} seeds; z = (theta_hat - theta) / std, "
+          "calibrated: mean z^2 near 1, within the chi-square range printed)")
+    from scipy.stats import chi2
+
+    from attend.perception.nonlinear import learn_path
+
+    low, high = chi2.ppf([0.025, 0.975], seeds) / seeds
+    for name in ("lorenz rho", "pendulum damping (10x finer simulation)", "mass-spring-damper damping (a/m, ZOH simulation)"):
+        z, estimates, stds, start = [], [], [], time.perf_counter()
+        for seed in range(seeds):
+            model, outputs, inputs, dt, options, truth = _learning_case(name, seed)
+            result = learn_path(model, outputs, inputs, dt, **options)
+            estimates.append(result.parameters[0])
+            stds.append(result.parameter_std[0])
+            z.append((result.parameters[0] - truth[0]) / result.parameter_std[0])
+        z = np.array(z)
+        print(f"  {name:48s} truth {truth[0]:7.3f}  mean estimate {np.mean(estimates):7.3f}  seed spread "
+              f"{np.std(estimates, ddof=1):.3f}  rms std {np.sqrt(np.mean(np.square(stds))):.3f}  mean z {np.mean(z):+.2f}  "
+              f"mean z^2 {np.mean(z**2):.2f} (95 % range if calibrated: {low:.2f}-{high:.2f})  "
+              f"{time.perf_counter() - start:.0f} s", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20)
@@ -244,7 +314,8 @@ def main() -> None:
     parser.add_argument("--conv-seeds", type=int, default=4)
     parser.add_argument("--particles", type=int, default=100_000, help="P of the convergence check (part 4)")
     parser.add_argument("--linear-seeds", type=int, default=12)
-    parser.add_argument("--parts", default="012345", help="which parts to run (default: all)")
+    parser.add_argument("--parts", default="0123456", help="which parts to run (default: all)")
+    parser.add_argument("--learn-seeds", type=int, default=12, help="seeds of part 6 (learn_path calibration)")
     parser.add_argument("--speed-worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.speed_worker:
@@ -262,6 +333,8 @@ def main() -> None:
         part4(args.conv_seeds, args.particles)
     if "5" in args.parts and args.linear_seeds > 0:
         part5(args.linear_seeds)
+    if "6" in args.parts and args.learn_seeds > 0:
+        part6(args.learn_seeds)
 
 
 if __name__ == "__main__":

@@ -29,6 +29,8 @@ sample k, and the top order's motion error is 0 (docs/spm.md: equal to SPM's out
 
 Learning (:mod:`.learning`): :func:`learn_nonlinear` alternates this model's D-step with an
 E-step for theta and an M-step for the noise log-precisions (the linear learner's free energy).
+:func:`learn_path` (:mod:`.path_learning`) learns theta with the whole trajectory in path mode
+(unknown inputs included, noise precisions known) and gives error bars from the estimator's spread.
 
 Units are attend's: seconds. f is a rate [state unit / s], kernel_width s is in seconds
 (SPM works in bins: s_bins = s / dt).
@@ -38,6 +40,7 @@ from attend.perception.nonlinear.dem import NonlinearDEM
 from attend.perception.nonlinear.learning import NonlinearLearningResult, ParametrisedSystem, learn_nonlinear
 from attend.perception.nonlinear.model import NonlinearSystem, finite_difference_jacobian, simulate_nonlinear
 from attend.perception.nonlinear.online import OnlineNonlinearDEM
+from attend.perception.nonlinear.path_learning import PathLearningResult, learn_path
 
 __all__ = [
     "NonlinearSystem",
@@ -48,4 +51,6 @@ __all__ = [
     "ParametrisedSystem",
     "NonlinearLearningResult",
     "learn_nonlinear",
+    "PathLearningResult",
+    "learn_path",
 ]

@@ -297,10 +297,39 @@ def test_errors_in_the_users_code_say_so(tmp_path, capsys):
     assert str(tmp_path / "model.py") in err and "this is an error in the model's code" in err
 
 
-def test_identify_refuses_a_nonlinear_model(tmp_path, capsys):
-    model_path, log_path, _ = _pendulum_files(tmp_path, samples=40)
+def test_identify_learns_a_nonlinear_parameter_with_an_unknown_push(tmp_path, capsys):
+    """[learning] free = ["damping"] from a wrong start (0.8 for 0.3), the push unknown: the learned
+    damping is within 3 of its std of the truth, written to [model] parameters (which `attend
+    estimate` then uses) with its std in [learned]."""
+    model = PENDULUM_TOML.replace('states = ["theta", "omega"]',
+                                  'states = ["theta", "omega"]\nparameters = { damping = 0.8 }')
+    model += '\n[learning]\nfree = ["damping"]\n'
+    model_path, log_path, _ = _pendulum_files(tmp_path, model)
+    out = tmp_path / "learned.toml"
+    status = main(["identify", str(model_path), str(log_path), "--out", str(out)])
+    printed = capsys.readouterr()
+    assert status == 0, printed.err
+    assert "damping" in printed.out and "learned model ->" in printed.out
+    learned = io.read_model(out)
+    damping = learned.system.f.parameters["damping"]
+    import tomllib
+    details = tomllib.loads(out.read_text())["learned"]
+    assert details["parameter_names"] == ["damping"] and details["parameters"] == [damping]
+    assert 0 < details["parameter_std"][0] < 0.5 and abs(damping - 0.3) < 3 * details["parameter_std"][0], details
+    assert main(["estimate", str(out), str(log_path), "--out", str(tmp_path / "e.csv")]) == 0
+
+
+@pytest.mark.parametrize("learning, message", [
+    ('free = ["dampin"]', "[learning] free: 'dampin' is not a parameter of the model (its parameters: damping, "
+                          "gravity_over_length)"),
+    ('free = ["damping"]\nnoise_prior_mean = [0.0, 0.0]', "[learning] noise_prior_mean: not used for nonlinear models"),
+    ("free = []", "[learning] free: expected a list of parameter names"),
+])
+def test_nonlinear_identify_errors_name_the_field(tmp_path, capsys, learning, message):
+    model_path, log_path, _ = _pendulum_files(tmp_path, PENDULUM_TOML + "\n[learning]\n" + learning + "\n", samples=60)
     assert main(["identify", str(model_path), str(log_path), "--out", str(tmp_path / "l.toml")]) == 2
-    assert "identify needs a linear model" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1, err
 
 
 def test_linear_models_refuse_the_nonlinear_keys(tmp_path):

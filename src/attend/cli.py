@@ -19,6 +19,7 @@ import warnings
 from pathlib import Path
 
 from attend._validation import AttendInputError
+from attend.cli_identify import command_identify
 
 EPILOG_ESTIMATE = """\
 The model file (TOML) gives A, B, C (continuous time, seconds), the CSV columns of the outputs
@@ -150,13 +151,19 @@ def _add_identify(add_command) -> None:
         "precise the priors are. Writes a learned model file (posterior means and precisions of the "
         "parameters, learned noise precisions) and prints the convergence report.",
         epilog="See README.md ('Identify your model') for the [learning] section.\n\n"
+        "Nonlinear models ([model] python): [learning] free names entries of the model's parameters dict\n"
+        "(e.g. free = [\"damping\"]), free_prior_precision their prior precision (default 0: flat); they are\n"
+        "learned with the trajectory by DEM's path mode, unknown inputs estimated under their priors, the\n"
+        "noise precisions taken from [observer]; the learned file holds them in [model] parameters and\n"
+        "their error bars in [learned] (docs/nonlinear.md).\n\n"
         "exit status: 0 converged and the learned model written; 2 bad input (e.g. no [learning] section);\n"
         "3 the learning did not converge (max_iterations reached or a step diverged) or the learned model\n"
         "would give non-finite estimates: nothing is written unless --allow-unconverged (a model that\n"
         "gives non-finite estimates is never written).",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    identify.add_argument("model", help="model file (TOML) with a [learning] section; all inputs measured")
+    identify.add_argument("model", help="model file (TOML) with a [learning] section; all inputs measured "
+                          "(nonlinear models: unknown inputs allowed)")
     identify.add_argument("log", help="log file (CSV, uniform time column in seconds)")
     identify.add_argument("--out", default="learned_model.toml",
                           help="learned model file, usable by 'attend estimate' (default: %(default)s)")
@@ -247,69 +254,6 @@ def _output_directory(path: str, option: str) -> Path:
     with tempfile.TemporaryFile(dir=path):
         pass  # raises an OSError naming the folder when it is not writable
     return path
-
-
-def _command_identify(args) -> int:
-    import numpy as np
-
-    from attend import io
-
-    model = io.read_model(args.model)
-    log = io.read_log(args.log, model.time_column)
-    _output_file(args.out, "--out", "learned_model.toml")
-    started = time.perf_counter()
-    result = io.identify_from_files(model, log, progress=not args.no_progress)
-    elapsed = time.perf_counter() - started
-    print(result.table())
-    accepted = ", ".join(f"{step}: {count}" for step, count in result.steps_accepted.items())
-    print(f"free energy: {result.free_energy[0]:.6g} -> {result.free_energy[-1]:.6g} over {result.iterations} "
-          f"iterations ({result.message}); "
-          f"steps accepted {accepted}; {result.settings['state_model']} state model, top order "
-          f"{result.settings['top_order']}; {elapsed:.2f} s")
-    learned_A = result.system().A
-    if np.all(np.isfinite(learned_A)):
-        eig = np.linalg.eigvals(learned_A)
-        listed = ", ".join(f"{complex(e).real:.4g}" + (f"{complex(e).imag:+.4g}j" if complex(e).imag else "") for e in eig)
-        note = ("UNSTABLE (reported, not enforced: learning does not constrain A's stability)"
-                if np.max(eig.real) > 0 else "stable")
-        print(f"eigenvalues of the learned A [1/s]: {listed}: {note}")
-    problems = io.check_learned_model(model, log, result)
-    if result.converged and not problems:
-        path = io.write_learned_model(args.out, model, result)
-        print(f"learned model -> {path}")
-        return 0
-    if problems:
-        print(f"attend: error: {model.path}: identify: the learned model is unusable: {'; '.join(problems)}; not written. "
-              f"{_advice(result, model)}", file=sys.stderr)
-        return 3
-    written = "" if args.allow_unconverged else \
-        " No learned model written (--allow-unconverged writes the last accepted estimate)."
-    print(f"attend: error: {model.path}: identify did not converge on {log.path}: {result.message}. {_advice(result, model)}{written}",
-          file=sys.stderr)
-    if args.allow_unconverged:
-        path = io.write_learned_model(args.out, model, result)
-        print(f"learned model (NOT converged, --allow-unconverged) -> {path}")
-    return 3
-
-
-def _advice(result, model) -> str:
-    """What to change in the [learning] section after a failed identification (one sentence)."""
-    learning = model.learning or {}
-    if "diverged" in result.message:
-        step = result.message.split("the ", 1)[1].split("-step", 1)[0] if "-step" in result.message else "a"
-        if step == "M":
-            return ("Change: raise noise_prior_precision (now "
-                    f"{learning.get('noise_prior_precision', 1.0)}) to keep the noise log-precisions near noise_prior_mean.")
-        return ("Change: learn fewer entries (free) or raise free_prior_precision (now "
-                f"{learning.get('free_prior_precision', 1.0)}) so the prior holds them.")
-    if "known entries moved" in result.message:
-        return (f"Change: known_prior_precision (now {learning.get('known_prior_precision', 3.3e6)}) = inf in "
-                "[learning] to hold the entries that are not learned at their values in [model].")
-    if "max_iterations" in result.message:
-        other = "path" if result.settings.get("state_model") == "sample" else "sample"
-        return (f"Change: raise max_iterations (now {learning.get('max_iterations', 50)}) or tolerance "
-                f"(now {learning.get('tolerance', 1e-3)}) in [learning], or try states = \"{other}\".")
-    return "Change: check the log (excitation, units) and the prior means in [model]."
 
 
 def _command_search(args) -> int:
@@ -549,7 +493,7 @@ def main(argv=None) -> int:
         parser.print_help()
         return 0
     handlers = {"estimate": _command_estimate, "reproduce": _command_reproduce, "search": _command_search,
-                "identify": _command_identify, "report": _command_report}
+                "identify": command_identify, "report": _command_report}
     args.debug = debug
     with warnings.catch_warnings():  # the command's warning style, restored when it returns
         warnings.simplefilter("default")

@@ -26,8 +26,8 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
     from attend.perception.learning import identify
 
     if model.nonlinear:
-        raise AttendInputError(f"{model.path}: identify needs a linear model (A, B, C in [model]); nonlinear models "
-                               "([model] python) can be estimated (attend estimate) but not identified yet")
+        raise AttendInputError(f"{model.path}: this is a nonlinear model ([model] python): use "
+                               "attend.io.learned_nonlinear.identify_nonlinear (what `attend identify` runs for it)")
     unknown = [spec.name for spec in model.inputs if not spec.known]
     if unknown:
         raise AttendInputError(

@@ -51,7 +51,7 @@ _SECTIONS = {
     },
     # written by `attend identify`; informative, not used by the observer
     "learned": {
-        "parameter_names", "parameters", "parameter_precision", "log_precision", "free_energy",
+        "parameter_names", "parameters", "parameter_precision", "parameter_std", "log_precision", "free_energy",
         "converged", "iterations", "message",
     },
 }

@@ -1,0 +1,142 @@
+"""`attend identify` for nonlinear model files: named entries of the model's ``parameters`` learned
+with the trajectory by path mode (:func:`attend.perception.nonlinear.learn_path`).
+
+The model file's [learning] ``free`` names scalar entries of the parameters dict that f and g
+receive (from the Python file, or [model] parameters); their current values are the prior means,
+``free_prior_precision`` their prior precision (default 0: flat). The noise precisions are the
+[observer]'s (known, not learned); unknown inputs ([[inputs]] without a column) are estimated
+under their priors while learning. The learned model file holds the new values in [model]
+parameters, so `attend estimate` uses them, and their error bars in [learned].
+"""
+
+from __future__ import annotations
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+from pathlib import Path
+
+import numpy as np
+
+from attend._validation import AttendInputError
+from attend.io.estimates import _check_samples
+from attend.io.logs import Log
+from attend.io.python_model import _UserFunction
+
+#: [learning] keys that nonlinear identification reads (the others are the linear learner's)
+NONLINEAR_LEARNING_KEYS = ("free", "free_prior_precision", "max_iterations", "tolerance")
+
+
+class _WithFree:
+    """The user's f or g with the free entries of its parameters replaced by theta (names: the
+    free entries, in theta's order; user: the file's checked function)."""
+
+    def __init__(self, user: _UserFunction, names: tuple[str, ...]):
+        self.user, self.names = user, names
+
+    def __call__(self, x, v, theta):
+        if self.user.parameters is None:  # this function takes no parameters
+            return self.user(x, v)
+        parameters = {**self.user.parameters, **{name: float(value) for name, value in zip(self.names, theta)}}
+        return _UserFunction(self.user.function, self.user.name, self.user.size, self.user.what, self.user.source,
+                             parameters)(x, v)
+
+
+def _free_names(model, learning: dict) -> tuple[tuple[str, ...], np.ndarray]:
+    """([learning] free, their current values) after checking each names a scalar parameter."""
+    where = f"{model.path}: [learning]"
+    unknown = sorted(set(learning) - set(NONLINEAR_LEARNING_KEYS))
+    if unknown:
+        raise AttendInputError(f"{where} {unknown[0]}: not used for nonlinear models (expected only "
+                               f"{', '.join(NONLINEAR_LEARNING_KEYS)}; the noise precisions are [observer]'s)")
+    parameters = model.system.f.parameters or model.system.g.parameters
+    if not parameters:
+        raise AttendInputError(f"{model.path}: identify needs f(x, v, parameters) and a parameters dict (in the "
+                               "Python file or [model] parameters) whose entries [learning] free names")
+    free = learning.get("free")
+    if not isinstance(free, list) or not free or not all(isinstance(name, str) for name in free):
+        raise AttendInputError(f"{where} free: expected a list of parameter names, e.g. free = [\"damping\"] "
+                               f"(the model's parameters: {', '.join(sorted(parameters))})")
+    values = []
+    for name in free:
+        value = parameters.get(name)
+        if name not in parameters:
+            raise AttendInputError(f"{where} free: {name!r} is not a parameter of the model (its parameters: "
+                                   f"{', '.join(sorted(parameters))})")
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+            raise AttendInputError(f"{where} free: {name!r} is {value!r}; only scalar numeric parameters can be learned")
+        values.append(float(value))
+    if len(set(free)) != len(free):
+        raise AttendInputError(f"{where} free: names repeated in {free}")
+    return tuple(free), np.array(values)
+
+
+def identify_nonlinear(model, log: Log):
+    """Learn the [learning] free parameters of a nonlinear model file on ``log`` (module docstring).
+
+    model: the parsed :class:`attend.io.ModelFile` ([model] python); log: the CSV log. Returns
+    (names, :class:`attend.perception.nonlinear.PathLearningResult`)."""
+    from attend.perception.nonlinear import ParametrisedSystem, learn_path
+
+    learning = dict(model.learning or {})
+    names, values = _free_names(model, learning)
+    system = model.system
+    parametrised = ParametrisedSystem(_WithFree(system.f, names), _WithFree(system.g, names), system.n_states,
+                                      system.n_inputs, system.n_outputs, parameter_names=names)
+    order = 6 if model.embedding_order == "auto" else int(model.embedding_order)
+    window = max(order, model.input_order) + 1
+    dt = _check_samples(model, log, 3 * window, f"3 embedding windows of order {window - 1}")
+    p = model.nonlinear_order(dt)
+    outputs = log.matrix(model.output_columns)
+    signals = np.zeros((len(log.time), system.n_inputs))
+    known = np.array([spec.known for spec in model.inputs], dtype=bool)
+    for j, spec in enumerate(model.inputs):
+        signals[:, j] = log.matrix([spec.column])[:, 0] - spec.operating_point if spec.known else spec.prior_mean
+    prior = None
+    if system.n_inputs and not known.all():
+        prior = np.array([model.known_input_precision if spec.known else spec.prior_precision for spec in model.inputs])
+    precision = learning.get("free_prior_precision", 0.0)
+    try:
+        result = learn_path(parametrised, outputs, signals if system.n_inputs else None, dt,
+                            kernel_width=model.kernel_width, sensor_precision=model.sensor_precision,
+                            process_precision=model.process_precision, prior_mean=values,
+                            prior_precision=np.broadcast_to(np.asarray(precision, dtype=float), values.shape),
+                            input_prior_precision=prior, embedding_order=p, input_order=model.input_order,
+                            input_kernel_width=model.input_kernel_width,
+                            max_iterations=int(learning.get("max_iterations", 50)),
+                            tolerance=float(learning.get("tolerance", 1e-10)))
+    except AttendInputError as error:
+        raise AttendInputError(f"{model.path}: identify: {error}") from None
+    return names, result
+
+
+def table(names, result) -> str:
+    """The learned parameters with their error bars, one line each. names, result: of
+    :func:`identify_nonlinear`."""
+    rows = [f"{'parameter':>20s} {'learned':>14s} {'std':>12s}"]
+    rows += [f"{name:>20s} {value:14.6g} {std:12.4g}" for name, value, std in
+             zip(names, result.parameters, result.parameter_std)]
+    return "\n".join(rows)
+
+
+def write_learned_nonlinear(path, model, names, result) -> Path:
+    """A model file with the learned values in [model] parameters (used by `attend estimate`) and
+    [learned] parameter_names, parameters, parameter_std, ... . path: the TOML to write; model:
+    the model file learned from (its other sections kept); names, result: of :func:`identify_nonlinear`."""
+    import tomli_w
+
+    data = tomllib.loads(Path(model.path).read_text(encoding="utf-8-sig"))
+    parameters = data["model"].setdefault("parameters", {})
+    parameters.update({name: float(value) for name, value in zip(names, result.parameters)})
+    data.pop("learned", None)
+    learned = {"learned": {
+        "parameter_names": list(names), "parameters": [float(v) for v in result.parameters],
+        "parameter_std": [float(v) for v in result.parameter_std], "converged": bool(result.converged),
+        "iterations": int(result.iterations), "message": str(result.message)}}
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    header = ("# Learned by `attend identify` (nonlinear: path mode, learn_path): [model] parameters holds the\n"
+              "# learned values; [learned] their error bars (the estimator's spread, docs/nonlinear.md).\n")
+    path.write_text(header + tomli_w.dumps(data) + "\n" + tomli_w.dumps(learned))
+    return path

@@ -24,6 +24,8 @@ nonlinear path (which equals the linear DEM observer to rounding, tests) against
 Part 6 (``--learn-seeds`` seeds): learn_path's parameter error bars against the seed-to-seed spread
 (Lorenz rho; the pendulum's damping simulated 10x finer than sampled; the mass-spring-damper's
 damping from the zero-order-hold simulator).
+Part 7 (``--bank-cases`` cases): path mode on unseen systems, bench_bank.py's random LTI bank
+(tiny cases with one kernel width, s/dt >= 1) written as f, g, against the exact posterior.
 Not part of the test run. No BLAS environment variable is needed (attend._threads).
 """
 
@@ -305,6 +307,65 @@ def part6(seeds: int) -> None:
               f"{time.perf_counter() - start:.0f} s", flush=True)
 
 
+def part7(cases: int) -> None:
+    print(f"\n== path mode on unseen systems: the random bank of bench_bank.py (tiny cases, shared kernel width, "
+          f"s/dt >= 1, known inputs or unknown GP inputs) written as f, g, against the exact posterior ({cases} cases)")
+    sys.path.insert(0, os.path.dirname(__file__))
+    import warnings
+
+    import bench_bank
+
+    from attend.generalized import smoothness_condition
+    from attend.perception.dem import AUTO_MAX_CONDITION
+    from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem
+
+    rows, index = [], 0
+    while len(rows) < cases and index < 40 * cases:
+        case = bench_bank.draw_case(index, tiny=True)
+        index += 1
+        if not case.shared or case.process_width < case.dt or case.input_kind == "unknown-pulses":
+            continue
+        A, B, C = case.system.A, case.system.B, case.system.C
+        system = NonlinearSystem(lambda x, v, A=A, B=B: A @ x + B @ v, lambda x, v, C=C: C @ x, A.shape[0], B.shape[1],
+                                 C.shape[0])
+        s = case.process_width
+        p = next((p for p in range(6, 0, -1) if smoothness_condition(p + 1, s, case.dt) <= AUTO_MAX_CONDITION), 1)
+        unknown = not case.known
+        options = dict(embedding_order=p, known_inputs=not unknown, states="path")
+        if unknown:
+            options.update(input_prior_precision=1 / case.input_prior_std**2, input_kernel_width=case.input_width)
+        exact, _ = bench_bank.exact(case, causal=False)
+        start = time.perf_counter()
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                estimate = NonlinearDEM(system, case.dt, s, 1 / case.sensor_std**2, 1 / case.process_std**2,
+                                        **options).estimate(case.outputs,
+                                                            case.input_prior_mean if unknown else case.inputs)
+        except Exception as error:  # noqa: BLE001 - a refusal is a result of the bank
+            print(f"  case {case.index:3d} {case.describe()}: {type(error).__name__}: {str(error)[:100]}")
+            continue
+        warned = any("far from DEM's generalised model" in str(w.message) for w in caught)
+        seconds = time.perf_counter() - start
+        n_samples = len(case.outputs)
+        trim = slice(n_samples // 10, n_samples - n_samples // 10)
+        ratio = np.sum((estimate.states - case.states)[trim] ** 2) / np.sum((exact.states - case.states)[trim] ** 2)
+        inside = np.mean(np.abs(estimate.states - case.states)[trim] < 2 * estimate.state_std[trim])
+        exact_inside = np.mean(np.abs(exact.states - case.states)[trim] < 2 * exact.state_std[trim])
+        rows.append((ratio, inside, exact_inside, warned))
+        print(f"  case {case.index:3d} {case.describe()} p={p}: path / exact state SSE {ratio:9.3f}, |error| < 2 std "
+              f"{inside:.3f} (exact posterior {exact_inside:.3f}){' WARNED (misfit)' if warned else ''}, "
+              f"{n_samples / seconds:5.0f} samples/s", flush=True)
+    rows = np.array(rows, dtype=float)
+    for label, chosen in (("all", np.ones(len(rows), bool)), ("not warned", rows[:, 3] == 0),
+                          ("warned", rows[:, 3] == 1)):
+        if chosen.any():
+            part = rows[chosen]
+            print(f"  {label:10s} {len(part):2d} cases: path / exact state SSE median {np.median(part[:, 0]):.3f}, "
+                  f"90th percentile {np.percentile(part[:, 0], 90):.3f}, max {part[:, 0].max():.3g}; |error| < 2 std "
+                  f"pooled {part[:, 1].mean():.3f} (exact posterior {part[:, 2].mean():.3f})")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20)
@@ -314,7 +375,8 @@ def main() -> None:
     parser.add_argument("--conv-seeds", type=int, default=4)
     parser.add_argument("--particles", type=int, default=100_000, help="P of the convergence check (part 4)")
     parser.add_argument("--linear-seeds", type=int, default=12)
-    parser.add_argument("--parts", default="0123456", help="which parts to run (default: all)")
+    parser.add_argument("--parts", default="01234567", help="which parts to run (default: all)")
+    parser.add_argument("--bank-cases", type=int, default=24, help="cases of part 7 (path mode on the random bank)")
     parser.add_argument("--learn-seeds", type=int, default=12, help="seeds of part 6 (learn_path calibration)")
     parser.add_argument("--speed-worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -335,6 +397,8 @@ def main() -> None:
         part5(args.linear_seeds)
     if "6" in args.parts and args.learn_seeds > 0:
         part6(args.learn_seeds)
+    if "7" in args.parts and args.bank_cases > 0:
+        part7(args.bank_cases)
 
 
 if __name__ == "__main__":

@@ -2,6 +2,8 @@
 model (mean and std), calibration of the sandwich std on Lorenz, the maximiser's optimality, the
 shared block-tridiagonal solver against a dense solve, and bad input."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -12,7 +14,7 @@ from attend.perception.baselines import exact_posterior
 from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem, simulate_nonlinear
 from attend.perception.nonlinear.path import _Problem
 from attend.problems import mass_spring_damper
-from attend.systems import simulate
+from attend.systems import ModelWarning, simulate
 
 
 def _linear_case(seed: int, ratio: int):
@@ -123,3 +125,25 @@ def test_path_mode_bad_input():
         path.estimate(np.zeros((5, 1)))
     with pytest.raises(AttendInputError, match="outputs: expected finite numbers"):
         path.estimate(np.full((20, 1), np.nan))
+
+
+def test_a_log_far_from_the_generalised_model_is_named():
+    """Inputs held over each sample with almost no process noise (bench_nonlinear part 7's failures):
+    the free energy at the estimate is orders above its expected value, and a ModelWarning says so;
+    a log from the model itself does not warn."""
+    from attend.systems import LinearSystem
+
+    A = np.array([[-0.24, 0.02], [-0.02, -0.18]])
+    B, C = np.array([[-0.22], [-0.53]]), np.array([[-0.81, 0.58]])
+    linear = LinearSystem(A, B, C)
+    system = NonlinearSystem(lambda x, v: A @ x + B @ v, lambda x, v: C @ x, 2, 1, 1)
+    dt, s = 0.05, 0.25
+    u = np.sin(2.0 * np.arange(160) * dt)[:, None]
+    held = simulate(linear, u, dt, kernel_width=s, process_std=1e-5, measurement_std=2.6e-4, seed=1)
+    dem = NonlinearDEM(system, dt, s, 1 / 2.6e-4**2, 1 / 1e-5**2, known_inputs=True, states="path")
+    with pytest.warns(ModelWarning, match="far from DEM's generalised model"):
+        dem.estimate(held.outputs, u)
+    noisy = simulate(linear, u, dt, kernel_width=s, process_std=0.3, measurement_std=0.05, seed=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ModelWarning)
+        NonlinearDEM(system, dt, s, 1 / 0.05**2, 1 / 0.3**2, known_inputs=True, states="path").estimate(noisy.outputs, u)

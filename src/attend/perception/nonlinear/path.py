@@ -148,6 +148,7 @@ class _Problem:
     def __init__(self, dem, y: np.ndarray, u: np.ndarray):
         self.dem = dem
         self.n_samples = len(y)
+        self.final_cost = np.nan  # -F at the estimate (set by _optimise)
         self.layout = layout = _Layout(dem, len(y))
         self.padded = layout.n_blocks * layout.W
         self.y_tilde = layout.windows(y, layout.y_positions, layout.Ey, layout.starts)
@@ -194,7 +195,8 @@ def _solve(Dg, Off, rhs, damping: float):
 
 
 def _optimise(problem: _Problem, z: np.ndarray, max_iterations: int, tolerance: float):
-    """Levenberg-Marquardt on -F from z; returns (z, curvature blocks at z, iterations, converged)."""
+    """Levenberg-Marquardt on -F from z; returns (z, curvature blocks at z, iterations, converged);
+    the last -F is kept in ``problem.final_cost``."""
     q = problem.layout.q
     cost, Dg, Off, gradient = problem.curvature(z)
     damping = 1e-3
@@ -212,13 +214,16 @@ def _optimise(problem: _Problem, z: np.ndarray, max_iterations: int, tolerance: 
                 break
             damping = max(10.0 * damping, 1e-9)
         if trial is None or not trial[0] <= cost:  # no step lowers -F: z is the maximiser
+            problem.final_cost = cost
             return z, (Dg, Off), iteration, True
         decrease = cost - trial[0]
         z = candidate
         cost, Dg, Off, gradient = trial
         damping = damping / 10.0 if damping > 1e-12 else 0.0  # Gauss-Newton once the steps succeed
         if decrease <= tolerance * max(1.0, cost):
+            problem.final_cost = cost
             return z, (Dg, Off), iteration, True
+    problem.final_cost = cost
     return z, (Dg, Off), max_iterations, False
 
 
@@ -304,9 +309,32 @@ def _spread(problem: _Problem, z, curvature, draws: int, seed) -> np.ndarray:
             _accumulate(layout, layout.starts[part], None,
                         np.einsum("cia,rci->car", weighted_jacobian(index, part), eps), None, None, rhs)
         deviation = _solve(Dg, Off, np.moveaxis(rhs, 2, 0), 0.0)
+        if deviation is None:  # the curvature is singular to rounding: some direction is not informed
+            warnings.warn("NonlinearDEM (states='path'): the curvature at the estimate is singular (a state or "
+                          "input is not informed by the data); its std is reported as NaN", ModelWarning, stacklevel=4)
+            return np.full((problem.n_samples, layout.q), np.nan)
         total += np.sum(deviation**2, axis=0)
         done += count
     return np.sqrt(total / draws).reshape(-1, layout.q)[: problem.n_samples]
+
+
+#: -F at the estimate over its expected value, 1/2 (windows) (error rows), above which the data
+#: are called far from the generalised model (well-specified logs give 0.3-2.3; the random bank's
+#: failures 300-4e9, docs/nonlinear.md)
+MISFIT_LIMIT = 20.0
+
+
+def _warn_if_misfit(problem: _Problem) -> None:
+    """A ModelWarning when -F at the estimate is far above 1/2 (windows) (error rows), what
+    errors drawn from the model give: the data are not described by the generalised model."""
+    rows = problem.layout.precision.shape[0] - (problem.layout.n if problem.dem.integration == "spm" else 0)
+    ratio = problem.final_cost / (0.5 * len(problem.layout.starts) * rows)
+    if ratio > MISFIT_LIMIT:
+        warnings.warn(
+            f"NonlinearDEM (states='path'): the log is far from DEM's generalised model (free energy {ratio:.3g}x "
+            "its expected value): typically inputs or noise held constant over each sample (zero-order hold) "
+            "with little process noise, which smooth generalised coordinates do not describe; the estimates and "
+            "their std are not reliable here (docs/nonlinear.md, 'unseen systems')", ModelWarning, stacklevel=4)
 
 
 def estimate_path(dem, signals: np.ndarray, initial_state=None, *, max_iterations: int = 50,
@@ -334,6 +362,7 @@ def estimate_path(dem, signals: np.ndarray, initial_state=None, *, max_iteration
         if not converged:
             warnings.warn(f"NonlinearDEM (states='path'): not converged in {max_iterations} Gauss-Newton steps "
                           "(raise max_iterations, or check the model)", ModelWarning, stacklevel=3)
+        _warn_if_misfit(problem)
         std = (_spread(problem, z, curvature, uncertainty_draws, seed) if uncertainty_draws > 0
                else np.full((problem.n_samples, layout.q), np.nan))
         generalized = None

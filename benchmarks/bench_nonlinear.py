@@ -25,7 +25,8 @@ Part 6 (``--learn-seeds`` seeds): learn_path's parameter error bars against the 
 (Lorenz rho; the pendulum's damping simulated 10x finer than sampled; the mass-spring-damper's
 damping from the zero-order-hold simulator).
 Part 7 (``--bank-cases`` cases): path mode on unseen systems, bench_bank.py's random LTI bank
-(tiny cases with one kernel width, s/dt >= 1) written as f, g, against the exact posterior.
+(tiny cases with one kernel width, s/dt >= 1) written as f, g, with the exact posterior's prior on x[0],
+against the exact posterior.
 Not part of the test run. No BLAS environment variable is needed (attend._threads).
 """
 
@@ -339,9 +340,12 @@ def part7(cases: int) -> None:
         try:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
+                # the exact posterior's prior on x[0] (about 0; "known": std 0, given as 1e-6 (1 + 0))
                 estimate = NonlinearDEM(system, case.dt, s, 1 / case.sensor_std**2, 1 / case.process_std**2,
                                         **options).estimate(case.outputs,
-                                                            case.input_prior_mean if unknown else case.inputs)
+                                                            case.input_prior_mean if unknown else case.inputs,
+                                                            initial_state=np.zeros(A.shape[0]),
+                                                            initial_state_std=case.initial_std or 1e-6)
         except Exception as error:  # noqa: BLE001 - a refusal is a result of the bank
             print(f"  case {case.index:3d} {case.describe()}: {type(error).__name__}: {str(error)[:100]}")
             continue

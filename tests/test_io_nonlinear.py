@@ -180,6 +180,23 @@ def test_path_mode_from_a_nonlinear_model_file(tmp_path, capsys):
     assert out.exists()
 
 
+def test_path_mode_takes_the_files_initial_state_as_a_prior(tmp_path):
+    """[observer] initial_state (std 0: known) reaches path mode as a prior on x[0] with std
+    1e-6 (1 + |x0|); initial_state_std, when given, is used as it is."""
+    from attend.perception.nonlinear import NonlinearDEM
+
+    for std_line, std in (("", 1e-6 * (1 + np.abs([1.0, 1.0, 24.0]))), ("initial_state_std = 0.5\n", 0.5)):
+        extra = f'method = "dem"\nembedding_order = 6\nstates = "path"\ninitial_state = [1.0, 1.0, 24.0]\n{std_line}'
+        model_path, log_path, _ = _lorenz_files(tmp_path, LORENZ_TOML + extra, samples=80)
+        model, log = io.read_model(model_path), io.read_log(log_path)
+        estimator, estimate = io.estimate_from_files(model, log)
+        dem = estimator.dem()
+        direct = NonlinearDEM(dem.system, dem.dt, dem.kernel_width, dem.sensor_precision, dem.process_precision,
+                              embedding_order=6, states="path").estimate(
+            log.matrix(["y1", "y2", "y3"]), initial_state=[1.0, 1.0, 24.0], initial_state_std=std)
+        np.testing.assert_allclose(estimate.states, direct.states, rtol=1e-12, atol=1e-12)
+
+
 def test_path_mode_is_refused_for_linear_models(tmp_path, capsys):
     (tmp_path / "m.toml").write_text('[model]\nA = [[-1.0]]\nB = [[1.0]]\nC = [[1.0]]\n\n[outputs]\ncolumns = ["y"]\n\n'
                                      '[[inputs]]\nname = "u"\n\n[observer]\nmethod = "dem"\nstates = "path"\n'

@@ -147,3 +147,26 @@ def test_a_log_far_from_the_generalised_model_is_named():
     with warnings.catch_warnings():
         warnings.simplefilter("error", ModelWarning)
         NonlinearDEM(system, dt, s, 1 / 0.05**2, 1 / 0.3**2, known_inputs=True, states="path").estimate(noisy.outputs, u)
+
+
+def test_a_prior_on_the_first_state_pins_a_weakly_observed_start():
+    """initial_state with initial_state_std (path mode): the first sample's estimate moves to the
+    prior mean as its std shrinks; without a std it is free; the arguments are checked."""
+    log, exact, _, _ = _linear_case(0, 2)
+    linear = mass_spring_damper()
+    A, B, C = linear.A, linear.B, linear.C
+    system = NonlinearSystem(lambda x, v: A @ x + B @ v, lambda x, v: C @ x, 2, 1, C.shape[0])
+    path = NonlinearDEM(system, 0.1, 0.2, 1 / 0.05**2, 1 / 0.3**2, known_inputs=True, states="path")
+    u = np.zeros((200, 1))
+    free = path.estimate(log.outputs, u, initial_state=[0.5, 0.0])
+    pinned = path.estimate(log.outputs, u, initial_state=[0.5, 0.0], initial_state_std=1e-4)
+    np.testing.assert_allclose(pinned.states[0], [0.5, 0.0], atol=5e-4)
+    assert np.abs(free.states[0] - [0.5, 0.0]).max() > 10 * np.abs(pinned.states[0] - [0.5, 0.0]).max()
+    assert pinned.state_std[0].max() < 2e-4
+    with pytest.raises(AttendInputError, match="initial_state_std: given without initial_state"):
+        path.estimate(log.outputs, u, initial_state_std=0.1)
+    with pytest.raises(AttendInputError, match="initial_state_std: expected finite stds > 0"):
+        path.estimate(log.outputs, u, initial_state=[0.5, 0.0], initial_state_std=0.0)
+    sample = NonlinearDEM(system, 0.1, 0.2, 1 / 0.05**2, 1 / 0.3**2, known_inputs=True)
+    with pytest.raises(AttendInputError, match="used by states='path' only"):
+        sample.estimate(log.outputs, u, initial_state=[0.5, 0.0], initial_state_std=0.1)

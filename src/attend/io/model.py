@@ -223,7 +223,9 @@ class NonlinearFileEstimator:
         model = self.model
         initial = None if model.initial_state is None else np.array(model.initial_state)
         if self.method == "dem":
-            return self.dem().estimate(outputs, signals, initial_state=initial)
+            dem = self.dem()
+            return dem.estimate(outputs, signals, initial_state=initial,
+                                initial_state_std=_path_prior_std(model) if dem.states == "path" else None)
         from attend.perception.nonlinear_baselines import input_random_walk_variance, unscented_kalman
 
         n, r = self.system.n_states, self.system.n_inputs
@@ -271,3 +273,14 @@ class NonlinearFileEstimator:
             raise AttendInputError(f"the smoother starts from DEM's estimate of the first sample, which failed "
                                    f"({error}); give initial_state and initial_state_std") from None
         return first.states[0], first.state_std[0]
+
+
+def _path_prior_std(model) -> np.ndarray | None:
+    """[observer] initial_state_std for DEM's path mode: None without initial_state; a std of 0
+    (x[0] known: the file's default when initial_state is given) becomes 1e-6 (1 + |x[0]|)."""
+    if model.initial_state is None:
+        return None
+    mean = np.asarray(model.initial_state, dtype=float)
+    std = np.broadcast_to(np.asarray(0.0 if model.initial_state_std is None else model.initial_state_std,
+                                     dtype=float), mean.shape)
+    return np.where(std > 0, std, 1e-6 * (1.0 + np.abs(mean)))

@@ -535,12 +535,15 @@ class NonlinearDEM:
         input_std = std[:, n:] if self._estimates_inputs else np.zeros((len(rows), r))
         return [(row[0], row[1], std[i, :n], input_std[i], row[3]) for i, row in enumerate(rows)]
 
-    def estimate(self, outputs, inputs=None, *, keep_generalized: bool = False, initial_state=None) -> DEMEstimate:
+    def estimate(self, outputs, inputs=None, *, keep_generalized: bool = False, initial_state=None,
+                 initial_state_std=None) -> DEMEstimate:
         """Batch estimation over a whole log (same fields as the linear observer's DEMEstimate).
 
         outputs: (N, m); inputs: (N, r) measured inputs (known_inputs=True) or the input prior
         mean eta (unknown inputs; default 0); initial_state: a guess of the order-0 states (n,)
-        (or a full generalised state) where the Gauss-Newton start is sought (default zeros).
+        (or a full generalised state) where the Gauss-Newton start is sought (default zeros);
+        initial_state_std: with states="path", the std (scalar or (n,), > 0) of a Gaussian prior on
+        the first sample's states about initial_state (default: none).
         Row k is the estimate at sample k after the flow over that sample (it uses samples up to
         k + delay). Batch and :meth:`online` agree sample by sample. With states="path" row k is
         the trajectory at sample k given the whole log, and its std is the estimator's spread
@@ -549,7 +552,11 @@ class NonlinearDEM:
         """
         signals = self._signals(outputs, inputs)
         if self.states == "path":
-            return estimate_path(self, signals, initial_state, keep_generalized=keep_generalized)
+            return estimate_path(self, signals, initial_state, initial_state_std=initial_state_std,
+                                 keep_generalized=keep_generalized)
+        if initial_state_std is not None:
+            raise AttendInputError("initial_state_std: a prior on x[0] is used by states='path' only (the D-step "
+                                   "takes initial_state as the guess where its start is sought)")
         return self._sample_estimate(signals, keep_generalized, initial_state)
 
     def _sample_estimate(self, signals, keep_generalized: bool, initial_state) -> DEMEstimate:

@@ -143,10 +143,12 @@ def _accumulate(layout: _Layout, starts, blocks, vectors, Dg, Off, rhs) -> None:
 
 class _Problem:
     """F(z), its gradient and Gauss-Newton curvature over the whole log (module docstring).
-    dem: the NonlinearDEM; y: (N, m) outputs; u: (N, r) known inputs or the prior mean eta."""
+    dem: the NonlinearDEM; y: (N, m) outputs; u: (N, r) known inputs or the prior mean eta;
+    initial_prior: (mean, precision) of the first sample's states, each (n,), or None."""
 
-    def __init__(self, dem, y: np.ndarray, u: np.ndarray):
+    def __init__(self, dem, y: np.ndarray, u: np.ndarray, initial_prior=None):
         self.dem = dem
+        self.initial_prior = initial_prior  # (mean (n,), precision (n,)) of x_0, or None
         self.n_samples = len(y)
         self.final_cost = np.nan  # -F at the estimate (set by _optimise)
         self.layout = layout = _Layout(dem, len(y))
@@ -173,6 +175,12 @@ class _Problem:
             total += 0.5 * np.einsum("ci,ij,cj->", e, layout.precision, e)
             _accumulate(layout, starts, np.swapaxes(J, 1, 2) @ weighted,
                         np.einsum("cia,ci->ca", weighted, e)[:, :, None], Dg, Off, rhs)
+        if self.initial_prior is not None:  # 1/2 (x_0 - m)' P_0 (x_0 - m)
+            mean, precision = self.initial_prior
+            deviation = z[0, : layout.n] - mean
+            total += 0.5 * float(np.sum(precision * deviation**2))
+            rhs[0, : layout.n, 0] += precision * deviation
+            Dg[0, np.arange(layout.n), np.arange(layout.n)] += precision
         uncovered = np.flatnonzero(np.einsum("kii->ki", Dg).ravel() == 0)  # e.g. inputs outside every window
         Dg.reshape(K, b * b)[uncovered // b, (uncovered % b) * (b + 1)] = 1.0
         return total, Dg, Off, rhs[..., 0]
@@ -308,6 +316,9 @@ def _spread(problem: _Problem, z, curvature, draws: int, seed) -> np.ndarray:
             eps = _embedded_noises(dem, layout, noises, layout.starts[part])
             _accumulate(layout, layout.starts[part], None,
                         np.einsum("cia,rci->car", weighted_jacobian(index, part), eps), None, None, rhs)
+        if problem.initial_prior is not None:  # x_0 - m drawn from the prior: P_0 (x_0 - m) ~ N(0, P_0)
+            precision = problem.initial_prior[1]
+            rhs[0, : layout.n] += np.sqrt(precision)[:, None] * rng.standard_normal((layout.n, count))
         deviation = _solve(Dg, Off, np.moveaxis(rhs, 2, 0), 0.0)
         if deviation is None:  # the curvature is singular to rounding: some direction is not informed
             warnings.warn("NonlinearDEM (states='path'): the curvature at the estimate is singular (a state or "
@@ -316,6 +327,25 @@ def _spread(problem: _Problem, z, curvature, draws: int, seed) -> np.ndarray:
         total += np.sum(deviation**2, axis=0)
         done += count
     return np.sqrt(total / draws).reshape(-1, layout.q)[: problem.n_samples]
+
+
+def _initial_prior(n: int, initial_state, initial_state_std):
+    """(mean, precision) of the prior on x_0 from initial_state (n,) and its std (scalar or (n,),
+    > 0), or None without a std; an AttendInputError naming the argument otherwise."""
+    if initial_state_std is None:
+        return None
+    if initial_state is None:
+        raise AttendInputError("initial_state_std: given without initial_state (the prior mean of x[0])")
+    mean = np.asarray(initial_state, dtype=float).ravel()
+    std = np.broadcast_to(np.asarray(initial_state_std, dtype=float), (n,)) if np.ndim(initial_state_std) == 0 \
+        else np.asarray(initial_state_std, dtype=float).ravel()
+    if mean.shape != (n,) or std.shape != (n,):
+        raise AttendInputError(f"initial_state, initial_state_std: expected {n} values each (one per state), got "
+                               f"{mean.shape[0]} and {std.shape[0]}")
+    if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(std)) and np.all(std > 0)):
+        raise AttendInputError(f"initial_state_std: expected finite stds > 0 [state units] (a known x[0]: a small "
+                               f"std), got {std.tolist()}")
+    return mean, 1.0 / std**2
 
 
 #: -F at the estimate over its expected value, 1/2 (windows) (error rows), above which the data
@@ -337,22 +367,25 @@ def _warn_if_misfit(problem: _Problem) -> None:
             "their std are not reliable here (docs/nonlinear.md, 'unseen systems')", ModelWarning, stacklevel=4)
 
 
-def estimate_path(dem, signals: np.ndarray, initial_state=None, *, max_iterations: int = 50,
+def estimate_path(dem, signals: np.ndarray, initial_state=None, *, initial_state_std=None, max_iterations: int = 50,
                   tolerance: float = 1e-10, uncertainty_draws: int = 200, seed: int = 0,
                   keep_generalized: bool = False) -> DEMEstimate:
     """Path-mode estimates (module docstring) from the D-step's estimate of the same log.
 
     dem: a :class:`NonlinearDEM`; signals: (N, m + r) outputs then inputs (known inputs, or the
     prior mean eta), as validated by NonlinearDEM.estimate; initial_state: the D-step's start
-    guess; max_iterations: Levenberg-Marquardt steps; tolerance: stop when -F falls by less than
+    guess (n order-0 states) and, with initial_state_std (scalar or (n,), > 0, state units), the
+    mean of a Gaussian prior on the first sample's states (default: none, x_0 free);
+    max_iterations: Levenberg-Marquardt steps; tolerance: stop when -F falls by less than
     this fraction; uncertainty_draws: noise draws of the std (0: std not computed, NaN);
     seed: of those draws; keep_generalized: also return X_c at every sample (NaN where no
     window is centred). Row k is the trajectory at sample k, which uses the whole log.
     """
     m, r = dem.system.n_outputs, dem.system.n_inputs
+    prior = _initial_prior(dem.system.n_states, initial_state, initial_state_std)
     start = dem._sample_estimate(signals, False, initial_state)
     with single_blas_thread():
-        problem = _Problem(dem, signals[:, :m], signals[:, m:])
+        problem = _Problem(dem, signals[:, :m], signals[:, m:], prior)
         layout = problem.layout
         z = np.zeros((problem.padded, layout.q))
         z[: problem.n_samples, : layout.n] = start.states

@@ -319,9 +319,11 @@ def _describe_estimator(estimator) -> str:
             chosen = " (automatic)" if estimator.automatic_order else ""
             input_width = (f", input prior width {estimator.input_kernel_width:g} s" if estimator.system.n_inputs
                            and not estimator.known.all() else "")
+            mode = ("path mode (one trajectory for the whole log)" if model.dem_states == "path"
+                    else f"D-step, delay {estimator.dem().delay} samples")
             return (f"method dem (nonlinear DEM, model {model.python_path}): embedding order p = "
                     f"{estimator.embedding_order}{chosen}, input order d = {model.input_order}, kernel width "
-                    f"{model.kernel_width:g} s{input_width}, delay {estimator.dem().delay} samples; "
+                    f"{model.kernel_width:g} s{input_width}, {mode}; "
                     f"[observer] method = \"ukf\" (the default) runs the unscented Kalman smoother")
         unknown = estimator.system.n_inputs and not estimator.known.all()
         inputs = (f"; unknown inputs as random walks matching their prior (width {estimator.input_kernel_width:g} s)"

@@ -95,6 +95,9 @@ def test_path_mode_maximises_its_free_energy_and_beats_the_d_step_on_the_pendulu
     sse = lambda e, field: np.sum((getattr(e, field) - getattr(log, field))[trim] ** 2)  # noqa: E731
     assert sse(end, "states") < 0.5 * sse(start, "states")
     assert sse(end, "inputs") < 0.5 * sse(start, "inputs")
+    # the first input sample lies in no input window (d < p): the prior alone informs it
+    np.testing.assert_allclose(end.inputs[0], 0.0, atol=1e-9)
+    np.testing.assert_allclose(end.input_std[0], 1 / np.sqrt(prior), rtol=0.1)
 
 
 def test_block_tridiagonal_solve_equals_a_dense_solve():

@@ -155,6 +155,22 @@ class _Problem:
         self.padded = layout.n_blocks * layout.W
         self.y_tilde = layout.windows(y, layout.y_positions, layout.Ey, layout.starts)
         self.u_tilde = layout.windows(u, layout.u_positions, layout.Eu, layout.starts)
+        self.free_inputs = self._inputs_outside_every_window(u)
+
+    def _inputs_outside_every_window(self, u):
+        """(samples t, channels j, prior means eta, prior precisions P) of the unknown inputs that no
+        input window reaches (the first and last few samples when d < p): the input prior alone
+        informs them (-F gains 1/2 P (v - eta)^2 for each)."""
+        layout = self.layout
+        if not layout.estimates_inputs:
+            return None
+        covered = np.zeros(self.n_samples, dtype=bool)
+        for position in layout.u_positions:
+            covered[layout.starts + position] = True
+        samples = np.flatnonzero(~covered)
+        precision = np.diag(self.dem.input_prior_precision)
+        t, j = np.repeat(samples, layout.r), np.tile(np.arange(layout.r), len(samples))
+        return t, j, u[t, j], precision[j]
 
     def chunks(self):
         for first in range(0, len(self.layout.starts), CHUNK):
@@ -175,6 +191,13 @@ class _Problem:
             total += 0.5 * np.einsum("ci,ij,cj->", e, layout.precision, e)
             _accumulate(layout, starts, np.swapaxes(J, 1, 2) @ weighted,
                         np.einsum("cia,ci->ca", weighted, e)[:, :, None], Dg, Off, rhs)
+        if self.free_inputs is not None and len(self.free_inputs[0]):
+            t, j, eta, precision = self.free_inputs
+            deviation = z[t, layout.n + j] - eta
+            total += 0.5 * float(np.sum(precision * deviation**2))
+            flat = t * layout.q + layout.n + j  # places in the (K, b) block vector
+            rhs.reshape(-1)[flat] += precision * deviation
+            Dg[flat // b, flat % b, flat % b] += precision
         if self.initial_prior is not None:  # 1/2 (x_0 - m)' P_0 (x_0 - m)
             mean, precision = self.initial_prior
             deviation = z[0, : layout.n] - mean
@@ -316,6 +339,10 @@ def _spread(problem: _Problem, z, curvature, draws: int, seed) -> np.ndarray:
             eps = _embedded_noises(dem, layout, noises, layout.starts[part])
             _accumulate(layout, layout.starts[part], None,
                         np.einsum("cia,rci->car", weighted_jacobian(index, part), eps), None, None, rhs)
+        if problem.free_inputs is not None and len(problem.free_inputs[0]):  # their prior's draws
+            t, j, _, precision = problem.free_inputs
+            flat = t * layout.q + layout.n + j
+            rhs.reshape(-1, count)[flat] += np.sqrt(precision)[:, None] * rng.standard_normal((len(flat), count))
         if problem.initial_prior is not None:  # x_0 - m drawn from the prior: P_0 (x_0 - m) ~ N(0, P_0)
             precision = problem.initial_prior[1]
             rhs[0, : layout.n] += np.sqrt(precision)[:, None] * rng.standard_normal((layout.n, count))

@@ -172,6 +172,41 @@ class _Problem:
         t, j = np.repeat(samples, layout.r), np.tile(np.arange(layout.r), len(samples))
         return t, j, u[t, j], precision[j]
 
+    def add_priors(self, z, Dg, rhs) -> float:
+        """Add the priors outside the windows to the curvature blocks Dg (K, b, b) and the gradient
+        rhs (K, b) (in place): unknown inputs no window reaches (1/2 P (v - eta)^2) and the optional
+        prior on x_0 (1/2 (x_0 - m)' P_0 (x_0 - m)); returns their share of -F. z: (N_padded, q)."""
+        layout = self.layout
+        b = layout.W * layout.q
+        total = 0.0
+        if self.free_inputs is not None and len(self.free_inputs[0]):
+            t, j, eta, precision = self.free_inputs
+            deviation = z[t, layout.n + j] - eta
+            total += 0.5 * float(np.sum(precision * deviation**2))
+            flat = t * layout.q + layout.n + j  # places in the (K, b) block vector
+            np.add.at(rhs, (flat // b, flat % b), precision * deviation)
+            Dg[flat // b, flat % b, flat % b] += precision
+        if self.initial_prior is not None:
+            mean, precision = self.initial_prior
+            deviation = z[0, : layout.n] - mean
+            total += 0.5 * float(np.sum(precision * deviation**2))
+            rhs[0, : layout.n] += precision * deviation
+            Dg[0, np.arange(layout.n), np.arange(layout.n)] += precision
+        return total
+
+    def prior_draws(self, count: int, rng) -> list:
+        """(flat places in the (K, b) vector, draws (places, count)) of the priors' gradients
+        P (v - eta) ~ N(0, P) and P_0 (x_0 - m) ~ N(0, P_0), for the std's sandwich."""
+        layout = self.layout
+        out = []
+        if self.free_inputs is not None and len(self.free_inputs[0]):
+            t, j, _, precision = self.free_inputs
+            out.append((t * layout.q + layout.n + j, np.sqrt(precision)[:, None] * rng.standard_normal((len(t), count))))
+        if self.initial_prior is not None:
+            precision = self.initial_prior[1]
+            out.append((np.arange(layout.n), np.sqrt(precision)[:, None] * rng.standard_normal((layout.n, count))))
+        return out
+
     def chunks(self):
         for first in range(0, len(self.layout.starts), CHUNK):
             yield slice(first, first + CHUNK)
@@ -191,19 +226,7 @@ class _Problem:
             total += 0.5 * np.einsum("ci,ij,cj->", e, layout.precision, e)
             _accumulate(layout, starts, np.swapaxes(J, 1, 2) @ weighted,
                         np.einsum("cia,ci->ca", weighted, e)[:, :, None], Dg, Off, rhs)
-        if self.free_inputs is not None and len(self.free_inputs[0]):
-            t, j, eta, precision = self.free_inputs
-            deviation = z[t, layout.n + j] - eta
-            total += 0.5 * float(np.sum(precision * deviation**2))
-            flat = t * layout.q + layout.n + j  # places in the (K, b) block vector
-            rhs.reshape(-1)[flat] += precision * deviation
-            Dg[flat // b, flat % b, flat % b] += precision
-        if self.initial_prior is not None:  # 1/2 (x_0 - m)' P_0 (x_0 - m)
-            mean, precision = self.initial_prior
-            deviation = z[0, : layout.n] - mean
-            total += 0.5 * float(np.sum(precision * deviation**2))
-            rhs[0, : layout.n, 0] += precision * deviation
-            Dg[0, np.arange(layout.n), np.arange(layout.n)] += precision
+        total += self.add_priors(z, Dg, rhs[..., 0])
         uncovered = np.flatnonzero(np.einsum("kii->ki", Dg).ravel() == 0)  # e.g. inputs outside every window
         Dg.reshape(K, b * b)[uncovered // b, (uncovered % b) * (b + 1)] = 1.0
         return total, Dg, Off, rhs[..., 0]
@@ -339,13 +362,8 @@ def _spread(problem: _Problem, z, curvature, draws: int, seed) -> np.ndarray:
             eps = _embedded_noises(dem, layout, noises, layout.starts[part])
             _accumulate(layout, layout.starts[part], None,
                         np.einsum("cia,rci->car", weighted_jacobian(index, part), eps), None, None, rhs)
-        if problem.free_inputs is not None and len(problem.free_inputs[0]):  # their prior's draws
-            t, j, _, precision = problem.free_inputs
-            flat = t * layout.q + layout.n + j
-            rhs.reshape(-1, count)[flat] += np.sqrt(precision)[:, None] * rng.standard_normal((len(flat), count))
-        if problem.initial_prior is not None:  # x_0 - m drawn from the prior: P_0 (x_0 - m) ~ N(0, P_0)
-            precision = problem.initial_prior[1]
-            rhs[0, : layout.n] += np.sqrt(precision)[:, None] * rng.standard_normal((layout.n, count))
+        for places, values in problem.prior_draws(count, rng):
+            rhs.reshape(-1, count)[places] += values
         deviation = _solve(Dg, Off, np.moveaxis(rhs, 2, 0), 0.0)
         if deviation is None:  # the curvature is singular to rounding: some direction is not informed
             warnings.warn("NonlinearDEM (states='path'): the curvature at the estimate is singular (a state or "

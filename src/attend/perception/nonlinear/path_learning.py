@@ -123,6 +123,7 @@ def _joint(setup: _Setup, z: np.ndarray, theta: np.ndarray) -> _Joint:
         _accumulate(layout, starts, w * (np.swapaxes(J, 1, 2) @ weighted), w * vectors, Dg, Off, rhs)
         H_theta += w * np.einsum("cia,cib->ab", J_theta, weighted_theta)
         gradient_theta += w * np.einsum("cia,ci->a", weighted_theta, e)
+    total += problem.add_priors(z, Dg, rhs[:, :, 0])
     uncovered = np.flatnonzero(np.einsum("kii->ki", Dg).ravel() == 0)
     Dg.reshape(K, b * b)[uncovered // b, (uncovered % b) * (b + 1)] = 1.0
     act = setup.active
@@ -205,6 +206,8 @@ def _spread(setup: _Setup, joint: _Joint, z, draws: int, seed):
                                                                        eps[:, part]), None, None, rhs_z)
             J_theta = _theta_jacobian(setup, joint, z, part)
             rhs_theta += setup.weight * np.einsum("cia,rci->ra", layout.precision @ J_theta, eps[:, part])
+        for places, values in problem.prior_draws(count, rng):
+            rhs_z.reshape(-1, count)[places] += values
         prior_draw = rng.standard_normal((count, k)) * np.sqrt(np.where(setup.P[act] > 0, setup.P[act], 0.0))
         step = _joint_solve(joint, -np.moveaxis(rhs_z, 2, 0), -(rhs_theta + prior_draw), 0.0)
         if step is None:

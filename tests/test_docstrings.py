@@ -29,6 +29,7 @@ MODULES = [
     "attend.perception.nonlinear",
     "attend.perception.nonlinear.learning",
     "attend.perception.nonlinear.path",
+    "attend.perception.nonlinear.misfit",
     "attend.perception.nonlinear.path_learning",
     "attend.perception.block_tridiagonal",
     "attend.perception.nonlinear._workspace",

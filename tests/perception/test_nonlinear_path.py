@@ -146,10 +146,15 @@ def test_a_log_far_from_the_generalised_model_is_named():
     dem = NonlinearDEM(system, dt, s, 1 / 2.6e-4**2, 1 / 1e-5**2, known_inputs=True, states="path")
     with pytest.warns(ModelWarning, match="far from DEM's generalised model"):
         dem.estimate(held.outputs, u)
+    dstep = NonlinearDEM(system, dt, s, 1 / 2.6e-4**2, 1 / 1e-5**2, known_inputs=True)
+    with pytest.warns(ModelWarning, match="NonlinearDEM: the log is far from DEM's generalised model"):
+        dstep.estimate(held.outputs, u)  # the D-step checks its own estimates the same way
     noisy = simulate(linear, u, dt, kernel_width=s, process_std=0.3, measurement_std=0.05, seed=1)
     with warnings.catch_warnings():
         warnings.simplefilter("error", ModelWarning)
-        NonlinearDEM(system, dt, s, 1 / 0.05**2, 1 / 0.3**2, known_inputs=True, states="path").estimate(noisy.outputs, u)
+        for states in ("path", "sample"):
+            NonlinearDEM(system, dt, s, 1 / 0.05**2, 1 / 0.3**2, known_inputs=True, states=states).estimate(
+                noisy.outputs, u)
 
 
 def test_a_prior_on_the_first_state_pins_a_weakly_observed_start():

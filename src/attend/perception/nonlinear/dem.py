@@ -16,6 +16,7 @@ from attend.perception.nonlinear._linalg import (block_diagonal_positions, diago
                                                   inverse_diagonals, scaled_solve)
 from attend.perception.nonlinear._workspace import StepWorkspace
 from attend.perception.nonlinear.model import NonlinearSystem
+from attend.perception.nonlinear.misfit import sample_misfit, warn_if_misfit
 from attend.perception.nonlinear.online import OnlineNonlinearDEM
 from attend.perception.nonlinear.path import estimate_path
 
@@ -559,8 +560,9 @@ class NonlinearDEM:
                                    "takes initial_state as the guess where its start is sought)")
         return self._sample_estimate(signals, keep_generalized, initial_state)
 
-    def _sample_estimate(self, signals, keep_generalized: bool, initial_state) -> DEMEstimate:
-        """The D-step over validated ``signals`` (N, m + r) (see :meth:`estimate`)."""
+    def _sample_estimate(self, signals, keep_generalized: bool, initial_state, check: bool = True) -> DEMEstimate:
+        """The D-step over validated ``signals`` (N, m + r) (see :meth:`estimate`); check: warn when
+        the log is far from the model (:mod:`attend.perception.nonlinear.misfit`)."""
         online = OnlineNonlinearDEM(self, initial_state=initial_state)
         rows, pending = [], []
         with single_blas_thread():  # small matrices: one BLAS thread is 10-20x faster (attend._threads)
@@ -573,6 +575,8 @@ class NonlinearDEM:
                     pending = []
             pending.extend(online._flush())
             rows.extend(self._with_std(pending))
+            if check:
+                warn_if_misfit(sample_misfit(self, signals, [row[4] for row in rows]), "NonlinearDEM", 3)
         return self._collect(rows, keep_generalized)
 
     def _collect(self, rows, keep_generalized):

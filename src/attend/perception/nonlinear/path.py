@@ -45,6 +45,7 @@ from attend._validation import AttendInputError
 from attend.noise import coloured_noise
 from attend.perception import block_tridiagonal
 from attend.perception.dem import DEMEstimate
+from attend.perception.nonlinear.misfit import warn_if_misfit
 from attend.systems import ModelWarning
 
 CHUNK = 1024  # centres whose Jacobians are held in memory at once
@@ -393,23 +394,11 @@ def _initial_prior(n: int, initial_state, initial_state_std):
     return mean, 1.0 / std**2
 
 
-#: -F at the estimate over its expected value, 1/2 (windows) (error rows), above which the data
-#: are called far from the generalised model (well-specified logs give 0.3-2.3; the random bank's
-#: failures 300-4e9, docs/nonlinear.md)
-MISFIT_LIMIT = 20.0
-
-
 def _warn_if_misfit(problem: _Problem) -> None:
-    """A ModelWarning when -F at the estimate is far above 1/2 (windows) (error rows), what
-    errors drawn from the model give: the data are not described by the generalised model."""
+    """:func:`attend.perception.nonlinear.misfit.warn_if_misfit` with -F at the estimate over
+    1/2 (windows) (error rows), what errors drawn from the model give."""
     rows = problem.layout.precision.shape[0] - (problem.layout.n if problem.dem.integration == "spm" else 0)
-    ratio = problem.final_cost / (0.5 * len(problem.layout.starts) * rows)
-    if ratio > MISFIT_LIMIT:
-        warnings.warn(
-            f"NonlinearDEM (states='path'): the log is far from DEM's generalised model (free energy {ratio:.3g}x "
-            "its expected value): typically inputs or noise held constant over each sample (zero-order hold) "
-            "with little process noise, which smooth generalised coordinates do not describe; the estimates and "
-            "their std are not reliable here (docs/nonlinear.md, 'unseen systems')", ModelWarning, stacklevel=4)
+    warn_if_misfit(problem.final_cost / (0.5 * len(problem.layout.starts) * rows), "NonlinearDEM (states='path')", 4)
 
 
 def estimate_path(dem, signals: np.ndarray, initial_state=None, *, initial_state_std=None, max_iterations: int = 50,
@@ -428,7 +417,7 @@ def estimate_path(dem, signals: np.ndarray, initial_state=None, *, initial_state
     """
     m, r = dem.system.n_outputs, dem.system.n_inputs
     prior = _initial_prior(dem.system.n_states, initial_state, initial_state_std)
-    start = dem._sample_estimate(signals, False, initial_state)
+    start = dem._sample_estimate(signals, False, initial_state, check=False)
     with single_blas_thread():
         problem = _Problem(dem, signals[:, :m], signals[:, m:], prior)
         layout = problem.layout

@@ -285,7 +285,7 @@ def learn_path(model, outputs, inputs, dt: float, *, kernel_width: float, sensor
     m = model.n_outputs
     setup = _Setup(model, build, signals[:, :m], signals[:, m:], eta, P, active, 1.0 / (embedding_order + 1))
     with single_blas_thread():
-        start = dem._sample_estimate(signals, False, None)
+        start = dem._sample_estimate(signals, False, None, check=False)
         layout = _Problem(dem, setup.y, setup.u).layout
         z = np.zeros((layout.n_blocks * layout.W, layout.q))
         z[: len(signals), : layout.n] = start.states

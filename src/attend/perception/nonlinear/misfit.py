@@ -20,7 +20,7 @@ from attend.systems import ModelWarning
 #: misfit ratio above which the log is called far from the generalised model
 MISFIT_LIMIT = 20.0
 #: windows the D-step's check evaluates at most (evenly spaced over the log)
-CHECKED_WINDOWS = 200
+CHECKED_WINDOWS = 50
 
 
 def warn_if_misfit(ratio: float, who: str, stacklevel: int) -> None:

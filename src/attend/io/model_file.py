@@ -96,7 +96,7 @@ def read_model(path: str | Path) -> ModelFile:
         dt = positive_scalar(dt, f"{path}: [model] dt", "seconds")
     time_column = _text(data.get("log", {}).get("time_column", "t"), f"{path}: [log] time_column")
     learning = dict(data.get("learning", {}))
-    _check_learning(learning, f"{path}: [learning]")
+    _check_learning(learning, f"{path}: [learning]", nonlinear)
     return ModelFile(
         system=system,
         dt=dt,
@@ -350,10 +350,12 @@ def _check_dem_conventions(observer: dict, method: str, nonlinear: bool, where: 
                                    "(for a linear model, method = \"kalman\" is already the exact smoother)")
 
 
-def _check_learning(learning: dict, where: str) -> None:
-    """The [learning] keys: types, ranges and lengths (the lambda pair has 2 entries)."""
+def _check_learning(learning: dict, where: str, nonlinear: bool = False) -> None:
+    """The [learning] keys: types, ranges and lengths (the lambda pair has 2 entries); nonlinear:
+    the model is f, g (free then names parameters, not matrix entries)."""
     if "free" in learning:
-        _text_list(learning["free"], f"{where} free", what='entries like "A[2,1]"')
+        _text_list(learning["free"], f"{where} free",
+                   what='parameter names like "damping"' if nonlinear else 'entries like "A[2,1]"')
     for key in ("free_prior_precision", "known_prior_precision"):
         _file_number(learning, key, f"{where} {key}", 1.0, minimum=0.0, allow_inf=key == "known_prior_precision")
     for key, positive in (("noise_prior_mean", False), ("noise_prior_precision", True)):

@@ -99,12 +99,58 @@ def _block_diagonal(blocks) -> np.ndarray:
     return out
 
 
+def _linearized_errors(dem, X_all, y_tilde, u_tilde, jacobians: bool):
+    """:meth:`NonlinearDEM.errors` of many windows at once for motion="linearized" (the same
+    numbers): only f, g and their Jacobians are called per window. Returns (e (C, n_e), E or None)."""
+    mats, system = dem._matrices, dem.system
+    n, r, p, d, top = mats["sizes"]
+    C = len(X_all)
+    x = X_all[:, : n * (p + 1)].reshape(C, p + 1, n)
+    estimates_inputs = mats["estimates_inputs"]
+    v = (X_all[:, n * (p + 1):] if estimates_inputs else u_tilde).reshape(C, d + 1, r)
+    calls = [(system.jacobians(xc, vc), system.observe(xc, vc), system.flow(xc, vc)) for xc, vc in zip(x[:, 0], v[:, 0])]
+    fx, fv, gx, gv = (np.array([call[0][i] for call in calls]) for i in range(4))
+    g_t = np.einsum("ckn,cmn->ckm", x, gx)
+    f_t = np.einsum("ckn,cmn->ckm", x, fx)
+    if r:
+        v_pad = np.zeros((C, p + 1, r))
+        v_pad[:, :top] = v[:, :top]
+        g_t += np.einsum("ckr,cmr->ckm", v_pad, gv)
+        f_t += np.einsum("ckr,cmr->ckm", v_pad, fv)
+    g_t[:, 0] = [call[1] for call in calls]
+    f_t[:, 0] = [call[2] for call in calls]
+    motion_error = np.empty((C, p + 1, n))
+    motion_error[:, :-1] = x[:, 1:] - f_t[:, :-1]
+    motion_error[:, -1] = 0.0 if dem.integration == "spm" else -f_t[:, -1]
+    parts = [y_tilde - g_t.reshape(C, -1), motion_error.reshape(C, -1)]
+    if estimates_inputs:
+        parts.append(X_all[:, n * (p + 1):] - u_tilde)
+    e = np.concatenate(parts, axis=1)
+    if not jacobians:
+        return e, None
+    E = np.repeat(mats["E_template"][None], C, axis=0)
+    flat = E.reshape(C, -1)
+    places = mats["E_places"]
+    flat[:, places["gx"]] = -gx[:, None]
+    flat[:, places["fx"]] = -fx[:, None]
+    if estimates_inputs:
+        flat[:, places["gv"]] = -gv[:, None]
+        flat[:, places["fv"]] = -fv[:, None]
+    return e, E
+
+
 def _errors(dem, layout: _Layout, z: np.ndarray, y_tilde, u_tilde, starts, jacobians: bool):
     """Errors e_c (C, n_e) of the windows starting at ``starts`` and, with ``jacobians``, their
     J_c = de_c/dz_window (C, n_e, W q). z: (N_padded, q) the trajectory; y_tilde, u_tilde: the
     embedded data of those windows."""
     W, q = layout.W, layout.q
     X_all = z[starts[:, None] + np.arange(W)[None, :]].reshape(len(starts), W * q) @ layout.window_map.T
+    if dem.motion == "linearized":
+        e, E = _linearized_errors(dem, X_all, y_tilde, u_tilde, jacobians)
+        if not np.isfinite(e).all():
+            raise AttendInputError("NonlinearDEM (states='path'): a prediction error became non-finite; check f/g "
+                                   "or start nearer the data (initial_state)")
+        return e, (E @ layout.window_map if jacobians else None)
     errors, jacobian_rows = [], []
     for X, yt, ut in zip(X_all, y_tilde, u_tilde):
         e, E, _ = dem.errors(X, yt, ut)

@@ -178,3 +178,28 @@ def test_a_prior_on_the_first_state_pins_a_weakly_observed_start():
     sample = NonlinearDEM(system, 0.1, 0.2, 1 / 0.05**2, 1 / 0.3**2, known_inputs=True)
     with pytest.raises(AttendInputError, match="used by states='path' only"):
         sample.estimate(log.outputs, u, initial_state=[0.5, 0.0], initial_state_std=0.1)
+
+
+@pytest.mark.parametrize("known, integration", [(False, "attend"), (True, "attend"), (False, "spm")])
+def test_all_windows_at_once_equal_one_window_at_a_time(known, integration):
+    """Path mode forms the linearised errors of every window in one go: they equal
+    NonlinearDEM.errors window by window (values and Jacobians) at an arbitrary trajectory."""
+    from attend.perception.nonlinear.path import _linearized_errors
+
+    cfg = pendulum.SETTINGS
+    system = pendulum.build_system(cfg)
+    time = np.arange(60) * cfg["dt"]
+    log = simulate_nonlinear(system, pendulum.true_input(time), cfg["dt"], kernel_width=cfg["kernel_width"],
+                             process_std=cfg["process_std"], measurement_std=cfg["measurement_std"],
+                             initial_state=cfg["initial_state"], seed=0)
+    dem = NonlinearDEM(system, cfg["dt"], cfg["kernel_width"], 400.0, [400.0, 4.0], None if known else np.exp(-2.0),
+                       6, 2, known_inputs=known, integration=integration)
+    problem = _Problem(dem, log.outputs, log.inputs if known else np.zeros((60, 1)))
+    layout = problem.layout
+    z = np.random.default_rng(0).normal(size=(problem.padded, layout.q))
+    windows = z[layout.starts[:, None] + np.arange(layout.W)[None, :]].reshape(len(layout.starts), -1)
+    X_all = windows @ layout.window_map.T
+    e, E = _linearized_errors(dem, X_all, problem.y_tilde, problem.u_tilde, True)
+    one_by_one = [dem.errors(X, yt, ut) for X, yt, ut in zip(X_all, problem.y_tilde, problem.u_tilde)]
+    np.testing.assert_allclose(e, [pair[0] for pair in one_by_one], rtol=1e-13, atol=1e-13)
+    np.testing.assert_array_equal(E, [pair[1] for pair in one_by_one])

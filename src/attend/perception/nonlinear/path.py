@@ -274,9 +274,16 @@ class _Problem:
             _accumulate(layout, starts, np.swapaxes(J, 1, 2) @ weighted,
                         np.einsum("cia,ci->ca", weighted, e)[:, :, None], Dg, Off, rhs)
         total += self.add_priors(z, Dg, rhs[..., 0])
-        uncovered = np.flatnonzero(np.einsum("kii->ki", Dg).ravel() == 0)  # e.g. inputs outside every window
-        Dg.reshape(K, b * b)[uncovered // b, (uncovered % b) * (b + 1)] = 1.0
+        _fill_unused(Dg)
         return total, Dg, Off, rhs[..., 0]
+
+
+def _fill_unused(Dg) -> None:
+    """Put 1 on the diagonal of Dg (K, b, b) where nothing enters (the padding after the log's end),
+    so that the block Cholesky exists; those coordinates keep their value (zero gradient)."""
+    K, b, _ = Dg.shape
+    unused = np.flatnonzero(np.einsum("kii->ki", Dg).ravel() == 0)
+    Dg.reshape(K, b * b)[unused // b, (unused % b) * (b + 1)] = 1.0
 
 
 def _solve(Dg, Off, rhs, damping: float):
@@ -360,11 +367,6 @@ def _embedded_noises(dem, layout: _Layout, noises: list, starts) -> np.ndarray:
     if dem.integration == "spm":
         parts[1][:, :, -layout.n:] = 0.0
     return np.concatenate(parts, axis=2)
-
-
-def _noise_draws(dem, layout: _Layout, n_samples: int, count: int, rng) -> np.ndarray:
-    """count draws of the embedded window noises eps_c (count, C, n_e) of every window."""
-    return _embedded_noises(dem, layout, _draw_noises(dem, layout, n_samples, count, rng), layout.starts)
 
 
 def _inverse_root(precision) -> np.ndarray:

@@ -35,7 +35,8 @@ import numpy as np
 from attend._threads import single_blas_thread
 from attend._validation import AttendInputError, positive_scalar
 from attend.perception.nonlinear.dem import NonlinearDEM
-from attend.perception.nonlinear.path import _accumulate, _errors, _noise_draws, _Problem, _solve
+from attend.perception.nonlinear.path import (NOISE_BUDGET, _accumulate, _draw_noises, _embedded_noises, _errors,
+                                              _fill_unused, _noise_sources, _Problem, _solve)
 
 
 class PathLearningResult(NamedTuple):
@@ -73,6 +74,8 @@ class _Joint:
     coupling: np.ndarray  # H_z,theta (k, K, b)
     H_theta: np.ndarray  # (k, k)
     gradient_theta: np.ndarray  # (k,)
+    shifted: dict  # {(j, +-1): the NonlinearDEM at theta +- h_j e_j}, h_j in steps
+    steps: dict  # {j: h_j} of the active entries
 
 
 class _Setup(NamedTuple):
@@ -86,35 +89,42 @@ class _Setup(NamedTuple):
     weight: float  # 1 / (p + 1)
 
 
-def _theta_steps(theta, active):
-    """Central-difference steps h_j = 1e-4 max(1, |theta_j|) of the active entries."""
-    return {j: 1e-4 * max(1.0, abs(theta[j])) for j in np.flatnonzero(active)}
-
-
-def _joint(setup: _Setup, z: np.ndarray, theta: np.ndarray) -> _Joint:
-    """-F, gradients and Gauss-Newton curvature of (z, theta) (module docstring)."""
-    problem = _Problem(setup.build(theta), setup.y, setup.u)
-    layout = problem.layout
-    steps = _theta_steps(theta, setup.active)
+def _shifted_models(setup: _Setup, theta) -> tuple[dict, dict]:
+    """({j: h_j}, {(j, +-1): NonlinearDEM at theta +- h_j e_j}) for central differences over the
+    active entries, h_j = 1e-4 max(1, |theta_j|)."""
+    steps = {j: 1e-4 * max(1.0, abs(theta[j])) for j in np.flatnonzero(setup.active)}
     shifted = {}
     for j, h in steps.items():
         for sign in (1, -1):
             moved = theta.copy()
             moved[j] += sign * h
             shifted[j, sign] = setup.build(moved)
+    return steps, shifted
+
+
+def _theta_jacobian(problem: _Problem, steps: dict, shifted: dict, z, part) -> np.ndarray:
+    """de_c/dtheta (C, n_e, k) of the windows in ``part`` by central differences (the models of
+    :func:`_shifted_models`); z: the trajectory."""
+    layout = problem.layout
+    data = (problem.y_tilde[part], problem.u_tilde[part], layout.starts[part])
+    columns = [(_errors(shifted[j, 1], layout, z, *data, jacobians=False)[0]
+                - _errors(shifted[j, -1], layout, z, *data, jacobians=False)[0]) / (2 * h) for j, h in steps.items()]
+    return np.stack(columns, axis=2) if columns else np.zeros((len(data[2]), layout.precision.shape[0], 0))
+
+
+def _joint(setup: _Setup, z: np.ndarray, theta: np.ndarray) -> _Joint:
+    """-F, gradients and Gauss-Newton curvature of (z, theta) (module docstring)."""
+    problem = _Problem(setup.build(theta), setup.y, setup.u)
+    layout = problem.layout
+    steps, shifted = _shifted_models(setup, theta)
     k, b, K = len(steps), layout.W * layout.q, layout.n_blocks
     Dg, Off, rhs = np.zeros((K, b, b)), np.zeros((K - 1, b, b)), np.zeros((K, b, 1 + k))
     H_theta, gradient_theta, total = np.zeros((k, k)), np.zeros(k), 0.0
     w = setup.weight
     for part in problem.chunks():
         starts = layout.starts[part]
-        data = (problem.y_tilde[part], problem.u_tilde[part], starts)
-        e, J = _errors(problem.dem, layout, z, data[0], data[1], starts, jacobians=True)
-        J_theta = np.zeros(e.shape + (k,))
-        for i, (j, h) in enumerate(steps.items()):
-            up = _errors(shifted[j, 1], layout, z, *data, jacobians=False)[0]
-            down = _errors(shifted[j, -1], layout, z, *data, jacobians=False)[0]
-            J_theta[:, :, i] = (up - down) / (2 * h)
+        e, J = _errors(problem.dem, layout, z, problem.y_tilde[part], problem.u_tilde[part], starts, jacobians=True)
+        J_theta = _theta_jacobian(problem, steps, shifted, z, part)
         weighted = layout.precision @ J  # Pi~ J_c
         weighted_theta = layout.precision @ J_theta
         total += 0.5 * w * np.einsum("ci,ij,cj->", e, layout.precision, e)
@@ -124,13 +134,12 @@ def _joint(setup: _Setup, z: np.ndarray, theta: np.ndarray) -> _Joint:
         H_theta += w * np.einsum("cia,cib->ab", J_theta, weighted_theta)
         gradient_theta += w * np.einsum("cia,ci->a", weighted_theta, e)
     total += problem.add_priors(z, Dg, rhs[:, :, 0])
-    uncovered = np.flatnonzero(np.einsum("kii->ki", Dg).ravel() == 0)
-    Dg.reshape(K, b * b)[uncovered // b, (uncovered % b) * (b + 1)] = 1.0
+    _fill_unused(Dg)
     act = setup.active
     e_theta = theta[act] - setup.eta[act]
     total += 0.5 * float(np.sum(setup.P[act] * e_theta**2))
     return _Joint(problem, theta, total, Dg, Off, rhs[:, :, 0], np.moveaxis(rhs[:, :, 1:], 2, 0),
-                  H_theta + np.diag(setup.P[act]), gradient_theta + setup.P[act] * e_theta)
+                  H_theta + np.diag(setup.P[act]), gradient_theta + setup.P[act] * e_theta, shifted, steps)
 
 
 def _joint_solve(joint: _Joint, rhs_z: np.ndarray, rhs_theta: np.ndarray, damping: float):
@@ -193,19 +202,21 @@ def _spread(setup: _Setup, joint: _Joint, z, draws: int, seed):
     act = setup.active
     k, b, K = int(act.sum()), layout.W * layout.q, layout.n_blocks
     theta_errors, z_square = [], np.zeros((K, b))
-    batch = max(1, min(draws, int(2e6 // max(1, problem.n_samples * (layout.q + 4)))))
+    channels = sum(len(source[0]) for source in _noise_sources(problem.dem, layout))
+    batch = max(1, min(draws, int(NOISE_BUDGET // max(1, problem.n_samples * channels))))
     done = 0
     while done < draws:
         count = min(batch, draws - done)
-        eps = _noise_draws(problem.dem, layout, problem.n_samples, count, rng)
+        noises = _draw_noises(problem.dem, layout, problem.n_samples, count, rng)
         rhs_z, rhs_theta = np.zeros((K, b, count)), np.zeros((count, k))
         for part in problem.chunks():
             starts = layout.starts[part]
-            e, J = _errors(problem.dem, layout, z, problem.y_tilde[part], problem.u_tilde[part], starts, True)
-            _accumulate(layout, starts, None, setup.weight * np.einsum("cia,rci->car", layout.precision @ J,
-                                                                       eps[:, part]), None, None, rhs_z)
-            J_theta = _theta_jacobian(setup, joint, z, part)
-            rhs_theta += setup.weight * np.einsum("cia,rci->ra", layout.precision @ J_theta, eps[:, part])
+            eps = _embedded_noises(problem.dem, layout, noises, starts)
+            _, J = _errors(problem.dem, layout, z, problem.y_tilde[part], problem.u_tilde[part], starts, True)
+            _accumulate(layout, starts, None, setup.weight * np.einsum("cia,rci->car", layout.precision @ J, eps),
+                        None, None, rhs_z)
+            J_theta = _theta_jacobian(problem, joint.steps, joint.shifted, z, part)
+            rhs_theta += setup.weight * np.einsum("cia,rci->ra", layout.precision @ J_theta, eps)
         for places, values in problem.prior_draws(count, rng):
             rhs_z.reshape(-1, count)[places] += values
         prior_draw = rng.standard_normal((count, k)) * np.sqrt(np.where(setup.P[act] > 0, setup.P[act], 0.0))
@@ -219,22 +230,6 @@ def _spread(setup: _Setup, joint: _Joint, z, draws: int, seed):
     theta_errors = np.concatenate(theta_errors)
     covariance = theta_errors.T @ theta_errors / draws
     return covariance, np.sqrt(z_square / draws).reshape(-1, layout.q)[: problem.n_samples]
-
-
-def _theta_jacobian(setup: _Setup, joint: _Joint, z, part) -> np.ndarray:
-    """de_c/dtheta (C, n_e, k) of the windows in ``part`` by central differences."""
-    problem, layout = joint.problem, joint.problem.layout
-    starts = layout.starts[part]
-    columns = []
-    for j, h in _theta_steps(joint.theta, setup.active).items():
-        pair = []
-        for sign in (1, -1):
-            moved = joint.theta.copy()
-            moved[j] += sign * h
-            pair.append(_errors(setup.build(moved), layout, z, problem.y_tilde[part], problem.u_tilde[part],
-                                starts, False)[0])
-        columns.append((pair[0] - pair[1]) / (2 * h))
-    return np.stack(columns, axis=2) if columns else np.zeros((len(starts), layout.precision.shape[0], 0))
 
 
 def learn_path(model, outputs, inputs, dt: float, *, kernel_width: float, sensor_precision, process_precision,

@@ -13,12 +13,14 @@ from attend._validation import AttendInputError, as_matrix, order, positive_scal
 from attend.generalized import block_precisions, embedding_weights, shift_operator, smoothness_precision
 from attend.perception.dem import DEMEstimate
 from attend.perception.nonlinear._linalg import (block_diagonal_positions, diagonal_blocks, expm_last_column,
-                                                  inverse_diagonals, scaled_solve)
+                                                  inverse_diagonals)
 from attend.perception.nonlinear._workspace import StepWorkspace
+from attend.perception.nonlinear.jax_backend import check_backend, estimate_with_jax
 from attend.perception.nonlinear.model import NonlinearSystem
 from attend.perception.nonlinear.misfit import sample_misfit, warn_if_misfit
 from attend.perception.nonlinear.online import OnlineNonlinearDEM
 from attend.perception.nonlinear.path import estimate_path
+from attend.perception.nonlinear.start import gauss_newton_start
 
 
 # --- the D-step -----------------------------------------------------------------------------
@@ -65,6 +67,8 @@ class NonlinearDEM:
     trajectory for the whole log, the D-step's free energy summed over all windows and maximised
     by Gauss-Newton from the D-step's estimate: a smoother, batch only;
     :mod:`attend.perception.nonlinear.path`).
+    backend: "numpy" (default) or "jax" (the batch D-step compiled with JAX, f and g written with
+    jax.numpy; 2-3x faster; :mod:`attend.perception.nonlinear.jax_backend`).
     Precisions are scalars (times I), vectors (diagonal) or matrices.
 
     Reported standard deviations: ``state_std``/``input_std`` are the square roots of the diagonal
@@ -95,6 +99,7 @@ class NonlinearDEM:
     input_kernel_width: float | None = None
     integration: str = "attend"
     states: str = "sample"
+    backend: str = "numpy"
     _matrices: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -132,6 +137,7 @@ class NonlinearDEM:
             raise AttendInputError(f"states: expected 'sample' or 'path', got {self.states!r}")
         if self.flow_time not in ("samples", "seconds"):
             raise AttendInputError(f"flow_time: expected 'samples' or 'seconds', got {self.flow_time!r}")
+        check_backend(self)
         self._matrices.update(self._build())
 
     # construction ----------------------------------------------------------------------------
@@ -435,31 +441,10 @@ class NonlinearDEM:
         with step halving so F never decreases. For a linear model one step reaches
         inv(Pi_X) B_obs Y[0], the linear observer's start. y_tilde, u_tilde: the first sample's
         embedded outputs and inputs (see :meth:`errors`); iterations: the most Gauss-Newton steps."""
-        X = self._guess_state(guess)
         evaluate = self._gradient_curvature
         if self.motion == "linearized" and self.integration == "attend":  # the same, with fewer calls
             evaluate = StepWorkspace(self).gradient_curvature
-        gradient, curvature, energy = evaluate(X, y_tilde, u_tilde)
-        for _ in range(iterations):
-            step = scaled_solve(curvature, gradient)
-            accepted = False
-            for _ in range(30):
-                candidate = X + step
-                try:
-                    g_new, c_new, e_new = evaluate(candidate, y_tilde, u_tilde)
-                except AttendInputError:
-                    e_new = -np.inf
-                if np.isfinite(e_new) and e_new >= energy:
-                    accepted = True
-                    break
-                step = step / 2
-            if not accepted:
-                break
-            X, gradient, curvature, improvement = candidate, g_new, c_new, e_new - energy
-            energy = e_new
-            if improvement <= 1e-12 * max(1.0, abs(energy)):
-                break
-        return X
+        return gauss_newton_start(lambda X: evaluate(X, y_tilde, u_tilde), self._guess_state(guess), iterations)
 
     # data --------------------------------------------------------------------------------------
 
@@ -558,6 +543,8 @@ class NonlinearDEM:
         if initial_state_std is not None:
             raise AttendInputError("initial_state_std: a prior on x[0] is used by states='path' only (the D-step "
                                    "takes initial_state as the guess where its start is sought)")
+        if self.backend == "jax":
+            return estimate_with_jax(self, signals, initial_state, keep_generalized)
         return self._sample_estimate(signals, keep_generalized, initial_state)
 
     def _sample_estimate(self, signals, keep_generalized: bool, initial_state, check: bool = True) -> DEMEstimate:

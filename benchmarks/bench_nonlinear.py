@@ -2,10 +2,12 @@
 
     PYTHONPATH=src python benchmarks/bench_nonlinear.py [--seeds 20] [--sweep-seeds 10] [--prior-seeds 20]
 
-Part 0 (speed): samples/s of nonlinear DEM and the UKF smoother on a 2 s Lorenz log, each in a fresh
-process: BLAS as it comes (threaded) without attend's limiter (ATTEND_BLAS_THREADS=keep: the speed
-before the estimators limited their threads), with the limiter (the default now: nothing set by
-the caller), and with OPENBLAS_NUM_THREADS=1 set by the caller before numpy is imported.
+Part 0 (speed): samples/s of nonlinear DEM's D-step (NumPy, and backend="jax" when JAX is installed,
+with its first call's compilation time) on a 2 s and a 20 s Lorenz log, and of the UKF smoother on
+the 2 s log, each in a fresh process: BLAS as it comes (threaded) without attend's limiter
+(ATTEND_BLAS_THREADS=keep: the speed before the estimators limited their threads), with the
+limiter (the default now: nothing set by the caller), with OPENBLAS_NUM_THREADS=1 set by the caller
+before numpy is imported, and pinned to one core (taskset -c 0, where taskset exists).
 Part 1 (the reproductions' settings, s/dt = 2, ``--seeds`` seeds each): state SSE of DEM (the D-step,
 and path mode: states="path") over the
 particle smoother (target: median ratio <= 1.2), over the UKF smoother (target: DEM <= UKF median
@@ -34,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -48,29 +51,55 @@ def _verdict(ok: bool) -> str:
     return "meets target" if ok else "MISSES target"
 
 
+def _best_rate(run, n_samples: int, repeats: int = 3) -> float:
+    """Samples/s of the fastest of ``repeats`` calls of run() on n_samples samples."""
+    best = np.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        run()
+        best = min(best, time.perf_counter() - start)
+    return n_samples / best
+
+
+def _jax_speeds(cfg, logs) -> dict:
+    """backend="jax" on the same logs, Lorenz written with jax.numpy: samples/s on the 2 s and 20 s
+    logs (compiled; best of 3) and the first call's time (tracing and compilation) [s]; {} without JAX."""
+    try:
+        import jax.numpy as jnp
+    except ImportError:
+        return {}
+    from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem
+
+    sigma, rho, beta = cfg["sigma"], cfg["rho"], cfg["beta"]
+    system = NonlinearSystem(lambda x, v: jnp.stack([sigma * (x[1] - x[0]), x[0] * (rho - x[2]) - x[1],
+                                                     x[0] * x[1] - beta * x[2]]), lambda x, v: 1.0 * x, 3, 0, 3)
+    dem = NonlinearDEM(system, cfg["dt"], cfg["kernel_width"], 1.0, 1 / 400, embedding_order=6, backend="jax")
+    start = time.perf_counter()
+    dem.estimate(logs[0].outputs)
+    compile_seconds = time.perf_counter() - start
+    return dict(JAX=_best_rate(lambda: dem.estimate(logs[0].outputs), 200),
+                JAX_20s=_best_rate(lambda: dem.estimate(logs[1].outputs), 2000), compile_s=compile_seconds)
+
+
 def speed_worker() -> None:
-    """Print 'DEM <samples/s> UKF <samples/s>' on a 2 s Lorenz log (best of 3)."""
+    """Print 'key value' pairs: samples/s of DEM (NumPy, and JAX if installed) and of the UKF smoother
+    on a 2 s Lorenz log and of DEM on a 20 s log (best of 3), the online step [us], JAX's first call [s]."""
     from attend.perception.nonlinear import NonlinearDEM, simulate_nonlinear
     from attend.perception.nonlinear_baselines import unscented_kalman, white_noise_covariances
 
     cfg = lorenz.SETTINGS
     system = lorenz.build_system(cfg)
     dt, s = cfg["dt"], cfg["kernel_width"]
-    log = simulate_nonlinear(system, 200, dt, kernel_width=s, process_std=20.0, measurement_std=1.0,
-                             initial_state=cfg["initial_state"], seed=0)
+    logs = [simulate_nonlinear(system, n_samples, dt, kernel_width=s, process_std=20.0, measurement_std=1.0,
+                               initial_state=cfg["initial_state"], seed=0) for n_samples in (200, 2000)]
+    log = logs[0]
     dem = NonlinearDEM(system, dt, s, 1.0, 1 / 400, embedding_order=6)
     Q, R = white_noise_covariances(system, dt, s, 20.0, 1.0)
-    rates = {}
-    for name, run in (("DEM", lambda: dem.estimate(log.outputs)),
-                      ("UKF", lambda: unscented_kalman(system, dt, log.outputs, process_covariance=Q,
-                                                       measurement_covariance=R, initial_mean=cfg["initial_state"],
-                                                       initial_covariance=1.0))):
-        best = np.inf
-        for _ in range(3):
-            start = time.perf_counter()
-            run()
-            best = min(best, time.perf_counter() - start)
-        rates[name] = 200 / best
+    rates = dict(DEM=_best_rate(lambda: dem.estimate(log.outputs), 200),
+                 DEM_20s=_best_rate(lambda: dem.estimate(logs[1].outputs), 2000),
+                 UKF=_best_rate(lambda: unscented_kalman(system, dt, log.outputs, process_covariance=Q,
+                                                         measurement_covariance=R, initial_mean=cfg["initial_state"],
+                                                         initial_covariance=1.0), 200))
     online = dem.online()
     for y in log.outputs[:20]:  # fill the window (and the start)
         online.step(y)
@@ -81,20 +110,28 @@ def speed_worker() -> None:
         for y in steps:
             online.step(y)
         best = min(best, (time.perf_counter() - start) / len(steps))
-    print(f"DEM {rates['DEM']:.0f} UKF {rates['UKF']:.0f} online_us {1e6 * best:.0f}")
+    rates.update(online_us=1e6 * best, **_jax_speeds(cfg, logs))
+    print(" ".join(f"{key} {value:.4g}" for key, value in rates.items()))
 
 
 def part0() -> None:
-    print(f"\n== speed (samples/s, 2 s Lorenz log, best of 3, fresh process each; {os.cpu_count()} cores)")
+    print(f"\n== speed (samples/s of the D-step on a 2 s / 20 s Lorenz log, n = 3, p = 6, best of 3, fresh process "
+          f"each; {os.cpu_count()} cores; target >= 2e4 samples/s)")
     keys = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "ATTEND_BLAS_THREADS")
     base = {key: value for key, value in os.environ.items() if key not in keys}
-    for label, extra in (("before: threaded BLAS, no limiter (ATTEND_BLAS_THREADS=keep)", {"ATTEND_BLAS_THREADS": "keep"}),
-                         ("now: nothing set by the caller (attend limits its loops)", {}),
-                         ("caller sets OPENBLAS_NUM_THREADS=1", {"OPENBLAS_NUM_THREADS": "1"})):
-        out = subprocess.run([sys.executable, __file__, "--speed-worker"], env={**base, **extra},
+    runs = [("before: threaded BLAS, no limiter (ATTEND_BLAS_THREADS=keep)", {"ATTEND_BLAS_THREADS": "keep"}, []),
+            ("now: nothing set by the caller (attend limits its loops)", {}, []),
+            ("caller sets OPENBLAS_NUM_THREADS=1", {"OPENBLAS_NUM_THREADS": "1"}, [])]
+    if shutil.which("taskset"):
+        runs.append(("pinned to one core (taskset -c 0)", {}, ["taskset", "-c", "0"]))
+    for label, extra, prefix in runs:
+        out = subprocess.run(prefix + [sys.executable, __file__, "--speed-worker"], env={**base, **extra},
                              capture_output=True, text=True, check=True).stdout.split()
-        print(f"  {label:62s} DEM {float(out[1]):7.0f} (target >= 2e4)   UKF smoother {float(out[3]):6.0f}   "
-              f"online DEM step {float(out[5]):5.0f} us (target <= 200)")
+        rate = dict(zip(out[::2], map(float, out[1::2])))
+        jax = (f"   JAX {rate['JAX']:7.0f} / {rate['JAX_20s']:7.0f} ({_verdict(rate['JAX'] >= 2e4)}; first call "
+               f"{rate['compile_s']:.1f} s)") if "JAX" in rate else "   JAX not installed"
+        print(f"  {label:62s}\n    DEM NumPy {rate['DEM']:7.0f} / {rate['DEM_20s']:7.0f} ({_verdict(rate['DEM'] >= 2e4)})"
+              f"{jax}\n    UKF smoother {rate['UKF']:6.0f}   online DEM step {rate['online_us']:5.0f} us (target <= 200)")
 
 
 def part1(seeds: int, experiments=("lorenz", "pendulum")) -> None:

@@ -107,7 +107,8 @@ _THETA13 = 5.371920351148152
 
 def _expm_last_column(jnp, lax, block):
     """expm(block)[:-1, -1] by the Pade 13 approximant of block / 2^s, s = max(0, ceil(log2(
-    |block|_1 / theta_13))), squared s times (Higham 2005: backward error at unit roundoff)."""
+    |block|_1 / theta_13))), squared s times (Higham 2005: backward error at unit roundoff). block:
+    (k + 1, k + 1) with a zero last row, [[J, b], [0, 0]], so the last squaring needs its column only."""
     b = _PADE13
     norm = jnp.max(jnp.sum(jnp.abs(block), axis=0))
     squarings = jnp.maximum(0.0, jnp.ceil(jnp.log2(norm / _THETA13)))
@@ -119,8 +120,10 @@ def _expm_last_column(jnp, lax, block):
     U = A @ (A6 @ (b[13] * A6 + b[11] * A4 + b[9] * A2) + b[7] * A6 + b[5] * A4 + b[3] * A2 + b[1] * identity)
     V = A6 @ (b[12] * A6 + b[10] * A4 + b[8] * A2) + b[6] * A6 + b[4] * A4 + b[2] * A2 + b[0] * identity
     R = jnp.linalg.solve(V - U, V + U)
-    R = lax.fori_loop(0, squarings.astype(int), lambda _, M: M @ M, R)
-    return R[:-1, -1]
+    # s - 1 squarings, then only the last column of the last one: [[P, q], [0, 1]]^2 has q <- P q + q
+    R = lax.fori_loop(0, jnp.maximum(squarings - 1, 0).astype(int), lambda _, M: M @ M, R)
+    P, q = R[:-1, :-1], R[:-1, -1]
+    return jnp.where(squarings > 0, P @ q + q, q)
 
 
 def _functions(estimator):

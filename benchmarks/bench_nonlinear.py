@@ -51,7 +51,7 @@ def _verdict(ok: bool) -> str:
     return "meets target" if ok else "MISSES target"
 
 
-def _best_rate(run, n_samples: int, repeats: int = 3) -> float:
+def _best_rate(run, n_samples: int, repeats: int = 5) -> float:
     """Samples/s of the fastest of ``repeats`` calls of run() on n_samples samples."""
     best = np.inf
     for _ in range(repeats):
@@ -63,7 +63,7 @@ def _best_rate(run, n_samples: int, repeats: int = 3) -> float:
 
 def _jax_speeds(cfg, logs) -> dict:
     """backend="jax" on the same logs, Lorenz written with jax.numpy: samples/s on the 2 s and 20 s
-    logs (compiled; best of 3) and the first call's time (tracing and compilation) [s]; {} without JAX."""
+    logs (compiled; best of 5) and the first call's time (tracing and compilation) [s]; {} without JAX."""
     try:
         import jax.numpy as jnp
     except ImportError:
@@ -83,7 +83,7 @@ def _jax_speeds(cfg, logs) -> dict:
 
 def speed_worker() -> None:
     """Print 'key value' pairs: samples/s of DEM (NumPy, and JAX if installed) and of the UKF smoother
-    on a 2 s Lorenz log and of DEM on a 20 s log (best of 3), the online step [us], JAX's first call [s]."""
+    on a 2 s Lorenz log and of DEM on a 20 s log (best of 5), the online step [us], JAX's first call [s]."""
     from attend.perception.nonlinear import NonlinearDEM, simulate_nonlinear
     from attend.perception.nonlinear_baselines import unscented_kalman, white_noise_covariances
 
@@ -115,7 +115,7 @@ def speed_worker() -> None:
 
 
 def part0() -> None:
-    print(f"\n== speed (samples/s of the D-step on a 2 s / 20 s Lorenz log, n = 3, p = 6, best of 3, fresh process "
+    print(f"\n== speed (samples/s of the D-step on a 2 s / 20 s Lorenz log, n = 3, p = 6, best of 5, fresh process "
           f"each; {os.cpu_count()} cores; target >= 2e4 samples/s)")
     keys = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "ATTEND_BLAS_THREADS")
     base = {key: value for key, value in os.environ.items() if key not in keys}

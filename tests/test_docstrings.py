@@ -31,6 +31,8 @@ MODULES = [
     "attend.perception.nonlinear.path",
     "attend.perception.nonlinear.misfit",
     "attend.perception.nonlinear.path_learning",
+    "attend.perception.nonlinear.jax_backend",
+    "attend.perception.nonlinear.start",
     "attend.perception.block_tridiagonal",
     "attend.perception.nonlinear._workspace",
     "attend.perception.nonlinear_baselines",

@@ -379,3 +379,55 @@ process_precision = 1.0
     path.write_text(linear.replace("n_states = 2\n", "").replace("A = [[0.0, 1.0], [-1.0, -0.5]]\n", ""))
     with pytest.raises(AttendInputError, match=r"needs A .* or python"):
         io.read_model(path)
+
+
+LORENZ_JAX_PY = '''
+import jax.numpy as jnp
+
+
+def f(x, v):
+    return jnp.stack([10.0 * (x[1] - x[0]), x[0] * (28.0 - x[2]) - x[1], x[0] * x[1] - 8.0 / 3.0 * x[2]])
+
+
+def g(x, v):
+    return 1.0 * x
+'''
+
+
+def test_jax_backend_from_a_nonlinear_model_file(tmp_path, capsys):
+    """[observer] backend = "jax" with f, g in jax.numpy gives the NumPy D-step's estimates (1e-8)
+    through `attend estimate`."""
+    pytest.importorskip("jax")
+    model_path, log_path, _ = _lorenz_files(tmp_path, LORENZ_TOML + 'method = "dem"\nbackend = "jax"\n',
+                                            code=LORENZ_JAX_PY)
+    out = tmp_path / "jax.csv"
+    assert main(["estimate", str(model_path), str(log_path), "--out", str(out)]) == 0, capsys.readouterr().err
+    compiled = np.genfromtxt(out, delimiter=",", names=True)
+    numpy_folder = tmp_path / "numpy"
+    numpy_folder.mkdir()
+    numpy_path, _, _ = _lorenz_files(numpy_folder, LORENZ_TOML + 'method = "dem"\n')
+    numpy_out = tmp_path / "numpy.csv"
+    assert main(["estimate", str(numpy_path), str(log_path), "--out", str(numpy_out)]) == 0
+    reference = np.genfromtxt(numpy_out, delimiter=",", names=True)
+    for name in ("x1", "x2", "x3"):
+        np.testing.assert_allclose(compiled[name], reference[name], rtol=1e-8, atol=1e-8 * np.abs(reference[name]).max())
+
+
+def test_jax_backend_with_numpy_functions_says_to_use_jax_numpy(tmp_path, capsys):
+    pytest.importorskip("jax")
+    model_path, log_path, _ = _lorenz_files(tmp_path, LORENZ_TOML + 'method = "dem"\nbackend = "jax"\n')
+    assert main(["estimate", str(model_path), str(log_path), "--out", str(tmp_path / "x.csv")]) == 2
+    error = capsys.readouterr().err
+    assert "lorenz.py: f(x, v) failed (line 6)" in error and "write them with jax.numpy" in error
+    assert "Traceback" not in error
+
+
+def test_jax_backend_is_refused_for_linear_models_and_other_methods(tmp_path):
+    (tmp_path / "m.toml").write_text('[model]\nA = [[-1.0]]\nB = [[1.0]]\nC = [[1.0]]\n\n[outputs]\ncolumns = ["y"]\n\n'
+                                     '[[inputs]]\nname = "u"\n\n[observer]\nmethod = "dem"\nbackend = "jax"\n'
+                                     'kernel_width = 0.1\nsensor_precision = 1.0\nprocess_precision = 1.0\n')
+    with pytest.raises(AttendInputError, match="backend: the JAX D-step is for nonlinear models"):
+        io.read_model(tmp_path / "m.toml")
+    model_path, _, _ = _lorenz_files(tmp_path, LORENZ_TOML + 'backend = "cuda"\n')
+    with pytest.raises(AttendInputError, match="backend: expected 'numpy' or 'jax', got 'cuda'"):
+        io.read_model(model_path)

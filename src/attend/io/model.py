@@ -54,7 +54,8 @@ class ModelFile:
     file of a nonlinear model ("" for a linear one); integration: DEM's one-sample step, "attend"
     or "spm" (spm_DEM's conventions, docs/spm.md); edges: DEM's windows at the ends of the log,
     "order0" or "clamp" (SPM's); dem_states: nonlinear DEM's "sample" (D-step) or "path" (one
-    trajectory, a smoother; :mod:`attend.perception.nonlinear.path`).
+    trajectory, a smoother; :mod:`attend.perception.nonlinear.path`); dem_backend: nonlinear DEM's
+    "numpy" or "jax" (:mod:`attend.perception.nonlinear.jax_backend`).
     """
 
     system: LinearSystem
@@ -81,6 +82,7 @@ class ModelFile:
     integration: str = "attend"
     edges: str = "order0"
     dem_states: str = "sample"
+    dem_backend: str = "numpy"
 
     @property
     def nonlinear(self) -> bool:
@@ -210,7 +212,7 @@ class NonlinearFileEstimator:
             self.system, self.dt, model.kernel_width, model.sensor_precision, model.process_precision, prior,
             self.embedding_order, model.input_order, known_inputs=all_known,
             precision_convention=model.precision_convention, input_kernel_width=model.input_kernel_width,
-            integration=model.integration, edges=model.edges, states=model.dem_states,
+            integration=model.integration, edges=model.edges, states=model.dem_states, backend=model.dem_backend,
         )
 
     @property

@@ -43,6 +43,7 @@ _SECTIONS = {
         "method", "kernel_width", "process_kernel_width", "sensor_kernel_width", "input_kernel_width",
         "embedding_order", "input_order", "sensor_precision", "process_precision", "precision_convention",
         "known_input_precision", "initial_state", "initial_state_std", "integration", "edges", "states",
+        "backend",
     },
     "log": {"time_column"},
     "learning": {
@@ -124,6 +125,7 @@ def read_model(path: str | Path) -> ModelFile:
         integration=observer.get("integration", "attend"),
         edges=observer.get("edges", "order0"),
         dem_states=observer.get("states", "sample"),
+        dem_backend=observer.get("backend", "numpy"),
     )
 
 
@@ -333,7 +335,8 @@ def _check_observer(observer: dict, system: LinearSystem, where: str) -> None:
 def _check_dem_conventions(observer: dict, method: str, nonlinear: bool, where: str) -> None:
     """[observer] integration ("attend" or "spm": how the data enter DEM's one-sample step, see
     docs/spm.md) and edges ("order0" or "clamp"), which only method = "dem" has, and states
-    ("sample" or "path", nonlinear DEM only). nonlinear: the model is f, g ([model] python)."""
+    ("sample" or "path", nonlinear DEM only) and backend ("numpy" or "jax", nonlinear DEM only).
+    nonlinear: the model is f, g ([model] python)."""
     for key, allowed in (("integration", ("attend", "spm")), ("edges", ("order0", "clamp"))):
         if key not in observer:
             continue
@@ -348,6 +351,12 @@ def _check_dem_conventions(observer: dict, method: str, nonlinear: bool, where: 
         if method != "dem" or not nonlinear:
             raise AttendInputError(f"{where} states: DEM's path mode is for nonlinear models with method = \"dem\" "
                                    "(for a linear model, method = \"kalman\" is already the exact smoother)")
+    if "backend" in observer:
+        if observer["backend"] not in ("numpy", "jax"):
+            raise AttendInputError(f"{where} backend: expected 'numpy' or 'jax', got {observer['backend']!r}")
+        if method != "dem" or not nonlinear:
+            raise AttendInputError(f"{where} backend: the JAX D-step is for nonlinear models with method = \"dem\" "
+                                   "(f and g written with jax.numpy)")
 
 
 def _check_learning(learning: dict, where: str, nonlinear: bool = False) -> None:

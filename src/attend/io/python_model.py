@@ -70,6 +70,11 @@ class _UserFunction:
                 f"{self.source}: {self.name}(x, v) failed{self._where(error)}: {type(error).__name__}: "
                 f"{_one_line(error)} (at x = {_short(x)}, v = {_short(v)}); this is an error in the model's code"
             ) from None
+        if _traced(value):  # backend="jax" traces f and g: only the shape is known here
+            if value.size != self.size or value.ndim > 2:
+                raise _UserShapeError(f"{self.source}: {self.name}(x, v) returned shape {value.shape}; expected "
+                                      f"{self.size} values ({self.what})")
+            return value.reshape(self.size)
         try:
             if value is None:
                 raise TypeError("None")
@@ -89,6 +94,12 @@ class _UserFunction:
                 f"{self.source}: {self.name}(x, v) returned non-finite values {_short(value)} at x = {_short(x)}, "
                 f"v = {_short(v)}; expected finite numbers")
         return value
+
+
+def _traced(value) -> bool:
+    """True for a JAX tracer (f or g called while backend="jax" compiles the D-step)."""
+    kind = type(value)
+    return kind.__name__.endswith("Tracer") and kind.__module__.startswith("jax")
 
 
 def _short(value) -> str:

@@ -271,7 +271,9 @@ def _call(function, *args):
     """function(*args), a failure to trace the user's f or g turned into an AttendInputError."""
     try:
         return function(*args)
-    except AttendInputError:
+    except AttendInputError as error:
+        if "Tracer" in str(error):  # the user's code met a JAX tracer (checked in attend.io's wrapper)
+            raise AttendInputError(f"{error}; backend='jax' traces f and g: write them with jax.numpy") from None
         raise
     except Exception as error:
         first_line = str(error).splitlines()[0] if str(error) else ""

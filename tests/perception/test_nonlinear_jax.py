@@ -144,6 +144,12 @@ def test_numpy_functions_get_an_error_naming_jax_numpy(lorenz_log):
         dem.estimate(lorenz_log.outputs[:20])
 
 
+def test_a_wrong_shape_names_the_function(lorenz_log):
+    system = NonlinearSystem(lambda x, v: x[:2], lambda x, v: 1.0 * x, 3, 0, 3)
+    with pytest.raises(AttendInputError, match=r"f: expected 3 values \(a 1-D array\), got shape \(2,\)"):
+        NonlinearDEM(system, 0.01, 0.02, 1.0, 1 / 400, backend="jax").estimate(lorenz_log.outputs[:20])
+
+
 @pytest.mark.parametrize("setting", [dict(motion="path"), dict(integration="spm"), dict(states="path")])
 def test_settings_the_compiled_step_does_not_run_are_refused(setting):
     with pytest.raises(AttendInputError, match="backend: 'jax' runs the D-step with"):

@@ -345,18 +345,17 @@ def _check_dem_conventions(observer: dict, method: str, nonlinear: bool, where: 
         if method != "dem":
             raise AttendInputError(f"{where} {key}: a setting of DEM; add method = \"dem\" (the {method} "
                                    "estimator has no such choice)")
-    if "states" in observer:
-        if observer["states"] not in ("sample", "path"):
-            raise AttendInputError(f"{where} states: expected 'sample' or 'path', got {observer['states']!r}")
+    nonlinear_only = (("states", ("sample", "path"), "DEM's path mode is for nonlinear models with method = \"dem\" "
+                       "(for a linear model, method = \"kalman\" is already the exact smoother)"),
+                      ("backend", ("numpy", "jax"), "the JAX D-step is for nonlinear models with method = \"dem\" "
+                       "(f and g written with jax.numpy)"))
+    for key, allowed, scope in nonlinear_only:
+        if key not in observer:
+            continue
+        if observer[key] not in allowed:
+            raise AttendInputError(f"{where} {key}: expected {' or '.join(map(repr, allowed))}, got {observer[key]!r}")
         if method != "dem" or not nonlinear:
-            raise AttendInputError(f"{where} states: DEM's path mode is for nonlinear models with method = \"dem\" "
-                                   "(for a linear model, method = \"kalman\" is already the exact smoother)")
-    if "backend" in observer:
-        if observer["backend"] not in ("numpy", "jax"):
-            raise AttendInputError(f"{where} backend: expected 'numpy' or 'jax', got {observer['backend']!r}")
-        if method != "dem" or not nonlinear:
-            raise AttendInputError(f"{where} backend: the JAX D-step is for nonlinear models with method = \"dem\" "
-                                   "(f and g written with jax.numpy)")
+            raise AttendInputError(f"{where} {key}: {scope}")
 
 
 def _check_learning(learning: dict, where: str, nonlinear: bool = False) -> None:

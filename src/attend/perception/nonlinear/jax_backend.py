@@ -95,7 +95,14 @@ def _traced(system, which: str):
     """f or g of ``system`` as a function of (x, v) returning a flat array (parameters bound)."""
     jnp = _import_jax().numpy
     function, size = (system.f, system.n_states) if which == "f" else (system.g, system.n_outputs)
-    return lambda x, v: jnp.reshape(jnp.asarray(system._call(function, x, v)), (size,))
+
+    def traced(x, v):
+        value = jnp.asarray(system._call(function, x, v))
+        if value.size != size:
+            raise AttendInputError(f"{which}: expected {size} values (a 1-D array), got shape {value.shape}")
+        return jnp.reshape(value, (size,))
+
+    return traced
 
 
 # Pade 13 coefficients b_0..b_13 and its accuracy bound theta_13 (Higham 2005, as SciPy's expm)

@@ -165,3 +165,30 @@ def test_missing_jax_says_how_to_install(monkeypatch):
     monkeypatch.setitem(sys.modules, "jax", None)  # import jax now raises ImportError
     with pytest.raises(AttendInputError, match=r"attend\[jax\]"):
         NonlinearDEM(lorenz_jax(), 0.01, 0.02, 1.0, 1 / 400, backend="jax")
+
+
+def test_linear_model_equals_the_linear_observer():
+    """A linear model written as f, g in jax.numpy, flow_time="seconds": the linear DEM observer's
+    estimates once the two starts have decayed, and its Laplace std (the NumPy step's oracle, in
+    tests/perception/test_nonlinear.py)."""
+    from attend.perception.dem import DEMObserver
+    from attend.systems import LinearSystem, simulate
+
+    A, B, C = np.array([[0.0, 1.0], [-2.0, -0.7]]), np.array([[0.0], [1.0]]), np.array([[1.0, 0.0]])
+    linear = LinearSystem(A, B, C)
+    jax_system = NonlinearSystem(lambda x, v: jnp.asarray(A) @ x + jnp.asarray(B) @ v,
+                                 lambda x, v: jnp.asarray(C) @ x, 2, 1, 1)
+    dt, time = 0.1, np.arange(200) * 0.1
+    u = np.exp(-0.25 * (time - 8.0) ** 2)[:, None]
+    log = simulate(linear, u, dt, kernel_width=0.5, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=3)
+    settings = dict(dt=dt, kernel_width=0.5, sensor_precision=np.exp(8), process_precision=np.exp(8),
+                    input_prior_precision=np.exp(-8), embedding_order=6, input_order=2)
+    observer = DEMObserver(linear, **settings)
+    reference = observer.estimate(log.outputs)
+    estimate = NonlinearDEM(jax_system, flow_time="seconds", backend="jax", **settings).estimate(log.outputs)
+    scale, late = np.abs(reference.states).max(), slice(100, None)
+    np.testing.assert_allclose(estimate.states[late], reference.states[late], atol=1e-5 * scale)
+    np.testing.assert_allclose(estimate.inputs[late], reference.inputs[late],
+                               atol=1e-5 * max(1.0, np.abs(reference.inputs).max()))
+    laplace = np.sqrt(np.diag(observer.generalized_matrices()["Sigma_X"]))
+    np.testing.assert_allclose(estimate.state_std, np.broadcast_to(laplace[:2], estimate.state_std.shape), rtol=1e-6)

@@ -203,3 +203,75 @@ def test_all_windows_at_once_equal_one_window_at_a_time(known, integration):
     one_by_one = [dem.errors(X, yt, ut) for X, yt, ut in zip(X_all, problem.y_tilde, problem.u_tilde)]
     np.testing.assert_allclose(e, [pair[0] for pair in one_by_one], rtol=1e-13, atol=1e-13)
     np.testing.assert_array_equal(E, [pair[1] for pair in one_by_one])
+
+
+# --- the starts of the optimiser -------------------------------------------------------------
+
+def _pendulum_case():
+    cfg = pendulum.SETTINGS
+    system = pendulum.build_system(cfg)
+    time = np.arange(120) * cfg["dt"]
+    log = simulate_nonlinear(system, pendulum.true_input(time + 4.0), cfg["dt"], kernel_width=cfg["kernel_width"],
+                             process_std=cfg["process_std"], measurement_std=cfg["measurement_std"],
+                             initial_state=cfg["initial_state"], seed=1)
+    dem = NonlinearDEM(system, cfg["dt"], cfg["kernel_width"], 1 / cfg["measurement_std"]**2,
+                       1 / np.asarray(cfg["process_std"])**2, 0.135, 6, 2, input_kernel_width=0.7, states="path")
+    return dem, log
+
+
+def test_the_smoother_start_is_the_unscented_smoother_with_the_documented_settings():
+    from attend.perception.nonlinear.path_starts import smoother_start
+    from attend.perception.nonlinear_baselines import input_random_walk_variance, unscented_kalman
+
+    dem, log = _pendulum_case()
+    signals = dem._signals(log.outputs, None)
+    prior = (np.array([0.5, 0.0]), np.array([1 / 0.05**2, 1 / 0.2**2]))
+    states, inputs = smoother_start(dem, signals, prior, start=None)
+    direct = unscented_kalman(dem.system, dem.dt, log.outputs, process_covariance=dem.dt**2 * np.linalg.inv(
+        dem.process_precision), measurement_covariance=np.linalg.inv(dem.sensor_precision),
+        input_variance=np.diag(input_random_walk_variance(np.array([0.135]), 0.7, dem.dt)), input_mean=np.zeros(1),
+        initial_mean=prior[0], initial_covariance=np.diag(1 / prior[1]), smooth=True)
+    np.testing.assert_allclose(states, direct.states, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(inputs, direct.inputs, rtol=1e-12, atol=1e-12)
+
+
+def test_no_smoother_start_without_a_positive_definite_precision():
+    from attend.perception.nonlinear.path_starts import smoother_start
+
+    dem, log = _pendulum_case()
+    singular = NonlinearDEM(dem.system, dem.dt, dem.kernel_width, dem.sensor_precision, np.diag([400.0, 0.0]),
+                            0.135, 6, 2, input_kernel_width=0.7, states="path")
+    assert smoother_start(singular, singular._signals(log.outputs, None), None, start=None) is None
+
+
+def test_path_mode_keeps_the_start_with_the_larger_free_energy(monkeypatch):
+    """Two starts (the D-step's and, here, the truth): the kept -F is the lower of the two runs."""
+    import attend.perception.nonlinear.path as path_module
+
+    dem, log = _pendulum_case()
+    runs = {}
+    for label, start in (("dstep only", lambda *args: None), ("truth", lambda *args: (log.states, log.inputs))):
+        monkeypatch.setattr(path_module, "smoother_start", start)
+        problems = []
+        original = path_module._warn_if_misfit
+        monkeypatch.setattr(path_module, "_warn_if_misfit", lambda problem: problems.append(problem.final_cost))
+        runs[label] = (dem.estimate(log.outputs), problems[0])
+        monkeypatch.setattr(path_module, "_warn_if_misfit", original)
+    # with the second start the kept -F is never above the D-step start's (kept if it is the lower)
+    assert runs["truth"][1] <= runs["dstep only"][1] * (1 + 1e-12)
+
+
+def test_path_starts_dstep_runs_one_start_and_bad_values_are_refused(monkeypatch):
+    import attend.perception.nonlinear.path as path_module
+
+    dem, log = _pendulum_case()
+    one = NonlinearDEM(dem.system, dem.dt, dem.kernel_width, dem.sensor_precision, dem.process_precision, 0.135, 6, 2,
+                       input_kernel_width=0.7, states="path", path_starts="dstep")
+
+    def refuse(*args):
+        raise AssertionError("path_starts='dstep' must not run the smoother")
+
+    monkeypatch.setattr(path_module, "smoother_start", refuse)
+    assert np.all(np.isfinite(one.estimate(log.outputs).states))
+    with pytest.raises(AttendInputError, match="path_starts: expected 'both' or 'dstep'"):
+        NonlinearDEM(dem.system, dem.dt, dem.kernel_width, 1.0, 1.0, 0.135, states="path", path_starts="ukf")

@@ -67,6 +67,9 @@ class NonlinearDEM:
     trajectory for the whole log, the D-step's free energy summed over all windows and maximised
     by Gauss-Newton from the D-step's estimate: a smoother, batch only;
     :mod:`attend.perception.nonlinear.path`).
+    path_starts: with states="path", where its optimiser starts: "both" (default: the D-step's
+    estimate and the unscented smoother's, the larger F kept; ~2-3x the time of one start) or
+    "dstep" (:mod:`attend.perception.nonlinear.path_starts`).
     backend: "numpy" (default) or "jax" (the batch D-step compiled with JAX, f and g written with
     jax.numpy; 2-3x faster; :mod:`attend.perception.nonlinear.jax_backend`).
     Precisions are scalars (times I), vectors (diagonal) or matrices.
@@ -100,6 +103,7 @@ class NonlinearDEM:
     integration: str = "attend"
     states: str = "sample"
     backend: str = "numpy"
+    path_starts: str = "both"
     _matrices: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -137,6 +141,8 @@ class NonlinearDEM:
             raise AttendInputError(f"states: expected 'sample' or 'path', got {self.states!r}")
         if self.flow_time not in ("samples", "seconds"):
             raise AttendInputError(f"flow_time: expected 'samples' or 'seconds', got {self.flow_time!r}")
+        if self.path_starts not in ("both", "dstep"):
+            raise AttendInputError(f"path_starts: expected 'both' or 'dstep', got {self.path_starts!r}")
         check_backend(self)
         self._matrices.update(self._build())
 

@@ -46,6 +46,7 @@ from attend.noise import coloured_noise
 from attend.perception import block_tridiagonal
 from attend.perception.dem import DEMEstimate
 from attend.perception.nonlinear.misfit import warn_if_misfit
+from attend.perception.nonlinear.path_starts import smoother_start
 from attend.systems import ModelWarning
 
 CHUNK = 1024  # centres whose Jacobians are held in memory at once
@@ -452,7 +453,9 @@ def _warn_if_misfit(problem: _Problem) -> None:
 def estimate_path(dem, signals: np.ndarray, initial_state=None, *, initial_state_std=None, max_iterations: int = 50,
                   tolerance: float = 1e-10, uncertainty_draws: int = 200, seed: int = 0,
                   keep_generalized: bool = False) -> DEMEstimate:
-    """Path-mode estimates (module docstring) from the D-step's estimate of the same log.
+    """Path-mode estimates (module docstring): Levenberg-Marquardt from the D-step's estimate of the
+    same log and from the unscented smoother's (:mod:`attend.perception.nonlinear.path_starts`),
+    the larger F kept.
 
     dem: a :class:`NonlinearDEM`; signals: (N, m + r) outputs then inputs (known inputs, or the
     prior mean eta), as validated by NonlinearDEM.estimate; initial_state: the D-step's start
@@ -469,11 +472,17 @@ def estimate_path(dem, signals: np.ndarray, initial_state=None, *, initial_state
     with single_blas_thread():
         problem = _Problem(dem, signals[:, :m], signals[:, m:], prior)
         layout = problem.layout
-        z = np.zeros((problem.padded, layout.q))
-        z[: problem.n_samples, : layout.n] = start.states
-        if layout.estimates_inputs:
-            z[: problem.n_samples, layout.n:] = start.inputs
-        z, curvature, iterations, converged = _optimise(problem, z, max_iterations, tolerance)
+        best = None
+        smoothed = smoother_start(dem, signals, prior, start) if dem.path_starts == "both" else None
+        for states, inputs in [(start.states, start.inputs)] + ([smoothed] if smoothed else []):
+            z = np.zeros((problem.padded, layout.q))
+            z[: problem.n_samples, : layout.n] = states
+            if layout.estimates_inputs:
+                z[: problem.n_samples, layout.n:] = inputs
+            result = _optimise(problem, z, max_iterations, tolerance)
+            if best is None or problem.final_cost < best[1]:
+                best = result, problem.final_cost
+        (z, curvature, iterations, converged), problem.final_cost = best
         if not converged:
             warnings.warn(f"NonlinearDEM (states='path'): not converged in {max_iterations} Gauss-Newton steps "
                           "(raise max_iterations, or check the model)", ModelWarning, stacklevel=3)

@@ -17,7 +17,7 @@ from attend.perception.nonlinear._linalg import (block_diagonal_positions, diago
 from attend.perception.nonlinear._workspace import StepWorkspace
 from attend.perception.nonlinear.jax_backend import check_backend, estimate_with_jax
 from attend.perception.nonlinear.model import NonlinearSystem
-from attend.perception.nonlinear.misfit import sample_misfit, warn_if_misfit
+from attend.perception.nonlinear.misfit import check_excursion, sample_misfit, warn_if_misfit
 from attend.perception.nonlinear.online import OnlineNonlinearDEM
 from attend.perception.nonlinear.path import estimate_path
 from attend.perception.nonlinear.start import gauss_newton_start
@@ -555,7 +555,8 @@ class NonlinearDEM:
 
     def _sample_estimate(self, signals, keep_generalized: bool, initial_state, check: bool = True) -> DEMEstimate:
         """The D-step over validated ``signals`` (N, m + r) (see :meth:`estimate`); check: warn when
-        the log is far from the model (:mod:`attend.perception.nonlinear.misfit`)."""
+        the log is far from the model, and raise when the estimate has left the data
+        (:mod:`attend.perception.nonlinear.misfit`)."""
         online = OnlineNonlinearDEM(self, initial_state=initial_state)
         rows, pending = [], []
         with single_blas_thread():  # small matrices: one BLAS thread is 10-20x faster (attend._threads)
@@ -570,7 +571,10 @@ class NonlinearDEM:
             rows.extend(self._with_std(pending))
             if check:
                 warn_if_misfit(sample_misfit(self, signals, [row[4] for row in rows]), "NonlinearDEM", 3)
-        return self._collect(rows, keep_generalized)
+        estimate = self._collect(rows, keep_generalized)
+        if check:
+            check_excursion(self, signals, estimate.states, estimate.inputs, "NonlinearDEM")
+        return estimate
 
     def _collect(self, rows, keep_generalized):
         n_samples = len(rows)

@@ -28,7 +28,7 @@ import numpy as np
 from attend._validation import AttendInputError
 from attend.perception.dem import DEMEstimate
 from attend.perception.nonlinear._linalg import inverse_diagonals
-from attend.perception.nonlinear.misfit import CHECKED_WINDOWS, warn_if_misfit
+from attend.perception.nonlinear.misfit import CHECKED_WINDOWS, check_excursion, warn_if_misfit
 
 #: samples per compiled call (the last chunk is padded with rows that are skipped)
 CHUNK = 128
@@ -347,5 +347,6 @@ def _estimate(estimator, signals, initial_state, keep_generalized: bool) -> DEME
         inputs, input_std = generalized[:, n_x: n_x + r], std[:, n:]
     else:
         inputs, input_std = u_tilde[:, :r], np.zeros((len(signals), r))
+    check_excursion(estimator, signals, generalized[:, :n], inputs, "NonlinearDEM")
     return DEMEstimate(np.arange(len(signals)) * estimator.dt, generalized[:, :n].copy(), inputs.copy(),
                        std[:, :n], input_std, generalized if keep_generalized else None)

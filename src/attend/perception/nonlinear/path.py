@@ -45,7 +45,7 @@ from attend._validation import AttendInputError
 from attend.noise import coloured_noise
 from attend.perception import block_tridiagonal
 from attend.perception.dem import DEMEstimate
-from attend.perception.nonlinear.misfit import warn_if_misfit
+from attend.perception.nonlinear.misfit import check_excursion, warn_if_misfit
 from attend.perception.nonlinear.path_starts import smoother_start
 from attend.systems import ModelWarning
 
@@ -500,5 +500,6 @@ def estimate_path(dem, signals: np.ndarray, initial_state=None, *, initial_state
         inputs, input_std = z[:, n:], std[:, n:]
     else:
         inputs, input_std = signals[:, m:], np.zeros((problem.n_samples, r))
+    check_excursion(dem, signals, z[:, :n], inputs, "NonlinearDEM (states='path')")
     return DEMEstimate(np.arange(problem.n_samples) * dem.dt, z[:, :n].copy(), inputs.copy(), std[:, :n].copy(),
                        input_std.copy(), generalized)

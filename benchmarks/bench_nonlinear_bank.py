@@ -42,9 +42,13 @@ from attend.perception.nonlinear_baselines import (
     unscented_kalman,
     white_noise_covariances,
 )
+from attend.systems import Trajectory
 
 DT = 0.05  # s
 SAMPLES = 400
+#: the simulation runs FINE[0] times finer than the log's dt (inputs and noise held over each fine
+#: step, 1: over each sample as robots' logs) and is then sampled every FINE[0] steps
+FINE = [1]
 METHODS = ("DEM", "DEM path", "UKF", "coloured UKS")
 
 
@@ -64,7 +68,9 @@ def draw_case(index: int) -> dict:
     sigma_w = float(np.exp(rng.uniform(np.log(0.1), np.log(3.0))))
     width = float(rng.uniform(0.5, 1.0))
     time_axis = np.arange(SAMPLES) * DT
-    u = coloured_noise(SAMPLES, r, DT, width, 1.0, rng) if r else np.zeros((SAMPLES, 0))
+    step, fine_samples = DT / FINE[0], (SAMPLES - 1) * FINE[0] + 1  # simulated FINE times finer, then sampled
+    u_fine = coloured_noise(fine_samples, r, step, width, 1.0, rng) if r else np.zeros((fine_samples, 0))
+    u = u_fine[:: FINE[0]]
     # the state scale of the linear part (noise and inputs), to size the nonlinear terms
     linear = NonlinearSystem(lambda x, v: A @ x + B @ v, lambda x, v: C @ x, n, r, m)
     probe = simulate_nonlinear(linear, u, DT, kernel_width=s, process_std=sigma_w, initial_state=np.zeros(n),
@@ -87,8 +93,10 @@ def draw_case(index: int) -> dict:
     x0 = rng.standard_normal(n)
     clean = simulate_nonlinear(system, u, DT, kernel_width=s, process_std=sigma_w, initial_state=x0, seed=index)
     sigma_z = float(np.exp(rng.uniform(np.log(0.03), np.log(0.3)))) * max(float(np.std(clean.outputs)), 1e-3)
-    log = simulate_nonlinear(system, u, DT, kernel_width=s, process_std=sigma_w, measurement_std=sigma_z,
-                             initial_state=x0, seed=index + 1)
+    fine = simulate_nonlinear(system, u_fine, step, kernel_width=s, process_std=sigma_w, measurement_std=sigma_z,
+                              initial_state=x0, seed=index + 1, substeps=max(1, 10 // FINE[0]))
+    log = Trajectory(time_axis, fine.states[:: FINE[0]], u, fine.outputs[:: FINE[0]], fine.process_noise[:: FINE[0]],
+                     fine.measurement_noise[:: FINE[0]])
     p = next((p for p in range(6, 0, -1) if smoothness_condition(p + 1, s, DT) <= AUTO_MAX_CONDITION), 1)
     return dict(index=index, system=system, log=log, time=time_axis, s=s, sigma_w=sigma_w, sigma_z=sigma_z,
                 input_kind=input_kind, input_width=width, p=p, n=n, m=m, strength=strength,
@@ -184,9 +192,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", type=int, default=36)
     parser.add_argument("--first", type=int, default=0, help="index of the first case")
+    parser.add_argument("--fine", type=int, default=1, help="simulate this many times finer than dt (1: inputs and "
+                        "noise held over each sample)")
     args = parser.parse_args()
-    print(f"== nonlinear DEM on {args.cases} random nonlinear systems ({SAMPLES} samples at dt = {DT} s each; "
-          "ratios to the white-noise UKF smoother)")
+    FINE[0] = args.fine
+    print(f"== nonlinear DEM on {args.cases} random nonlinear systems ({SAMPLES} samples at dt = {DT} s each, "
+          f"simulated {FINE[0]}x finer; ratios to the white-noise UKF smoother)")
     rows = []
     for index in range(args.first, args.first + args.cases):
         case = draw_case(index)

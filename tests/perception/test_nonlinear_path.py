@@ -275,3 +275,52 @@ def test_path_starts_dstep_runs_one_start_and_bad_values_are_refused(monkeypatch
     assert np.all(np.isfinite(one.estimate(log.outputs).states))
     with pytest.raises(AttendInputError, match="path_starts: expected 'both' or 'dstep'"):
         NonlinearDEM(dem.system, dem.dt, dem.kernel_width, 1.0, 1.0, 0.135, states="path", path_starts="ukf")
+
+
+# --- all windows' f, g and Jacobians at once (vectorized systems) ------------------------------
+
+def _saturating(vectorized: bool, wrong_shape: bool = False):
+    A, B, W = np.array([[-0.5, 1.0], [-1.0, -0.3]]), np.array([[0.0], [1.0]]), np.array([[0.8, -0.4], [0.3, 1.1]])
+
+    def f(x, v):
+        return A @ x + B @ v + 0.7 * np.tanh(W @ x)
+
+    def g(x, v):
+        value = np.stack([x[0] + 0.3 * np.sin(2 * x[1])])
+        return value[:, :1] if wrong_shape and np.ndim(x) == 2 else value.reshape(1, *np.shape(x)[1:])
+
+    return NonlinearSystem(f, g, 2, 1, 1, vectorized=vectorized)
+
+
+def test_evaluate_many_vectorized_equals_point_by_point():
+    from attend.perception.nonlinear.model import evaluate_many
+
+    rng = np.random.default_rng(1)
+    x, v = rng.normal(size=(30, 2)), rng.normal(size=(30, 1))
+    by_point = evaluate_many(_saturating(False), x, v)
+    at_once = evaluate_many(_saturating(True), x, v)
+    for one, many, name in zip(by_point, at_once, ("f", "g", "fx", "fv", "gx", "gv")):
+        np.testing.assert_allclose(many, one, rtol=1e-8, atol=1e-9, err_msg=name)
+    fx, fv, gx, gv = _saturating(False).jacobians(x[4], v[4])
+    np.testing.assert_allclose(by_point[2][4], fx)
+    np.testing.assert_allclose(by_point[5][4], gv)
+
+
+def test_evaluate_many_names_a_vectorized_function_of_the_wrong_shape():
+    from attend.perception.nonlinear.model import evaluate_many
+
+    # 5 points and their 2 x 3 shifts: 35 columns
+    with pytest.raises(AttendInputError, match=r"g: with vectorized=True expected \(1, 35\) values for 35 columns"):
+        evaluate_many(_saturating(True, wrong_shape=True), np.zeros((5, 2)), np.zeros((5, 1)))
+
+
+def test_path_mode_of_a_vectorized_system_equals_point_by_point():
+    system = _saturating(False)
+    time = np.arange(150) * 0.05
+    push = np.sin(0.7 * time)[:, None]
+    log = simulate_nonlinear(system, push, 0.05, kernel_width=0.1, process_std=0.3, measurement_std=0.05, seed=2)
+    estimates = [NonlinearDEM(candidate, 0.05, 0.1, 400.0, 1 / 0.09, embedding_order=4, input_order=2,
+                              known_inputs=True, states="path").estimate(log.outputs, push)
+                 for candidate in (system, _saturating(True))]
+    np.testing.assert_allclose(estimates[1].states, estimates[0].states, rtol=1e-6, atol=1e-8)
+    np.testing.assert_allclose(estimates[1].state_std, estimates[0].state_std, rtol=1e-5)

@@ -169,6 +169,58 @@ class NonlinearSystem:
         return fx, fv, gx, gv
 
 
+def _batched(system: "NonlinearSystem", which: str, z: np.ndarray) -> np.ndarray:
+    """f or g of a vectorized system at the columns of z ((n + r), K): a (size, K) array."""
+    n = system.n_states
+    function, size = (system.f, n) if which == "f" else (system.g, system.n_outputs)
+    try:
+        values = np.asarray(system._call(function, z[:n], z[n:]), dtype=float)
+    except AttendInputError:
+        raise
+    except Exception as error:
+        raise AttendInputError(f"{which}: raised {type(error).__name__}: {error} when called with {z.shape[1]} "
+                               "columns (vectorized=True: f and g must accept (n, K) columns)") from error
+    if values.shape != (size, z.shape[1]):
+        raise AttendInputError(f"{which}: with vectorized=True expected ({size}, {z.shape[1]}) values for "
+                               f"{z.shape[1]} columns, got shape {values.shape}")
+    return values
+
+
+def evaluate_many(system: "NonlinearSystem", x, v):
+    """(f (C, n), g (C, m), fx (C, n, n), fv (C, n, r), gx (C, m, n), gv (C, m, r)) at the C points
+    (x_c, v_c) (rows of x (C, n), v (C, r)). For a vectorized system with central finite-difference
+    Jacobians, one call of f and one of g on every point and its shifts z +- h_j e_j (h_j as in
+    :func:`finite_difference_jacobian`); otherwise point by point (analytic Jacobians, or functions
+    of one point). system: the NonlinearSystem."""
+    x, v = np.asarray(x, dtype=float), np.asarray(v, dtype=float)
+    C, n = x.shape
+    if not (system.vectorized and system.jacobian_f is None and system.jacobian_g is None
+            and system.jacobian_method == "central"):
+        calls = [(system._value("f", xc, vc), system._value("g", xc, vc), *system._jacobians(xc, vc))
+                 for xc, vc in zip(x, v)]
+        return tuple(np.array([call[i] for call in calls]).reshape((C,) + shape)
+                     for i, shape in enumerate(_shapes(system)))
+    z = np.concatenate([x, v], axis=1)
+    k = z.shape[1]
+    h = _EPS ** (1 / 3) * np.maximum(1.0, np.abs(z))  # (C, k)
+    shifts = h[:, :, None] * np.eye(k)[None]  # (C, j, k): point c shifted along coordinate j
+    points = np.concatenate([z, (z[:, None] + shifts).reshape(-1, k), (z[:, None] - shifts).reshape(-1, k)])
+    out = []
+    for which in ("f", "g"):
+        values = _batched(system, which, points.T).T  # (C (1 + 2k), size)
+        centre = values[:C]
+        plus, minus = values[C: C * (1 + k)].reshape(C, k, -1), values[C * (1 + k):].reshape(C, k, -1)
+        jacobian = np.swapaxes((plus - minus) / (2 * h[:, :, None]), 1, 2)  # (C, size, k)
+        out.append((centre, jacobian[:, :, :n], jacobian[:, :, n:]))
+    (f, fx, fv), (g, gx, gv) = out
+    return f, g, fx, fv, gx, gv
+
+
+def _shapes(system: "NonlinearSystem") -> list[tuple]:
+    n, r, m = system.n_states, system.n_inputs, system.n_outputs
+    return [(n,), (m,), (n, n), (n, r), (m, n), (m, r)]
+
+
 def simulate_nonlinear(system: NonlinearSystem, inputs, dt: float, *, kernel_width: float, process_std=0.0,
                        measurement_std=0.0, initial_state=None, seed=0, substeps: int = 10) -> Trajectory:
     """Simulate the generative process with coloured noise.

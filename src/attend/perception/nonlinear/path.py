@@ -46,6 +46,7 @@ from attend.noise import coloured_noise
 from attend.perception import block_tridiagonal
 from attend.perception.dem import DEMEstimate
 from attend.perception.nonlinear.misfit import check_excursion, warn_if_misfit
+from attend.perception.nonlinear.model import evaluate_many
 from attend.perception.nonlinear.path_starts import smoother_start
 from attend.systems import ModelWarning
 
@@ -102,15 +103,16 @@ def _block_diagonal(blocks) -> np.ndarray:
 
 def _linearized_errors(dem, X_all, y_tilde, u_tilde, jacobians: bool):
     """:meth:`NonlinearDEM.errors` of many windows at once for motion="linearized" (the same
-    numbers): only f, g and their Jacobians are called per window. Returns (e (C, n_e), E or None)."""
+    numbers): only f, g and their Jacobians are called per window (all windows in one call of f and
+    one of g for a vectorized system, :func:`attend.perception.nonlinear.model.evaluate_many`).
+    Returns (e (C, n_e), E or None)."""
     mats, system = dem._matrices, dem.system
     n, r, p, d, top = mats["sizes"]
     C = len(X_all)
     x = X_all[:, : n * (p + 1)].reshape(C, p + 1, n)
     estimates_inputs = mats["estimates_inputs"]
     v = (X_all[:, n * (p + 1):] if estimates_inputs else u_tilde).reshape(C, d + 1, r)
-    calls = [(system.jacobians(xc, vc), system.observe(xc, vc), system.flow(xc, vc)) for xc, vc in zip(x[:, 0], v[:, 0])]
-    fx, fv, gx, gv = (np.array([call[0][i] for call in calls]) for i in range(4))
+    f0, g0, fx, fv, gx, gv = evaluate_many(system, x[:, 0], v[:, 0])
     g_t = np.einsum("ckn,cmn->ckm", x, gx)
     f_t = np.einsum("ckn,cmn->ckm", x, fx)
     if r:
@@ -118,8 +120,8 @@ def _linearized_errors(dem, X_all, y_tilde, u_tilde, jacobians: bool):
         v_pad[:, :top] = v[:, :top]
         g_t += np.einsum("ckr,cmr->ckm", v_pad, gv)
         f_t += np.einsum("ckr,cmr->ckm", v_pad, fv)
-    g_t[:, 0] = [call[1] for call in calls]
-    f_t[:, 0] = [call[2] for call in calls]
+    g_t[:, 0] = g0
+    f_t[:, 0] = f0
     motion_error = np.empty((C, p + 1, n))
     motion_error[:, :-1] = x[:, 1:] - f_t[:, :-1]
     motion_error[:, -1] = 0.0 if dem.integration == "spm" else -f_t[:, -1]

@@ -66,7 +66,8 @@ class NonlinearSystem:
     jacobian_f, jacobian_g: optional analytic Jacobians, called like f and g and returning the
     pair (df/dx (n, n), df/dv (n, r)) resp. (dg/dx (m, n), dg/dv (m, r)); without them the
     Jacobians are finite differences (``jacobian_method`` "central" or "complex", see
-    :func:`finite_difference_jacobian`; ``vectorized``: f and g accept (k, batch) columns).
+    :func:`finite_difference_jacobian`; ``vectorized``: f and g accept (k, batch) columns, so that
+    a Jacobian is one call, and path mode evaluates all its windows in one call, :func:`evaluate_many`).
     state_names, input_names, output_names: labels (default x1.., u1.., y1..).
     """
 

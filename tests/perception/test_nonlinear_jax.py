@@ -192,3 +192,20 @@ def test_linear_model_equals_the_linear_observer():
                                atol=1e-5 * max(1.0, np.abs(reference.inputs).max()))
     laplace = np.sqrt(np.diag(observer.generalized_matrices()["Sigma_X"]))
     np.testing.assert_allclose(estimate.state_std, np.broadcast_to(laplace[:2], estimate.state_std.shape), rtol=1e-6)
+
+
+def test_an_estimate_that_leaves_the_data_is_an_error(lorenz_log, monkeypatch):
+    """The compiled check of the predicted outputs (g vmapped) against the log, as the NumPy step's:
+    a flow shifted 1e4 away in x2 (below divergence_limit) is an error naming y2."""
+    flow = jax_backend._flow
+
+    def shifted(*args):
+        rows, curvatures, variances = flow(*args)
+        rows[60:, 1] += 1e4
+        return rows, curvatures, variances
+
+    monkeypatch.setattr(jax_backend, "_flow", shifted)
+    with warnings.catch_warnings(), pytest.raises(AttendInputError, match=r"NonlinearDEM: the estimate left the "
+                                                                          r"data: at sample \d+ the predicted y2"):
+        warnings.simplefilter("ignore")  # the misfit warning comes first
+        NonlinearDEM(lorenz_jax(), 0.01, 0.02, 1.0, 1 / 400, backend="jax").estimate(lorenz_log.outputs)

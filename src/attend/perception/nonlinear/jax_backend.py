@@ -28,7 +28,7 @@ import numpy as np
 from attend._validation import AttendInputError
 from attend.perception.dem import DEMEstimate
 from attend.perception.nonlinear._linalg import inverse_diagonals
-from attend.perception.nonlinear.misfit import CHECKED_WINDOWS, check_excursion, warn_if_misfit
+from attend.perception.nonlinear.misfit import CHECKED_WINDOWS, check_excursion, excursion_rows, warn_if_misfit
 
 #: samples per compiled call (the last chunk is padded with rows that are skipped)
 CHUNK = 128
@@ -134,9 +134,9 @@ def _expm_last_column(jnp, lax, block):
 
 
 def _functions(estimator):
-    """Traceable (step, evaluate, misfit) of the estimator: step(X, y~, u~) -> (X after one D-step
+    """Traceable (step, evaluate, misfit, g) of the estimator: step(X, y~, u~) -> (X after one D-step
     over 1/substeps of the sample, E' Pi~ E); evaluate(X, y~, u~) -> (dF/dX, E' Pi~ E, F);
-    misfit(X, y~, u~) -> e' Pi~ e / dim(e) (:mod:`attend.perception.nonlinear.misfit`)."""
+    misfit(X, y~, u~) -> e' Pi~ e / dim(e) (:mod:`attend.perception.nonlinear.misfit`); g(x, v)."""
     jax = _import_jax()
     jnp = jax.numpy
 
@@ -195,7 +195,7 @@ def _functions(estimator):
         block = jnp.concatenate([flow, jnp.zeros((1, size + 1))])
         return X + _expm_last_column(jnp, jax.lax, block) / scale, curvature
 
-    return step, evaluate, misfit
+    return step, evaluate, misfit, g
 
 
 def _variances(jax, curvatures, reported):
@@ -246,12 +246,13 @@ def _compiled(estimator) -> dict:
     """The estimator's compiled functions (built once, kept in its matrices): run(X0, Y~, U~, real)
     -> (X after the chunk, X rows, curvatures, variances of the reported coordinates) over CHUNK
     rows; start(X, y~, u~) -> the start of the flow (Gauss-Newton from X); misfit(X rows, Y~, U~)
-    -> the misfit ratio of each row. estimator: the NonlinearDEM."""
+    -> the misfit ratio of each row; observe(X rows, V rows) -> g at each row. estimator: the
+    NonlinearDEM."""
     cached = estimator._matrices.get("jax")
     if cached is not None:
         return cached
     jax = _import_jax()
-    (step, evaluate, misfit), substeps = _functions(estimator), estimator.substeps
+    (step, evaluate, misfit, observe), substeps = _functions(estimator), estimator.substeps
     reported = estimator._matrices["reported"]
 
     def advance(X, y_tilde, u_tilde):
@@ -269,7 +270,7 @@ def _compiled(estimator) -> dict:
         return last, rows, curvatures, _variances(jax, curvatures, reported)
 
     compiled = dict(run=jax.jit(run), start=jax.jit(lambda X, y, u: _gauss_newton(jax, evaluate, X, y, u)),
-                    misfit=jax.jit(jax.vmap(misfit)))
+                    misfit=jax.jit(jax.vmap(misfit)), observe=jax.jit(jax.vmap(observe)))
     estimator._matrices["jax"] = compiled
     return compiled
 
@@ -347,6 +348,9 @@ def _estimate(estimator, signals, initial_state, keep_generalized: bool) -> DEME
         inputs, input_std = generalized[:, n_x: n_x + r], std[:, n:]
     else:
         inputs, input_std = u_tilde[:, :r], np.zeros((len(signals), r))
-    check_excursion(estimator, signals, generalized[:, :n], inputs, "NonlinearDEM")
+    rows = excursion_rows(len(signals))
+    padded = np.resize(rows, 2 * CHECKED_WINDOWS + 1)  # one compiled shape for every log
+    predicted = np.asarray(_call(_compiled(estimator)["observe"], generalized[padded, :n], inputs[padded]))
+    check_excursion(estimator, signals, generalized[:, :n], inputs, "NonlinearDEM", predicted[: len(rows)])
     return DEMEstimate(np.arange(len(signals)) * estimator.dt, generalized[:, :n].copy(), inputs.copy(),
                        std[:, :n], input_std, generalized if keep_generalized else None)

@@ -66,20 +66,28 @@ def sample_misfit(dem, signals: np.ndarray, generalized: np.ndarray) -> float:
     return float(np.mean(costs))
 
 
-def check_excursion(dem, signals: np.ndarray, states: np.ndarray, inputs: np.ndarray, who: str) -> None:
+def excursion_rows(n_samples: int) -> np.ndarray:
+    """The samples :func:`check_excursion` looks at: up to 2 CHECKED_WINDOWS evenly spaced, and the last."""
+    return np.unique(np.r_[np.linspace(0, n_samples - 1, min(n_samples, 2 * CHECKED_WINDOWS)).astype(int),
+                           n_samples - 1])
+
+
+def check_excursion(dem, signals: np.ndarray, states: np.ndarray, inputs: np.ndarray, who: str,
+                    predicted: np.ndarray | None = None) -> None:
     """Raise an AttendInputError when the estimate has left the data (module docstring), checked at
-    up to 2 CHECKED_WINDOWS samples evenly spaced over the log and the last one.
+    the samples of :func:`excursion_rows`.
 
     dem: the NonlinearDEM; signals: (N, m + r) outputs then inputs; states (N, n), inputs (N, r):
-    the estimates (inputs: estimated, or the measured ones); who: the estimator's name."""
+    the estimates (inputs: estimated, or the measured ones); who: the estimator's name; predicted:
+    g at those samples if already computed ((rows, m); default: computed here)."""
     m = dem.system.n_outputs
     outputs = signals[:, :m]
-    rows = np.unique(np.r_[np.linspace(0, len(outputs) - 1, min(len(outputs), 2 * CHECKED_WINDOWS)).astype(int),
-                           len(outputs) - 1])
+    rows = excursion_rows(len(outputs))
     with np.errstate(divide="ignore"):
         noise_std = 1.0 / np.sqrt(np.diag(dem.sensor_precision))
     scale = np.ptp(outputs, axis=0) + noise_std
-    predicted = np.array([dem.system.observe(states[k], inputs[k]) for k in rows])
+    if predicted is None:
+        predicted = np.array([dem.system.observe(states[k], inputs[k]) for k in rows])
     with np.errstate(invalid="ignore"):
         excursion = np.abs(predicted - outputs[rows]) / scale
     excursion = np.where(np.isnan(excursion) & np.isfinite(scale), np.inf, excursion)

@@ -67,7 +67,8 @@ def sample_misfit(dem, signals: np.ndarray, generalized: np.ndarray) -> float:
 
 
 def excursion_rows(n_samples: int) -> np.ndarray:
-    """The samples :func:`check_excursion` looks at: up to 2 CHECKED_WINDOWS evenly spaced, and the last."""
+    """The samples :func:`check_excursion` looks at: up to 2 CHECKED_WINDOWS evenly spaced, and the
+    last. n_samples: the log's length."""
     return np.unique(np.r_[np.linspace(0, n_samples - 1, min(n_samples, 2 * CHECKED_WINDOWS)).astype(int),
                            n_samples - 1])
 

@@ -51,6 +51,20 @@ def build_system(cfg: dict) -> NonlinearSystem:
     return lorenz_system(cfg["sigma"], cfg["rho"], cfg["beta"])
 
 
+def build_jax_system(cfg: dict) -> NonlinearSystem:
+    """The same system with f and g written in jax.numpy, for NonlinearDEM(backend="jax") (needs
+    JAX); cfg: the settings dict (keys sigma, rho, beta)."""
+    import jax.numpy as jnp
+
+    sigma, rho, beta = cfg["sigma"], cfg["rho"], cfg["beta"]
+
+    def f(x, v):
+        return jnp.stack([sigma * (x[1] - x[0]), x[0] * (rho - x[2]) - x[1], x[0] * x[1] - beta * x[2]])
+
+    return NonlinearSystem(f, lambda x, v: 1.0 * x, 3, 0, 3, state_names=("x1", "x2", "x3"),
+                           output_names=("y1", "y2", "y3"))
+
+
 def true_input(time: np.ndarray) -> np.ndarray:
     """No inputs: an autonomous system ((N, 0) array for the N sample times ``time`` [s])."""
     return np.zeros((len(time), 0))

@@ -62,6 +62,23 @@ def build_system(cfg: dict) -> NonlinearSystem:
     return pendulum_system(cfg["gravity_over_length"], cfg["damping"])
 
 
+def build_jax_system(cfg: dict) -> NonlinearSystem:
+    """The same pendulum with f and g written in jax.numpy, for NonlinearDEM(backend="jax") (needs
+    JAX); cfg: the settings dict (keys gravity_over_length, damping)."""
+    import jax.numpy as jnp
+
+    gravity_over_length, damping = cfg["gravity_over_length"], cfg["damping"]
+
+    def f(x, v):
+        return jnp.stack([x[1], -gravity_over_length * jnp.sin(x[0]) - damping * x[1] + v[0]])
+
+    def g(x, v):
+        return jnp.stack([jnp.sin(x[0]), jnp.cos(x[0])])
+
+    return NonlinearSystem(f, g, 2, 1, 2, state_names=("theta", "omega"), input_names=("u",),
+                           output_names=("sin theta", "cos theta"))
+
+
 def run(quick: bool = True, progress: bool = True, seeds: int | None = None) -> ExperimentResult:
     """State and input SSE of DEM, augmented EKF/UKF and the particle smoother (quick: 3 seeds,
     15 s, 1000 particles; full: 20 seeds, 20 s, 100000 particles). quick: the short run;

@@ -313,7 +313,7 @@ def _misfit(estimator, generalized, y_tilde, u_tilde) -> float:
     if len(rows) == 0:
         return np.nan
     rows = rows[:: max(1, len(rows) // CHECKED_WINDOWS)]
-    padded = np.resize(rows, 4 * CHECKED_WINDOWS)[: max(len(rows), 4 * CHECKED_WINDOWS)]
+    padded = np.resize(rows, 2 * CHECKED_WINDOWS)[: max(len(rows), 2 * CHECKED_WINDOWS)]  # at most ~99 rows
     costs = np.asarray(_compiled(estimator)["misfit"](generalized[padded], y_tilde[padded], u_tilde[padded]))
     return float(np.mean(costs[: len(rows)]))
 

@@ -9,7 +9,10 @@ f(x, v, theta), g(x, v, theta) join z; the noise precisions are given (known)::
 
 Each datum enters p + 1 windows, so the window sum is weighted by 1/(p + 1) (as in the linear
 learner's path mode): the prior on theta then weighs against the data once. The maximiser is
-found by Levenberg-Marquardt on (z, theta) from the D-step's trajectory at the starting theta:
+found by Levenberg-Marquardt on (z, theta) from path mode's trajectory at the starting theta
+(linearised motion, itself started from the D-step's and the unscented smoother's estimates: on
+three sinusoidal-sensor systems of the random nonlinear bank theta ends 1.6, 0.3 and 6.6 std
+from the truth, against 4.9, 15.7 and 26.6 from the D-step's start alone):
 J_z as in path mode, J_theta by central differences over theta, and the joint curvature
 [[H_zz, H_zt], [H_tz, H_tt]] solved through the Schur complement of the block-tridiagonal H_zz
 (O(N k^2)). (An EM variant that also weighs q(z)'s covariance into the theta step,
@@ -27,6 +30,7 @@ high-order motion energy than S expects, which biases theta by up to ~0.5 std.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -36,7 +40,8 @@ from attend._threads import single_blas_thread
 from attend._validation import AttendInputError, positive_scalar
 from attend.perception.nonlinear.dem import NonlinearDEM
 from attend.perception.nonlinear.path import (NOISE_BUDGET, _accumulate, _draw_noises, _embedded_noises, _errors,
-                                              _fill_unused, _noise_sources, _Problem, _solve)
+                                              _fill_unused, _noise_sources, _Problem, _solve, estimate_path)
+from attend.systems import ModelWarning
 
 
 class PathLearningResult(NamedTuple):
@@ -232,6 +237,19 @@ def _spread(setup: _Setup, joint: _Joint, z, draws: int, seed):
     return covariance, np.sqrt(z_square / draws).reshape(-1, layout.q)[: problem.n_samples]
 
 
+def _start(dem, signals: np.ndarray):
+    """The trajectory the joint optimisation starts from: path mode's at the starting theta (from the
+    D-step's and the unscented smoother's estimates, the larger F kept; std not computed), or the
+    D-step's where path mode stops with an error. dem: the NonlinearDEM at the starting theta (with
+    the linearised motion); signals: (N, m + r) outputs then inputs."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ModelWarning)  # a misfit at the starting theta is expected
+            return estimate_path(dem, signals, uncertainty_draws=0)
+    except AttendInputError:
+        return dem._sample_estimate(signals, False, None, check=False)
+
+
 def learn_path(model, outputs, inputs, dt: float, *, kernel_width: float, sensor_precision, process_precision,
                prior_mean, prior_precision, initial=None, input_prior_precision=None, embedding_order: int = 6,
                input_order: int = 2, input_kernel_width: float | None = None, max_iterations: int = 50,
@@ -269,7 +287,7 @@ def learn_path(model, outputs, inputs, dt: float, *, kernel_width: float, sensor
         raise AttendInputError("inputs: the model has inputs; pass the measured inputs, or input_prior_precision "
                                "for unknown inputs")
 
-    def build(values):
+    def build(values, motion=motion):
         return NonlinearDEM(model.at(values), dt, kernel_width, sensor_precision, process_precision,
                             input_prior_precision if unknown else None, embedding_order, input_order,
                             known_inputs=not unknown, input_kernel_width=input_kernel_width if unknown else None,
@@ -280,7 +298,7 @@ def learn_path(model, outputs, inputs, dt: float, *, kernel_width: float, sensor
     m = model.n_outputs
     setup = _Setup(model, build, signals[:, :m], signals[:, m:], eta, P, active, 1.0 / (embedding_order + 1))
     with single_blas_thread():
-        start = dem._sample_estimate(signals, False, None, check=False)
+        start = _start(build(theta, "linearized"), signals)  # the linearised motion: ~3x faster, a start
         layout = _Problem(dem, setup.y, setup.u).layout
         z = np.zeros((layout.n_blocks * layout.W, layout.q))
         z[: len(signals), : layout.n] = start.states

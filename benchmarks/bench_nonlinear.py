@@ -65,15 +65,12 @@ def _jax_speeds(cfg, logs) -> dict:
     """backend="jax" on the same logs, Lorenz written with jax.numpy: samples/s on the 2 s and 20 s
     logs (compiled; best of 5) and the first call's time (tracing and compilation) [s]; {} without JAX."""
     try:
-        import jax.numpy as jnp
+        import jax  # noqa: F401
     except ImportError:
         return {}
-    from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem
+    from attend.perception.nonlinear import NonlinearDEM
 
-    sigma, rho, beta = cfg["sigma"], cfg["rho"], cfg["beta"]
-    system = NonlinearSystem(lambda x, v: jnp.stack([sigma * (x[1] - x[0]), x[0] * (rho - x[2]) - x[1],
-                                                     x[0] * x[1] - beta * x[2]]), lambda x, v: 1.0 * x, 3, 0, 3)
-    dem = NonlinearDEM(system, cfg["dt"], cfg["kernel_width"], 1.0, 1 / 400, embedding_order=6, backend="jax")
+    dem = NonlinearDEM(lorenz.build_jax_system(cfg), cfg["dt"], cfg["kernel_width"], 1.0, 1 / 400, embedding_order=6, backend="jax")
     start = time.perf_counter()
     dem.estimate(logs[0].outputs)
     compile_seconds = time.perf_counter() - start

@@ -17,16 +17,12 @@ jnp = jax.numpy
 from attend.perception.nonlinear import jax_backend  # noqa: E402  (after the skip)
 
 
-def lorenz_jax(sigma=10.0, rho=28.0, beta=8.0 / 3.0):
-    def f(x, v):
-        return jnp.stack([sigma * (x[1] - x[0]), x[0] * (rho - x[2]) - x[1], x[0] * x[1] - beta * x[2]])
-    return NonlinearSystem(f, lambda x, v: 1.0 * x, 3, 0, 3)
+def lorenz_jax():
+    return lorenz.build_jax_system(lorenz.SETTINGS)
 
 
-def pendulum_jax(gravity_over_length=9.81, damping=0.3):
-    def f(x, v):
-        return jnp.stack([x[1], -gravity_over_length * jnp.sin(x[0]) - damping * x[1] + v[0]])
-    return NonlinearSystem(f, lambda x, v: jnp.stack([jnp.sin(x[0]), jnp.cos(x[0])]), 2, 1, 2)
+def pendulum_jax():
+    return pendulum.build_jax_system(pendulum.SETTINGS)
 
 
 @pytest.fixture(scope="module")
@@ -162,9 +158,10 @@ def test_unknown_backend_is_refused():
 
 
 def test_missing_jax_says_how_to_install(monkeypatch):
+    system = lorenz_jax()
     monkeypatch.setitem(sys.modules, "jax", None)  # import jax now raises ImportError
     with pytest.raises(AttendInputError, match=r"attend\[jax\]"):
-        NonlinearDEM(lorenz_jax(), 0.01, 0.02, 1.0, 1 / 400, backend="jax")
+        NonlinearDEM(system, 0.01, 0.02, 1.0, 1 / 400, backend="jax")
 
 
 def test_linear_model_equals_the_linear_observer():

@@ -30,7 +30,8 @@ import numpy as np
 from attend._validation import AttendInputError
 from attend.perception.dem import DEMEstimate
 from attend.perception.nonlinear._linalg import inverse_diagonals
-from attend.perception.nonlinear.misfit import CHECKED_WINDOWS, check_excursion, excursion_rows, warn_if_misfit
+from attend.perception.nonlinear.misfit import (CHECKED_WINDOWS, check_excursion, excursion_rows, misfit_rows,
+                                                 warn_if_misfit)
 
 #: samples per compiled call (the last chunk is padded with rows that are skipped)
 CHUNK = 128
@@ -309,13 +310,11 @@ def _flow(estimator, X0, y_tilde, u_tilde):
 
 
 def _misfit(estimator, generalized, y_tilde, u_tilde) -> float:
-    """The misfit ratio of sample_misfit (the same rows: whole windows, up to ~CHECKED_WINDOWS), compiled."""
-    offsets = estimator._matrices["offsets"]
-    rows = np.arange(-offsets[0], len(generalized) - offsets[-1])
+    """The misfit ratio of sample_misfit at the same rows (misfit_rows), compiled."""
+    rows = misfit_rows(estimator, len(generalized))
     if len(rows) == 0:
         return np.nan
-    rows = rows[:: max(1, len(rows) // CHECKED_WINDOWS)]
-    padded = np.resize(rows, 2 * CHECKED_WINDOWS)[: max(len(rows), 2 * CHECKED_WINDOWS)]  # at most ~99 rows
+    padded = np.resize(rows, 2 * CHECKED_WINDOWS)  # fewer than 2 CHECKED_WINDOWS rows: one compiled shape
     costs = np.asarray(_compiled(estimator)["misfit"](generalized[padded], y_tilde[padded], u_tilde[padded]))
     return float(np.mean(costs[: len(rows)]))
 

@@ -44,15 +44,23 @@ def warn_if_misfit(ratio: float, who: str, stacklevel: int) -> None:
             "reliable here (docs/nonlinear.md, 'unseen systems')", ModelWarning, stacklevel=stacklevel + 1)
 
 
+def misfit_rows(dem, n_samples: int) -> np.ndarray:
+    """The samples the misfit ratio averages over: those whose embedding window lies in the log,
+    every k-th so that there are about CHECKED_WINDOWS (fewer than 2 CHECKED_WINDOWS). dem: the
+    NonlinearDEM; n_samples: the log's length."""
+    offsets = dem._matrices["offsets"]
+    rows = np.arange(-offsets[0], n_samples - offsets[-1])
+    return rows[:: max(1, len(rows) // CHECKED_WINDOWS)]
+
+
 def sample_misfit(dem, signals: np.ndarray, generalized: np.ndarray) -> float:
     """The misfit ratio of the D-step's estimates: 1/2 e' Pi~ e over 1/2 dim(e), averaged over up
     to CHECKED_WINDOWS samples whose embedding window lies in the log. dem: the NonlinearDEM;
     signals: (N, m + r) outputs and inputs; generalized: (N, dim X) its generalised estimates."""
     offsets = dem._matrices["offsets"]
-    rows = np.arange(-offsets[0], len(signals) - offsets[-1])
+    rows = misfit_rows(dem, len(signals))
     if len(rows) == 0:
         return np.nan
-    rows = rows[:: max(1, len(rows) // CHECKED_WINDOWS)]
     costs = []
     for k in rows:
         y_tilde, u_tilde = dem._embed_row(signals[k + offsets], False, signals[k])
@@ -91,10 +99,11 @@ def check_excursion(dem, signals: np.ndarray, states: np.ndarray, inputs: np.nda
         predicted = np.array([dem.system.observe(states[k], inputs[k]) for k in rows])
     with np.errstate(invalid="ignore"):
         excursion = np.abs(predicted - outputs[rows]) / scale
-    excursion = np.where(np.isnan(excursion) & np.isfinite(scale), np.inf, excursion)
+    # a non-finite prediction is an excursion; inf / inf (an output without sensor precision) is none
+    excursion = np.where(~np.isfinite(predicted) & np.isfinite(scale), np.inf, np.nan_to_num(excursion, nan=0.0))
     if not np.any(excursion > EXCURSION_LIMIT):
         return
-    row, output = np.unravel_index(np.argmax(np.where(np.isnan(excursion), -np.inf, excursion)), excursion.shape)
+    row, output = np.unravel_index(np.argmax(excursion), excursion.shape)
     k = int(rows[row])
     name = dem.system.output_names[output]
     raise AttendInputError(

@@ -252,6 +252,39 @@ def test_augmented_ukf_estimates_an_unknown_input():
     assert np.sum((ukf.inputs - u) ** 2) < 0.3 * np.sum(u**2)
 
 
+def test_vectorized_systems_give_the_pointwise_kalman_estimates():
+    # vectorized=True moves all sigma points (and the EKF's shifted points) in one call of f per RK4 stage
+    pointwise = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2)
+    columns = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2, vectorized=True)
+    time = np.arange(120) * 0.05
+    u = (3 * np.exp(-0.5 * ((time - 3) / 0.7) ** 2))[:, None]
+    log = simulate_nonlinear(pointwise, u, 0.05, kernel_width=0.1, process_std=0.1, measurement_std=0.05,
+                             initial_state=[0.2, 0.0], seed=7)
+    Q, R = white_noise_covariances(pointwise, 0.05, 0.1, 0.1, 0.05)
+    kalman = dict(process_covariance=Q, measurement_covariance=R, initial_mean=[0.2, 0.0], initial_covariance=1e-2)
+    runs = [(unscented_kalman, (log.outputs, u), kalman), (extended_kalman, (log.outputs, u), kalman),
+            (unscented_kalman, (log.outputs,), dict(kalman, input_variance=0.5)),
+            (unscented_kalman, (log.outputs, u), dict(kalman, input_variance=0.5, known_inputs=[True])),
+            (coloured_unscented_smoother, (log.outputs, u), dict(kernel_width=0.1, process_std=0.1,
+                                                                  measurement_std=0.05, initial_mean=[0.2, 0.0])),
+            (coloured_unscented_smoother, (log.outputs,), dict(kernel_width=0.1, process_std=0.1, measurement_std=0.05,
+                                                              input_prior_std=2.0, initial_mean=[0.2, 0.0]))]
+    for function, data, options in runs:
+        a = function(pointwise, 0.05, *data, **options)
+        b = function(columns, 0.05, *data, **options)
+        np.testing.assert_allclose(b.states, a.states, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(b.inputs, a.inputs, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(b.state_std, a.state_std, rtol=1e-8, atol=1e-9)  # sqrt of a ~0 variance at x[0]
+
+
+def test_a_vectorized_f_that_ignores_its_columns_is_named():
+    system = NonlinearSystem(lambda x, v: np.array([x[1], -np.sin(x[0])]).sum(axis=-1) * np.ones(2),
+                             pendulum_sensor, 2, 1, 2, vectorized=True)
+    y = np.zeros((10, 2))
+    with pytest.raises(AttendInputError, match=r"f: with vectorized=True expected \(2, 5\) values"):
+        unscented_kalman(system, 0.05, y, np.zeros((10, 1)), process_covariance=1e-2, measurement_covariance=1e-2)
+
+
 def test_particle_smoother_near_exact_posterior_on_a_linear_model():
     linear = mass_spring_damper()
     dt, s = 0.1, 0.2

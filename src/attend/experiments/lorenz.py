@@ -31,7 +31,8 @@ def lorenz_system(sigma: float = 10.0, rho: float = 28.0, beta: float = 8.0 / 3.
     """The Lorenz system, all three states measured (y = x), with its analytic Jacobians;
     sigma [1/s], rho [-], beta [1/s]: the Lorenz parameters.
 
-    f and g also accept (3, k) columns (for the particle smoother).
+    f and g also accept (3, k) columns (vectorized=True: the particle smoother and the Kalman
+    baselines move all particles or sigma points in one call).
     """
 
     def f(x, v):
@@ -43,7 +44,7 @@ def lorenz_system(sigma: float = 10.0, rho: float = 28.0, beta: float = 8.0 / 3.
 
     return NonlinearSystem(f, lambda x, v: 1.0 * np.asarray(x), 3, 0, 3, state_names=("x1", "x2", "x3"),
                            output_names=("y1", "y2", "y3"), jacobian_f=jacobian_f,
-                           jacobian_g=lambda x, v: (np.eye(3), np.zeros((3, 0))))
+                           jacobian_g=lambda x, v: (np.eye(3), np.zeros((3, 0))), vectorized=True)
 
 
 def build_system(cfg: dict) -> NonlinearSystem:

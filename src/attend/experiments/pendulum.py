@@ -33,7 +33,8 @@ def pendulum_system(gravity_over_length: float = 9.81, damping: float = 0.3) -> 
     """The pendulum [theta, omega] with input u (angular acceleration), observed as (sin, cos) theta;
     gravity_over_length: g/L [1/s^2]; damping: b [1/s].
 
-    f and g also accept (2, k) columns (for the particle smoother).
+    f and g also accept (2, k) columns (vectorized=True: the particle smoother and the Kalman
+    baselines move all particles or sigma points in one call).
     """
 
     def f(x, v):
@@ -49,7 +50,8 @@ def pendulum_system(gravity_over_length: float = 9.81, damping: float = 0.3) -> 
         return np.array([[np.cos(x[0]), 0.0], [-np.sin(x[0]), 0.0]]), np.zeros((2, 1))
 
     return NonlinearSystem(f, g, 2, 1, 2, state_names=("theta", "omega"), input_names=("u",),
-                           output_names=("sin theta", "cos theta"), jacobian_f=jacobian_f, jacobian_g=jacobian_g)
+                           output_names=("sin theta", "cos theta"), jacobian_f=jacobian_f, jacobian_g=jacobian_g,
+                           vectorized=True)
 
 
 def true_input(time: np.ndarray) -> np.ndarray:

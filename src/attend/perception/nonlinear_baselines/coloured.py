@@ -19,7 +19,7 @@ from attend._validation import AttendInputError, as_matrix, positive_scalar
 from attend.noise import autocorrelation
 from attend.perception.baselines import KalmanEstimate
 from attend.perception.nonlinear import NonlinearSystem
-from attend.perception.nonlinear_baselines.kalman import _rk4, _unscented
+from attend.perception.nonlinear_baselines.kalman import _unscented, observe_points, propagate_points
 
 
 def _yule_walker(rho: np.ndarray, q: int):
@@ -133,18 +133,22 @@ def coloured_unscented_smoother(system: NonlinearSystem, dt: float, outputs, inp
     Qz[n: n + channels, n: n + channels] = np.diag(innovations)
 
     def inputs_at(newest, k):
-        return model.eta[k] + sv * newest[n: n + rv] if model.unknown else model.u_known[k]
+        """The inputs of the rows ``newest`` (P, channels) at sample k: eta + sv v, or the measured ones."""
+        if model.unknown:
+            return model.eta[k] + sv * newest[:, n: n + rv]
+        return np.broadcast_to(model.u_known[k], (len(newest), r))
 
-    def transition(z, k):
-        newest = z[n: n + channels]
-        x_new = _rk4(system, z[:n], inputs_at(newest, k - 1), model.dt, substeps, w=model.sw * newest[:n])
-        history = z[n:].reshape(q, channels)
-        advanced = np.sum(coefficients * history, axis=0)
-        return np.concatenate([x_new, advanced, history[:-1].ravel()])
+    def transition(Z, k):
+        newest = Z[:, n: n + channels]
+        x_new = propagate_points(system, Z[:, :n], inputs_at(newest, k - 1), model.dt, substeps,
+                                 w=model.sw * newest[:, :n])
+        history = Z[:, n:].reshape(len(Z), q, channels)
+        advanced = np.sum(coefficients * history, axis=1)
+        return np.concatenate([x_new, advanced, history[:, :-1].reshape(len(Z), -1)], axis=1)
 
-    def observation(z, k):
-        newest = z[n: n + channels]
-        return system.observe(z[:n], inputs_at(newest, k)) + model.sz * newest[n + rv:]
+    def observation(Z, k):
+        newest = Z[:, n: n + channels]
+        return observe_points(system, Z[:, :n], inputs_at(newest, k)) + model.sz * newest[:, n + rv:]
 
     R = np.diag(1e-6 * model.sz**2)
     means, covs, ll = _unscented(transition, observation, model.y, m0, P0, Qz, R, smooth, (1.0, 2.0, 0.0),

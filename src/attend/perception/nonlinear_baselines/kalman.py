@@ -10,6 +10,7 @@ from attend._validation import AttendInputError, as_matrix, positive_scalar, req
 from attend.noise import autocorrelation
 from attend.perception.baselines import KalmanEstimate
 from attend.perception.nonlinear import NonlinearSystem, finite_difference_jacobian
+from attend.perception.nonlinear.model import _batched
 
 
 def white_noise_covariances(system: NonlinearSystem, dt: float, kernel_width: float, process_std,
@@ -50,10 +51,12 @@ def input_random_walk_variance(prior_precision, kernel_width: float, dt: float) 
 
 # --- shared plumbing ----------------------------------------------------------------------------
 
-def _rk4(system: NonlinearSystem, x, u, dt: float, substeps: int, w=None):
-    """Integrate dx/dt = f(x, u) (+ w) over dt; x (n,) or (n, P) with a vectorized system."""
+def _rk4(system: NonlinearSystem, x, u, dt: float, substeps: int, w=None, call=None):
+    """Integrate dx/dt = f(x, u) (+ w) over dt; x (n,) or (n, P) with a vectorized system;
+    call: f of the state (default: the system's f at u, unchecked for columns)."""
     h = dt / substeps
-    call = (lambda state: system._call(system.f, state, u)) if x.ndim == 2 else (lambda state: system.flow(state, u))
+    if call is None:
+        call = (lambda state: system._call(system.f, state, u)) if x.ndim == 2 else (lambda state: system.flow(state, u))
     extra = 0.0 if w is None else w
     for _ in range(substeps):
         k1 = call(x) + extra
@@ -62,6 +65,31 @@ def _rk4(system: NonlinearSystem, x, u, dt: float, substeps: int, w=None):
         k4 = call(x + h * k3) + extra
         x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     return x
+
+
+def propagate_points(system: NonlinearSystem, x, u, dt: float, substeps: int, w=None) -> np.ndarray:
+    """Rows x (P, n) of ``system`` (the NonlinearSystem) integrated over dt [s] (RK4, ``substeps``
+    sub-steps) under inputs u (P, r) and held noise w (P, n) [state unit / s] (None: 0): (P, n). A vectorized system
+    (``NonlinearSystem(vectorized=True)``) takes all rows in one call of f per RK4 stage (its
+    output shape checked); other systems are integrated row by row."""
+    if system.vectorized:
+        columns = u.T
+
+        def call(state):
+            return _batched(system, "f", np.vstack([state, columns]))
+
+        return _rk4(system, x.T, columns, dt, substeps, None if w is None else w.T, call).T
+    if w is None:
+        return np.array([_rk4(system, row, inputs, dt, substeps) for row, inputs in zip(x, u)])
+    return np.array([_rk4(system, row, inputs, dt, substeps, noise) for row, inputs, noise in zip(x, u, w)])
+
+
+def observe_points(system: NonlinearSystem, x, u) -> np.ndarray:
+    """g of ``system`` (the NonlinearSystem) at the rows x (P, n), u (P, r): a (P, m) array (one
+    call of g for a vectorized system)."""
+    if system.vectorized:
+        return _batched(system, "g", np.vstack([x.T, u.T])).T
+    return np.array([system.observe(row, inputs) for row, inputs in zip(x, u)])
 
 
 class _Model:
@@ -144,6 +172,25 @@ class _Model:
         x, u = self.split(z, k)
         return self.system.observe(x, u)
 
+    def split_points(self, Z, k):
+        """(x (P, n), u (P, r)) of the rows Z (P, size) at sample k."""
+        n = self.system.n_states
+        if not self.augmented:
+            return Z, np.broadcast_to(self.u[k], (len(Z), self.u.shape[1]))
+        if self.known.any():
+            return Z[:, :n], np.where(self.known, self.u[k], Z[:, n:])
+        return Z[:, :n], Z[:, n:]
+
+    def transition_points(self, Z, k):
+        """:meth:`transition` of every row of Z (P, size) (:func:`propagate_points`)."""
+        x, u = self.split_points(Z, k - 1)
+        x_new = propagate_points(self.system, x, u, self.dt, self.substeps)
+        return np.concatenate([x_new, u], axis=1) if self.augmented else x_new
+
+    def observation_points(self, Z, k):
+        """:meth:`observation` of every row of Z (P, size) (:func:`observe_points`)."""
+        return observe_points(self.system, *self.split_points(Z, k))
+
     def result(self, means, covs, ll):
         n = self.system.n_states
         N = means.shape[0]
@@ -156,10 +203,6 @@ class _Model:
             inputs, input_std = self.u, np.zeros_like(self.u)
         return KalmanEstimate(np.arange(N) * self.dt, means[:, :n], inputs, std[:, :n], input_std,
                               covs[:, :n, :n], float(ll))
-
-
-def _jacobian(function, z):
-    return finite_difference_jacobian(function, z)
 
 
 def _update(mean, cov, y, predicted, H_cov_cross, S):
@@ -226,12 +269,12 @@ def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
     mean, cov, ll = model.m0.copy(), model.P0.copy(), 0.0
     for k in range(N):
         if k > 0:
-            Fz = _jacobian(lambda z: model.transition(z, k), mean)
+            Fz = finite_difference_jacobian(lambda Z: model.transition_points(Z.T, k).T, mean, vectorized=True)
             cross[k - 1] = cov @ Fz.T
             mean = model.transition(mean, k)
             cov = Fz @ cov @ Fz.T + model.Qz
         mp[k], Pp[k] = mean, cov
-        H = _jacobian(lambda z: model.observation(z, k), mean)
+        H = finite_difference_jacobian(lambda Z: model.observation_points(Z.T, k).T, mean, vectorized=True)
         S = H @ cov @ H.T + model.R
         mean, cov, step_ll = _update(mean, cov, model.y[k], model.observation(mean, k), cov @ H.T, S)
         ll += step_ll
@@ -274,13 +317,14 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
     """
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
                    measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs)
-    means, covs, ll = _unscented(model.transition, model.observation, model.y, model.m0, model.P0, model.Qz,
+    means, covs, ll = _unscented(model.transition_points, model.observation_points, model.y, model.m0, model.P0, model.Qz,
                                  model.R, smooth, (alpha, beta, kappa), "unscented_kalman")
     return model.result(means, covs, ll)
 
 
 def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name):
-    """Unscented filter (+ RTS smoother) for z[k] = transition(z[k-1], k) + q, y[k] = observation(z[k], k) + r."""
+    """Unscented filter (+ RTS smoother) for z[k] = transition(z[k-1], k) + q, y[k] = observation(z[k], k) + r;
+    transition and observation take the sigma points as rows (P, d) and return rows."""
     N, d = y.shape[0], m0.shape[0]
     mf, Pf = np.empty((N, d)), np.empty((N, d, d))
     mp, Pp = np.empty((N, d)), np.empty((N, d, d))
@@ -289,14 +333,14 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name):
     for k in range(N):
         if k > 0:
             points, wm, wc = _sigma_points(mean, cov, *spread)
-            moved = np.array([transition(point, k) for point in points])
+            moved = transition(points, k)
             new_mean = wm @ moved
             cross[k - 1] = ((points - mean).T * wc) @ (moved - new_mean)
             cov = ((moved - new_mean).T * wc) @ (moved - new_mean) + Qz
             mean = new_mean
         mp[k], Pp[k] = mean, 0.5 * (cov + cov.T)
         points, wm, wc = _sigma_points(mean, cov, *spread)
-        observed = np.array([observation(point, k) for point in points])
+        observed = observation(points, k)
         predicted = wm @ observed
         S = ((observed - predicted).T * wc) @ (observed - predicted) + R
         C = ((points - mean).T * wc) @ (observed - predicted)

@@ -300,12 +300,36 @@ def _error(tmp_path, capsys, model=PENDULUM_TOML, code=PENDULUM_PY):
      "[observer] states: expected 'sample' or 'path', got 'paths'"),
     (lambda m: m.replace("process_precision = [400.0, 4.0]", "process_precision = [400.0, 0.0]"), None,
      "method \"ukf\" needs a positive definite precision"),
+    (lambda m: m.replace("n_states = 2", "n_states = 2\nvectorized = 1"), None,
+     "[model] vectorized: expected true or false"),
+    (lambda m: m.replace("n_states = 2", "n_states = 2\nvectorized = true"),
+     lambda c: c.replace("return np.array([np.sin(x[0]), np.cos(x[0])])",
+                         "return np.array([np.sin(x[0]), np.cos(x[0])]).reshape(2, -1).mean(axis=1)"),
+     "g(x, v) returned shape (2,) for 3 points given as columns; [model] vectorized = true expects (2, 3)"),
+    (lambda m: m.replace("n_states = 2", "n_states = 2\nvectorized = true"),
+     lambda c: c.replace("np.cos(x[0])])", "np.cos(x[0]) + 1e-3 * (np.sum(x) - np.sum(x, axis=0))])"),
+     "[model] vectorized = true, but g(x, v) at 3 points given as columns differs from 3 calls"),
 ])
 def test_nonlinear_model_errors_name_the_file_and_field(tmp_path, capsys, edit_model, edit_code, message):
     model = edit_model(PENDULUM_TOML) if edit_model else PENDULUM_TOML
     code = edit_code(PENDULUM_PY) if edit_code else PENDULUM_PY
     err = _error(tmp_path, capsys, model, code)
     assert message in err, err
+
+
+def test_vectorized_model_files_give_the_same_estimates(tmp_path):
+    # [model] vectorized = true: the unscented smoother moves its sigma points in one call of f
+    estimates = []
+    for flag in ("false", "true"):
+        folder = tmp_path / flag
+        folder.mkdir()
+        model_path, log_path, _ = _pendulum_files(folder, PENDULUM_TOML.replace("n_states = 2", f"n_states = 2\n"
+                                                                                f"vectorized = {flag}"), samples=80)
+        model = io.read_model(model_path)
+        assert model.system.vectorized == (flag == "true")
+        estimates.append(io.estimate_from_files(model, io.read_log(log_path))[1])
+    np.testing.assert_allclose(estimates[1].states, estimates[0].states, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(estimates[1].inputs, estimates[0].inputs, rtol=0, atol=1e-10)
 
 
 def test_errors_in_the_users_code_say_so(tmp_path, capsys):

@@ -62,6 +62,8 @@ Nonlinear models: in [model], instead of A, B, C::
     n_inputs = 1                    #  `parameters` in model.py; [model] parameters = {...} overrides it)
     n_outputs = 2
     parameters = { damping = 0.3 }  # optional
+    vectorized = true               # optional: f and g take (n, K) columns, one point per column
+                                    # (checked against single calls when the file is read)
 
 [outputs], [[inputs]] (one per input of f and g; none when n_inputs = 0), [observer] (one
 kernel_width; method "ukf", the default, or "dem") and [log] as above. Errors in f or g name the

@@ -34,7 +34,7 @@ NONLINEAR_KNOWN_INPUT_PRECISION = 1e8
 NONLINEAR_METHOD = "ukf"
 
 _LINEAR_KEYS = {"A", "B", "C"}
-_NONLINEAR_KEYS = {"python", "n_states", "n_inputs", "n_outputs", "parameters"}
+_NONLINEAR_KEYS = {"python", "n_states", "n_inputs", "n_outputs", "parameters", "vectorized"}
 _SECTIONS = {
     "model": _LINEAR_KEYS | _NONLINEAR_KEYS | {"states", "dt"},
     "outputs": {"columns"},

@@ -82,6 +82,8 @@ class _UserFunction:
         except (TypeError, ValueError):
             raise _UserShapeError(f"{self.source}: {self.name}(x, v) returned {type(value).__name__} "
                                    f"{_short(value)}; expected {self.size} numbers ({self.what})") from None
+        if np.ndim(x) == 2:  # [model] vectorized = true: one column per point
+            return self._columns(value, x, v)
         if value.shape != (self.size,):
             if value.size == self.size and value.ndim <= 2:
                 value = value.reshape(self.size)
@@ -93,6 +95,22 @@ class _UserFunction:
             raise AttendInputError(
                 f"{self.source}: {self.name}(x, v) returned non-finite values {_short(value)} at x = {_short(x)}, "
                 f"v = {_short(v)}; expected finite numbers")
+        return value
+
+
+    def _columns(self, value: np.ndarray, x, v) -> np.ndarray:
+        """The value at K points given as columns x (n, K), v (r, K): a finite (size, K) array."""
+        count = x.shape[1]
+        if value.shape != (self.size, count):
+            raise _UserShapeError(
+                f"{self.source}: {self.name}(x, v) returned shape {value.shape} for {count} points given as columns; "
+                f"[model] vectorized = true expects ({self.size}, {count}), one column per point ({self.what})")
+        bad = ~np.all(np.isfinite(value), axis=0)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise AttendInputError(
+                f"{self.source}: {self.name}(x, v) returned non-finite values {_short(value[:, k])} at x = "
+                f"{_short(x[:, k])}, v = {_short(np.asarray(v)[:, k])}; expected finite numbers")
         return value
 
 
@@ -191,9 +209,13 @@ def _python_model(path: Path, model: dict, n_states: int, n_inputs: int, n_outpu
                       f"dx/dt, one per state: [model] n_states = {n_states}", source, parameters if takes["f"] else None)
     g = _UserFunction(functions["g"], "g", n_outputs,
                       f"y, one per output: [model] n_outputs = {n_outputs}", source, parameters if takes["g"] else None)
+    vectorized = model.get("vectorized", False)
+    if not isinstance(vectorized, bool):
+        raise AttendInputError(f"{path}: [model] vectorized: expected true or false (f and g accept (n, K) columns, "
+                               f"one point per column), got {vectorized!r}")
     try:
         return NonlinearSystem(f, g, n_states, n_inputs, n_outputs, state_names=state_names,
-                               input_names=input_names)
+                               input_names=input_names, vectorized=vectorized)
     except AttendInputError as error:
         raise AttendInputError(f"{path}: [model] {error}") from None
 
@@ -206,8 +228,31 @@ def _probe(system: NonlinearSystem, initial_state, inputs) -> None:
     v = np.array([spec.operating_point if spec.known else spec.prior_mean for spec in inputs], dtype=float)
     for function in (system.f, system.g):
         try:
-            function(x, v)
+            value = function(x, v)
         except _UserShapeError:
             raise
         except AttendInputError:
-            pass
+            continue
+        if system.vectorized:
+            _probe_columns(function, x, v, value)
+
+
+def _probe_columns(function, x, v, value) -> None:
+    """[model] vectorized = true: f or g at three points given as columns must equal three calls
+    at one point each (a function that mixes its columns, e.g. with x.sum(), is named)."""
+    shifts = np.array([0.0, 0.01, -0.02])
+    xs = x[:, None] + shifts * (1.0 + np.abs(x))[:, None]
+    vs = np.repeat(v[:, None], 3, axis=1)
+    try:
+        together = function(xs, vs)
+        separately = np.column_stack([value] + [function(xs[:, k], v) for k in (1, 2)])
+    except _UserShapeError:
+        raise
+    except AttendInputError:
+        return
+    difference = np.max(np.abs(together - separately))
+    if not difference <= 1e-9 * (1.0 + np.max(np.abs(separately))):
+        raise AttendInputError(
+            f"{function.source}: [model] vectorized = true, but {function.name}(x, v) at 3 points given as columns "
+            f"differs from 3 calls at one point each (largest difference {difference:.3g}); write it with x[0], "
+            "x[1], ... so that each column is one point, or remove vectorized")

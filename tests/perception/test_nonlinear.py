@@ -14,6 +14,7 @@ from attend.perception.nonlinear import (
     simulate_nonlinear,
 )
 from attend.perception.nonlinear_baselines import (
+    white_noise_options,
     coloured_unscented_smoother,
     extended_kalman,
     particle_smoother,
@@ -283,6 +284,22 @@ def test_a_vectorized_f_that_ignores_its_columns_is_named():
     y = np.zeros((10, 2))
     with pytest.raises(AttendInputError, match=r"f: with vectorized=True expected \(2, 5\) values"):
         unscented_kalman(system, 0.05, y, np.zeros((10, 1)), process_covariance=1e-2, measurement_covariance=1e-2)
+
+
+def test_white_noise_options_of_dem_precisions():
+    Pi_w, Pi_z = np.array([[4.0, 1.0], [1.0, 2.0]]), np.diag([100.0, 400.0])
+    options = white_noise_options(0.05, Pi_w, Pi_z, [0.5, 2.0], 0.1, known_inputs=[True, False], input_mean=[1.0, 0.0])
+    np.testing.assert_allclose(options["process_covariance"], 0.05**2 * np.linalg.inv(Pi_w), rtol=1e-14)
+    np.testing.assert_allclose(options["measurement_covariance"], np.diag([0.01, 0.0025]), rtol=1e-14)
+    # one-sample steps of a Gaussian-kernel process of variance 1/P_v: 2 (1 - exp(-dt^2 / (4 s^2))) / P_v
+    np.testing.assert_allclose(np.diag(options["input_variance"]), [0.0, 2 * (1 - np.exp(-0.0625)) / 2.0],
+                               rtol=1e-14)
+    assert options["known_inputs"].tolist() == [True, False] and options["input_mean"] == [1.0, 0.0]
+    assert set(white_noise_options(0.05, Pi_w, Pi_z)) == {"process_covariance", "measurement_covariance"}
+    with pytest.raises(AttendInputError, match="sensor_precision: the white-noise smoother needs a positive definite"):
+        white_noise_options(0.05, Pi_w, np.diag([1.0, 0.0]))
+    with pytest.raises(AttendInputError, match="input_prior_precision: .* > 0 for every unknown input"):
+        white_noise_options(0.05, Pi_w, Pi_z, [0.0, 0.0], 0.1, known_inputs=[True, False])
 
 
 def test_particle_smoother_near_exact_posterior_on_a_linear_model():

@@ -228,32 +228,22 @@ class NonlinearFileEstimator:
             dem = self.dem()
             return dem.estimate(outputs, signals, initial_state=initial,
                                 initial_state_std=_path_prior_std(model) if dem.states == "path" else None)
-        from attend.perception.nonlinear_baselines import input_random_walk_variance, unscented_kalman
+        from attend.perception.nonlinear_baselines import unscented_kalman, white_noise_options
 
         n, r = self.system.n_states, self.system.n_inputs
-        Pi_w = precision_matrix(model.process_precision, n, "process_precision")
-        Pi_z = precision_matrix(model.sensor_precision, self.system.n_outputs, "sensor_precision")
-        covariances = {}
-        for key, matrix in (("process_precision", Pi_w), ("sensor_precision", Pi_z)):
-            if np.linalg.eigvalsh(matrix).min() <= 0:
-                raise AttendInputError(f"{key}: method \"ukf\" needs a positive definite precision (it is "
-                                       "inverted into a covariance); every entry > 0")
-            covariances[key] = np.linalg.inv(matrix)
-        options = dict(process_covariance=self.dt**2 * covariances["process_precision"],
-                       measurement_covariance=covariances["sensor_precision"])
         known = self.known
-        if r and not known.all():
-            precisions = np.array([spec.prior_precision for spec in model.inputs])
+        unknown = bool(r) and not known.all()
+        if unknown:
             bad = [spec.name for spec in model.inputs if not spec.known and not spec.prior_precision > 0]
             if bad:
                 raise AttendInputError(f"[[inputs]] {', '.join(map(repr, bad))} prior_precision: method \"ukf\" "
                                        "needs a prior precision > 0 (it sets the random walk of the input)")
-            variance = input_random_walk_variance(np.where(known, 1.0, precisions), self.input_kernel_width, self.dt)
-            options.update(input_variance=np.diag(np.where(known, 0.0, variance)), input_mean=signals[0],
-                           known_inputs=known)
-            inputs = signals if known.any() else None
-        else:
-            inputs = signals if r else None
+        options = white_noise_options(
+            self.dt, precision_matrix(model.process_precision, n, "process_precision"),
+            precision_matrix(model.sensor_precision, self.system.n_outputs, "sensor_precision"),
+            np.array([spec.prior_precision for spec in model.inputs]) if unknown else None,
+            self.input_kernel_width, known, signals[0] if unknown else None, who='method "ukf"')
+        inputs = (signals if known.any() else None) if unknown else (signals if r else None)
         if initial is None:
             mean, std = self._start(outputs, signals)
         else:

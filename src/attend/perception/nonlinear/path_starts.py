@@ -19,37 +19,29 @@ from attend._validation import AttendInputError
 def smoother_start(dem, signals: np.ndarray, prior, start) -> tuple[np.ndarray, np.ndarray] | None:
     """(states (N, n), inputs (N, r)) of the unscented RTS smoother on the white-noise model
     Q = dt^2 inv(Pi_w), R = inv(Pi_z), unknown inputs as random walks with their prior's one-sample
-    steps (:func:`attend.perception.nonlinear_baselines.input_random_walk_variance`), x[0] from
+    steps (:func:`attend.perception.nonlinear_baselines.white_noise_options`), x[0] from
     ``prior`` (mean, precision) or else from the D-step's first estimate with the states' spread
     over the log as its variance; None where it does not apply (a precision that is not positive
     definite) or fails.
 
     dem: the NonlinearDEM; signals: (N, m + r) outputs then inputs (measured, or the prior mean
     eta); prior: path mode's prior on x[0] or None; start: the D-step's DEMEstimate of the log."""
-    from attend.perception.nonlinear_baselines import input_random_walk_variance, unscented_kalman
+    from attend.perception.nonlinear_baselines import unscented_kalman, white_noise_options
 
-    m, n, r = dem.system.n_outputs, dem.system.n_states, dem.system.n_inputs
+    m, r = dem.system.n_outputs, dem.system.n_inputs
+    unknown = bool(r) and not dem.known_inputs
     try:
-        options = dict(process_covariance=dem.dt**2 * np.linalg.inv(dem.process_precision),
-                       measurement_covariance=np.linalg.inv(dem.sensor_precision))
-        for covariance in options.values():
-            np.linalg.cholesky(covariance)
-    except np.linalg.LinAlgError:
+        options = white_noise_options(
+            dem.dt, dem.process_precision, dem.sensor_precision, np.diag(dem.input_prior_precision) if unknown else None,
+            dem.input_kernel_width or dem.kernel_width, input_mean=signals[0, m:] if unknown else None)
+    except AttendInputError:
         return None
     if prior is None:
         spread = np.var(start.states, axis=0) + np.finfo(float).eps
         options.update(initial_mean=start.states[0], initial_covariance=np.diag(spread))
     else:
         options.update(initial_mean=prior[0], initial_covariance=np.diag(1.0 / prior[1]))
-    inputs = signals[:, m:] if r else None
-    if r and not dem.known_inputs:
-        precision = np.diag(dem.input_prior_precision)
-        if not np.all(precision > 0):
-            return None
-        width = dem.input_kernel_width or dem.kernel_width
-        options.update(input_variance=np.diag(input_random_walk_variance(precision, width, dem.dt)),
-                       input_mean=signals[0, m:])
-        inputs = None
+    inputs = signals[:, m:] if r and not unknown else None
     try:
         with np.errstate(all="ignore"):
             estimate = unscented_kalman(dem.system, dem.dt, signals[:, :m], inputs, smooth=True, **options)

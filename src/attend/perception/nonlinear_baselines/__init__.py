@@ -32,11 +32,13 @@ from attend.perception.nonlinear_baselines.kalman import (
     input_random_walk_variance,
     unscented_kalman,
     white_noise_covariances,
+    white_noise_options,
 )
 from attend.perception.nonlinear_baselines.particle import ParticleEstimate, particle_smoother
 
 __all__ = [
     "white_noise_covariances",
+    "white_noise_options",
     "input_random_walk_variance",
     "extended_kalman",
     "unscented_kalman",

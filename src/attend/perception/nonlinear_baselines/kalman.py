@@ -49,6 +49,40 @@ def input_random_walk_variance(prior_precision, kernel_width: float, dt: float) 
     return 2.0 * (1.0 - rho) / np.asarray(prior_precision, dtype=float)
 
 
+def white_noise_options(dt: float, process_precision, sensor_precision, input_prior_precision=None,
+                        input_kernel_width: float | None = None, known_inputs=None, input_mean=None,
+                        who: str = "the white-noise smoother") -> dict:
+    """Keyword arguments of :func:`unscented_kalman` / :func:`extended_kalman` for DEM's noise model
+    given by its precisions: process_covariance Q = dt^2 inv(Pi_w), measurement_covariance
+    R = inv(Pi_z) (white noise of the coloured noises' per-sample variance) and, with
+    ``input_prior_precision`` P_v (r,), unknown inputs as random walks whose one-sample steps have
+    their prior's variance (:func:`input_random_walk_variance`, width ``input_kernel_width`` s_v [s]),
+    started at ``input_mean`` (r,); ``known_inputs`` (r,) marks measured inputs (no random walk).
+    dt: sample time [s]; process_precision Pi_w (n, n), sensor_precision Pi_z (m, m): matrices.
+    An AttendInputError names a precision that is not positive definite, prefixed by ``who``."""
+    options = {}
+    for key, field, precision in (("process_covariance", "process_precision", process_precision),
+                                  ("measurement_covariance", "sensor_precision", sensor_precision)):
+        precision = np.asarray(precision, dtype=float)
+        if not np.all(np.isfinite(precision)) or np.linalg.eigvalsh(precision).min() <= 0:
+            raise AttendInputError(f"{field}: {who} needs a positive definite precision (it is inverted into a "
+                                   "covariance); every entry > 0")
+        options[key] = np.linalg.inv(precision)
+    options["process_covariance"] = dt**2 * options["process_covariance"]
+    if input_prior_precision is None:
+        return options
+    precisions = np.asarray(input_prior_precision, dtype=float)
+    known = np.zeros(precisions.shape, dtype=bool) if known_inputs is None else np.asarray(known_inputs, dtype=bool)
+    if not np.all(precisions[~known] > 0):
+        raise AttendInputError(f"input_prior_precision: {who} needs a prior precision > 0 for every unknown input "
+                               "(it sets the random walk of the input)")
+    variance = input_random_walk_variance(np.where(known, 1.0, precisions), input_kernel_width, dt)
+    options.update(input_variance=np.diag(np.where(known, 0.0, variance)), input_mean=input_mean)
+    if known.any():
+        options.update(known_inputs=known)
+    return options
+
+
 # --- shared plumbing ----------------------------------------------------------------------------
 
 def _rk4(system: NonlinearSystem, x, u, dt: float, substeps: int, w=None, call=None):

@@ -18,11 +18,14 @@ Public API (everything else is private):
   :class:`RhythmicSchedule`, :class:`PrecisionDrivenSchedule`, :class:`FixedSchedule`,
   :func:`drive`, :class:`ActiveVisionAgent`
 - errors: :class:`AttendInputError`, :class:`ModelWarning`
+- progress: :func:`progress_bars` (``with attend.progress_bars(): ...`` shows the slower
+  estimators' progress on stderr)
 
 The presets also live in :mod:`attend.problems` with the paper's reference problems; named
 precisions in :mod:`attend.constants`.
 """
 
+from attend._progress import progress_bars
 from attend._validation import AttendInputError
 from attend.action import OccupancyMap, SearchField, fly, make_field, make_planner, run_search
 from attend.generalized import block_precisions, embed, embedding_weights, shift_operator, smoothness_precision
@@ -71,6 +74,7 @@ __all__ = [
     "make_field",
     "make_planner",
     "mass_spring_damper",
+    "progress_bars",
     "quadrotor_roll",
     "run_search",
     "shift_operator",

@@ -18,6 +18,7 @@ import time
 import warnings
 from pathlib import Path
 
+from attend._progress import progress_bars
 from attend._validation import AttendInputError
 from attend.cli_identify import command_identify
 
@@ -103,6 +104,9 @@ def _add_estimate(add_command) -> None:
                           help="also plot the estimates to this PNG file: one row per state and input, the "
                           "estimate with its +-2 std band (left) and the band's half-width 2 std on its own "
                           "scale (right); measured inputs are drawn as measured. Default: no plot")
+    estimate.add_argument("--no-progress", action="store_true",
+                          help="hide the progress bars of the slower estimators (nonlinear models: the unscented "
+                          "smoother, DEM), which a terminal shows once a run takes over a second")
 
 
 def _add_reproduce(add_command) -> None:
@@ -293,7 +297,8 @@ def _command_estimate(args) -> int:
     if args.plot:
         _output_file(args.plot, "--plot", "estimates.png")
     started = time.perf_counter()
-    observer, estimate = io.estimate_from_files(model, log)
+    with progress_bars(not args.no_progress and sys.stderr.isatty()):
+        observer, estimate = io.estimate_from_files(model, log)
     elapsed = time.perf_counter() - started
     out = io.write_estimates(args.out, log, model.system, estimate)
     print(f"estimated {len(log.time)} samples ({len(log.time) * log.dt:.2f} s of log) in {elapsed * 1e3:.1f} ms -> {out}")

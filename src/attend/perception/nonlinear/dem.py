@@ -8,6 +8,7 @@ from math import factorial, isfinite
 
 import numpy as np
 
+from attend._progress import steps
 from attend._threads import single_blas_thread
 from attend._validation import AttendInputError, as_matrix, order, positive_scalar, precision_matrix, require_finite
 from attend.generalized import block_precisions, embedding_weights, shift_operator, smoothness_precision
@@ -560,7 +561,7 @@ class NonlinearDEM:
         online = OnlineNonlinearDEM(self, initial_state=initial_state)
         rows, pending = [], []
         with single_blas_thread():  # small matrices: one BLAS thread is 10-20x faster (attend._threads)
-            for sample in signals:
+            for sample in steps(signals, "NonlinearDEM D-step"):
                 out = online._push(sample)
                 if out is not None:
                     pending.append(out)

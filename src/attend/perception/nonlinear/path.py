@@ -40,6 +40,7 @@ import warnings
 
 import numpy as np
 
+from attend._progress import steps
 from attend._threads import single_blas_thread
 from attend._validation import AttendInputError
 from attend.noise import coloured_noise
@@ -311,7 +312,7 @@ def _optimise(problem: _Problem, z: np.ndarray, max_iterations: int, tolerance: 
     q = problem.layout.q
     cost, Dg, Off, gradient = problem.curvature(z)
     damping = 1e-3
-    for iteration in range(1, max_iterations + 1):
+    for iteration in steps(range(1, max_iterations + 1), "path mode: Levenberg-Marquardt", unit="step"):
         while True:
             step = _solve(Dg, Off, -gradient, damping)
             trial = None

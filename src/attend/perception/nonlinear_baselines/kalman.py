@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from attend._progress import steps
 from attend._threads import with_single_blas_thread
 from attend._validation import AttendInputError, as_matrix, positive_scalar, require_finite, symmetric_matrix
 from attend.noise import autocorrelation
@@ -301,7 +302,7 @@ def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
     mp, Pp = np.empty((N, d)), np.empty((N, d, d))
     cross = np.empty((max(N - 1, 0), d, d))
     mean, cov, ll = model.m0.copy(), model.P0.copy(), 0.0
-    for k in range(N):
+    for k in steps(range(N), "extended_kalman"):
         if k > 0:
             Fz = finite_difference_jacobian(lambda Z: model.transition_points(Z.T, k).T, mean, vectorized=True)
             cross[k - 1] = cov @ Fz.T
@@ -364,7 +365,7 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name):
     mp, Pp = np.empty((N, d)), np.empty((N, d, d))
     cross = np.empty((max(N - 1, 0), d, d))
     mean, cov, ll = m0.copy(), P0.copy(), 0.0
-    for k in range(N):
+    for k in steps(range(N), name):
         if k > 0:
             points, wm, wc = _sigma_points(mean, cov, *spread)
             moved = transition(points, k)

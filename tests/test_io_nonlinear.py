@@ -332,6 +332,20 @@ def test_vectorized_model_files_give_the_same_estimates(tmp_path):
     np.testing.assert_allclose(estimates[1].inputs, estimates[0].inputs, rtol=0, atol=1e-10)
 
 
+def test_column_safe_functions_are_recognised_for_the_vectorized_hint(tmp_path):
+    from attend.io.python_model import takes_columns
+
+    model_path, _, _ = _pendulum_files(tmp_path, samples=20)
+    model = io.read_model(model_path)
+    assert takes_columns(model.system, model.initial_state, model.inputs)
+    for code in (PENDULUM_PY.replace("np.cos(x[0])])", "np.cos(x[0]) + 1e-3 * (np.sum(x) - np.sum(x, axis=0))])"),
+                 PENDULUM_PY.replace("return np.array([x[1],", "assert x.ndim == 1\n    return np.array([x[1],"),
+                 PENDULUM_PY.replace("np.sin(x[0]), np.cos(x[0])])", "float(np.sin(x[0])), np.cos(x[0])])")):
+        (tmp_path / "model.py").write_text(code)
+        model = io.read_model(model_path)
+        assert not takes_columns(model.system, model.initial_state, model.inputs)
+
+
 def test_errors_in_the_users_code_say_so(tmp_path, capsys):
     code = PENDULUM_PY.replace('parameters["damping"]', 'parameters["dampin"]')
     err = _error(tmp_path, capsys, code=code)

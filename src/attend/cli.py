@@ -303,6 +303,12 @@ def _command_estimate(args) -> int:
     out = io.write_estimates(args.out, log, model.system, estimate)
     print(f"estimated {len(log.time)} samples ({len(log.time) * log.dt:.2f} s of log) in {elapsed * 1e3:.1f} ms -> {out}")
     print("  " + _describe_estimator(observer))
+    if model.nonlinear and not model.system.vectorized and model.dem_backend != "jax" and elapsed > 5.0:
+        from attend.io.python_model import takes_columns
+
+        if takes_columns(model.system, model.initial_state, model.inputs):
+            print(f"  hint: f and g in {model.python_path} also work on (n, K) columns; [model] vectorized = true "
+                  "lets the estimator evaluate many points per call (2-4x faster)")
     if args.plot:
         from attend.plotting import plot_estimates
 

@@ -220,12 +220,20 @@ def _python_model(path: Path, model: dict, n_states: int, n_inputs: int, n_outpu
         raise AttendInputError(f"{path}: [model] {error}") from None
 
 
+def _probe_point(system: NonlinearSystem, initial_state, inputs) -> tuple[np.ndarray, np.ndarray]:
+    """The point where f and g are tried: initial_state (or zeros), the inputs' operating points
+    (measured) or prior means (unknown)."""
+    x = np.zeros(system.n_states) if initial_state is None else np.array(initial_state, dtype=float)
+    v = np.array([spec.operating_point if spec.known else spec.prior_mean for spec in inputs], dtype=float)
+    return x, v
+
+
 def _probe(system: NonlinearSystem, initial_state, inputs) -> None:
     """Call f and g once (at initial_state or zeros, the inputs' prior means or operating points):
     a wrong output shape is reported when the model is read. An exception or a non-finite value
-    there is left for the estimate (the point may be outside the model's domain)."""
-    x = np.zeros(system.n_states) if initial_state is None else np.array(initial_state, dtype=float)
-    v = np.array([spec.operating_point if spec.known else spec.prior_mean for spec in inputs], dtype=float)
+    there is left for the estimate (the point may be outside the model's domain). With [model]
+    vectorized = true, f and g at three points as columns must equal three single calls."""
+    x, v = _probe_point(system, initial_state, inputs)
     for function in (system.f, system.g):
         try:
             value = function(x, v)
@@ -234,25 +242,41 @@ def _probe(system: NonlinearSystem, initial_state, inputs) -> None:
         except AttendInputError:
             continue
         if system.vectorized:
-            _probe_columns(function, x, v, value)
+            try:
+                difference = _columns_difference(function, x, v, value)
+            except _UserShapeError:
+                raise
+            except AttendInputError:
+                continue
+            if not difference <= 1e-9 * (1.0 + np.max(np.abs(value))):
+                raise AttendInputError(
+                    f"{function.source}: [model] vectorized = true, but {function.name}(x, v) at 3 points given as "
+                    f"columns differs from 3 calls at one point each (largest difference {difference:.3g}); write "
+                    "it with x[0], x[1], ... so that each column is one point, or remove vectorized")
 
 
-def _probe_columns(function, x, v, value) -> None:
-    """[model] vectorized = true: f or g at three points given as columns must equal three calls
-    at one point each (a function that mixes its columns, e.g. with x.sum(), is named)."""
+def _columns_difference(function, x, v, value) -> float:
+    """Largest difference between ``function`` at three points near (x, v) given as columns and at
+    each point alone (``value``: its value at (x, v))."""
     shifts = np.array([0.0, 0.01, -0.02])
     xs = x[:, None] + shifts * (1.0 + np.abs(x))[:, None]
     vs = np.repeat(v[:, None], 3, axis=1)
-    try:
-        together = function(xs, vs)
-        separately = np.column_stack([value] + [function(xs[:, k], v) for k in (1, 2)])
-    except _UserShapeError:
-        raise
-    except AttendInputError:
-        return
-    difference = np.max(np.abs(together - separately))
-    if not difference <= 1e-9 * (1.0 + np.max(np.abs(separately))):
-        raise AttendInputError(
-            f"{function.source}: [model] vectorized = true, but {function.name}(x, v) at 3 points given as columns "
-            f"differs from 3 calls at one point each (largest difference {difference:.3g}); write it with x[0], "
-            "x[1], ... so that each column is one point, or remove vectorized")
+    together = function(xs, vs)
+    separately = np.column_stack([value] + [function(xs[:, k], v) for k in (1, 2)])
+    return float(np.max(np.abs(together - separately)))
+
+
+def takes_columns(system: NonlinearSystem, initial_state, inputs) -> bool:
+    """Whether the model file's f and g (``system``, not declared vectorized) already give the right
+    values for points given as columns, so that [model] vectorized = true could be suggested;
+    initial_state, inputs: the model file's (where f and g are tried)."""
+    x, v = _probe_point(system, initial_state, inputs)
+    for function in (system.f, system.g):
+        try:
+            value = function(x, v)
+            with np.errstate(all="ignore"):
+                if not _columns_difference(function, x, v, value) <= 1e-9 * (1.0 + np.max(np.abs(value))):
+                    return False
+        except Exception:  # noqa: BLE001 - any failure with columns: not column-safe
+            return False
+    return True

@@ -20,8 +20,8 @@ the white-noise UKF smoother (per-sample variances, inputs as random walks with 
 one-sample steps), and the coloured UKS (AR(3) noise models). The score is the state SSE over
 samples p + 1 .. N - p - 2 (the smoothers see the ends as DEM does not); per case the ratio to
 the UKF smoother, then medians, the share of cases where DEM path mode is at or below the UKF
-smoother, the worst cases, the calibration of path mode's std (|error| < 2 std) and its misfit
-warnings. Not part of the test run.
+smoother, the worst cases, the calibration of path mode's std (|error| < 2 std), its misfit
+warnings and its warnings that F has several maxima. Not part of the test run.
 """
 
 from __future__ import annotations
@@ -144,6 +144,7 @@ def run_case(case: dict) -> dict:
         if method == "DEM path":
             out["coverage"] = float(np.mean(np.abs(error) < 2 * estimate.state_std[trim]))
             out["warned"] = any("far from DEM's generalised model" in str(w.message) for w in caught)
+            out["maxima"] = any("more than one maximum" in str(w.message) for w in caught)
     return out
 
 
@@ -182,6 +183,12 @@ def summarise(rows: list[tuple[dict, dict]]) -> None:
     print(f"\n  DEM path |error| < 2 std: pooled {np.mean(coverage):.3f} (calibrated: ~0.95), per case "
           f"{np.min(coverage):.3f}-{np.max(coverage):.3f}; misfit warnings in {sum(warned)} of {len(warned)} cases "
           f"(unwarned cases: path / UKF median {np.nanmedian(calm):.3f}, worst {np.nanmax(calm):.3g})")
+    several = [result.get("maxima", False) for _, result in rows if "coverage" in result]
+    if any(several):
+        split = {flag: [c for c, warned_here in zip(coverage, several) if warned_here == flag] for flag in (True, False)}
+        print(f"  path mode warned of several maxima of F in {sum(several)} cases: |error| < 2 std pooled "
+              f"{np.mean(split[True]):.3f} there ({np.min(split[True]):.3f}-{np.max(split[True]):.3f}), "
+              f"{np.mean(split[False]):.3f} in the other {len(split[False])} cases")
     for method in METHODS:
         failed = [case["index"] for case, result in rows if method in result["failed"]]
         speed = [SAMPLES / result["seconds"][method] for _, result in rows if method in result["seconds"]]

@@ -469,3 +469,69 @@ def test_jax_backend_is_refused_for_linear_models_and_other_methods(tmp_path):
     model_path, _, _ = _lorenz_files(tmp_path, LORENZ_TOML + 'backend = "cuda"\n')
     with pytest.raises(AttendInputError, match="backend: expected 'numpy' or 'jax', got 'cuda'"):
         io.read_model(model_path)
+
+
+HELD_PY = '''
+import numpy as np
+
+A = np.array([[-0.24, 0.02], [-0.02, -0.18]])
+B, C = np.array([[-0.22], [-0.53]]), np.array([[-0.81, 0.58]])
+
+
+def f(x, v):
+    return A @ x + B @ v
+
+
+def g(x, v):
+    return C @ x
+'''
+
+HELD_TOML = '''
+[model]
+python = "held.py"
+n_states = 2
+n_inputs = 1
+n_outputs = 1
+
+[outputs]
+columns = ["y"]
+
+[[inputs]]
+name = "u"
+column = "u"
+
+[observer]
+kernel_width = 0.25
+sensor_precision = 1.479e7
+process_precision = 1e10
+'''
+
+
+def test_the_smoothers_start_widens_a_misfit_d_step_instead_of_warning(tmp_path, capsys):
+    # inputs held over each sample with almost no process noise: DEM's D-step on the first samples is
+    # far from its generalised model (it warns when run itself); the unscented smoother only takes x[0]
+    # from it, with the std widened by sqrt(misfit), and its own estimate is fine: no warning
+    from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem
+    from attend.systems import LinearSystem, ModelWarning, simulate
+
+    (tmp_path / "held.py").write_text(HELD_PY)
+    (tmp_path / "held.toml").write_text(HELD_TOML)
+    A = np.array([[-0.24, 0.02], [-0.02, -0.18]])
+    B, C = np.array([[-0.22], [-0.53]]), np.array([[-0.81, 0.58]])
+    dt = 0.05
+    u = np.sin(2.0 * np.arange(160) * dt)[:, None]
+    log = simulate(LinearSystem(A, B, C), u, dt, kernel_width=0.25, process_std=1e-5, measurement_std=2.6e-4,
+                   seed=1, initial_state=[0.3, -0.2])
+    t = np.arange(160) * dt
+    np.savetxt(tmp_path / "log.csv", np.column_stack([t, log.outputs, u]), delimiter=",", header="t,y,u",
+               comments="", fmt="%.17g")
+    system = NonlinearSystem(lambda x, v: A @ x + B @ v, lambda x, v: C @ x, 2, 1, 1)
+    with pytest.warns(ModelWarning, match="far from DEM's generalised model"):
+        NonlinearDEM(system, dt, 0.25, 1.479e7, 1e10, known_inputs=True).estimate(log.outputs[:28], u[:28])
+    status = main(["estimate", str(tmp_path / "held.toml"), str(tmp_path / "log.csv"), "--out",
+                   str(tmp_path / "e.csv")])
+    err = capsys.readouterr().err
+    assert status == 0 and err == "", err
+    estimate = np.genfromtxt(tmp_path / "e.csv", delimiter=",", names=True)
+    error = np.column_stack([estimate["x1"], estimate["x2"]]) - log.states
+    assert np.sqrt(np.mean(error[10:] ** 2)) < 0.05 * np.sqrt(np.mean(log.states ** 2))

@@ -324,3 +324,32 @@ def test_path_mode_of_a_vectorized_system_equals_point_by_point():
                  for candidate in (system, _saturating(True))]
     np.testing.assert_allclose(estimates[1].states, estimates[0].states, rtol=1e-6, atol=1e-8)
     np.testing.assert_allclose(estimates[1].state_std, estimates[0].state_std, rtol=1e-5)
+
+
+def test_several_maxima_of_the_free_energy_are_named():
+    # y = sin(2 x1) over a swing of +-1.5: many trajectories explain the data, and the starts from the
+    # D-step and the unscented smoother end at different maxima; the std then covers only the one kept
+    system = NonlinearSystem(lambda x, v: np.array([x[1], -x[0] - 0.2 * x[1]]),
+                             lambda x, v: np.array([np.sin(2.0 * x[0])]), 2, 0, 1)
+    log = simulate_nonlinear(system, 150, 0.05, kernel_width=0.1, process_std=[0.1, 1.5], measurement_std=0.1,
+                             initial_state=[1.5, 0.0], seed=0)
+    dem = NonlinearDEM(system, 0.05, 0.1, 100.0, np.diag([100.0, 1 / 1.5**2]), embedding_order=4, states="path")
+    with pytest.warns(ModelWarning, match=r"F has more than one maximum on this log: .* ended more than 2 std apart "
+                                          r"at \d+% of the samples"):
+        dem.estimate(log.outputs, initial_state=[0.0, 0.0], initial_state_std=2.0)
+
+
+def test_one_maximum_raises_no_such_warning():
+    cfg = dict(pendulum.SETTINGS)
+    system = pendulum.build_system(cfg)
+    u = pendulum.true_input(np.arange(200) * cfg["dt"])
+    log = simulate_nonlinear(system, u, cfg["dt"], kernel_width=cfg["kernel_width"], process_std=cfg["process_std"],
+                             measurement_std=cfg["measurement_std"], initial_state=cfg["initial_state"], seed=1)
+    dem = NonlinearDEM(system, cfg["dt"], cfg["kernel_width"], 1 / cfg["measurement_std"] ** 2,
+                       1 / np.asarray(cfg["process_std"]) ** 2, np.exp(cfg["input_prior_log_precision"]),
+                       cfg["embedding_order"], cfg["input_order"], input_kernel_width=cfg["input_kernel_width"],
+                       states="path")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        dem.estimate(log.outputs)
+    assert not [w for w in caught if "more than one maximum" in str(w.message)]

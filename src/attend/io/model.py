@@ -254,17 +254,30 @@ class NonlinearFileEstimator:
                                 initial_covariance=np.diag(np.asarray(std, dtype=float) ** 2), **options)
 
     def _start(self, outputs, signals):
-        """x[0] and its std from DEM on the first samples (the smoother's prior on the initial state)."""
+        """x[0] and its std from DEM's D-step on the first samples (the smoother's prior on the
+        initial state). Where those samples are far from DEM's generalised model (misfit ratio
+        rho = e' Pi~ e / dim(e) > 1, :mod:`attend.perception.nonlinear.misfit`) the std is widened
+        by sqrt(rho), the usual variance-factor correction, instead of warning of the D-step's estimate
+        of a run that returns the smoother's."""
+        import warnings
+
+        from attend.perception.nonlinear.misfit import sample_misfit
+        from attend.systems import ModelWarning
+
         dem = self.dem()
         count = min(len(outputs), 4 * (max(self.embedding_order, self.model.input_order) + 1))
         try:
-            first = dem.estimate(outputs[:count], signals[:count])
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ModelWarning)
+                first = dem.estimate(outputs[:count], signals[:count], keep_generalized=True)
         except AttendInputError as error:
             if self.model.python_path and str(error).startswith(self.model.python_path):
                 raise
             raise AttendInputError(f"the smoother starts from DEM's estimate of the first sample, which failed "
                                    f"({error}); give initial_state and initial_state_std") from None
-        return first.states[0], first.state_std[0]
+        ratio = sample_misfit(dem, dem._signals(outputs[:count], signals[:count]), first.generalized)
+        widening = np.sqrt(ratio) if np.isfinite(ratio) and ratio > 1.0 else 1.0
+        return first.states[0], first.state_std[0] * widening
 
 
 def _path_prior_std(model) -> np.ndarray | None:

@@ -1,0 +1,149 @@
+"""`attend estimate` with its defaults on random nonlinear model files, as a new user runs it.
+
+    PYTHONPATH=src python benchmarks/bench_nonlinear_cli.py [--cases 36] [--first 0] [--path]
+
+Each case of ``bench_nonlinear_bank.py`` (dx/dt = A x + B v + a tanh(W x), y = C x [+ c sin(H x)],
+no input, a measured input or an unknown one, s/dt = 1-4) is written as a user would write it:
+``model.py`` with f(x, v) and g(x, v), ``model.toml`` with the true noise settings (sensor and
+process precisions, kernel width, the unknown input's prior), and ``log.csv`` (t, outputs, the
+measured input). The command line runs on them with its defaults (method "ukf": the unscented
+smoother started from DEM's estimate of the first sample, x[0] unknown) and, with ``--path``,
+with ``method = "dem"`` and ``states = "path"``. Per case: the exit status, any warning line,
+and the state SSE (samples p + 1 .. N - p - 2) over that of the library's unscented smoother told
+the true prior of x[0] (N(0, I)). Not part of the test run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+import bench_nonlinear_bank as bank  # noqa: E402
+
+MODEL_PY = '''import numpy as np
+
+A = np.array({A})
+B = np.array({B}).reshape({n}, {r})
+C = np.array({C})
+W = np.array({W})
+H = np.array({H})
+a, c = {a!r}, {c!r}
+
+
+def f(x, v):
+    """dx/dt: a stable linear part and a saturating one."""
+    return A @ x + B @ v + a * np.tanh(W @ x)
+
+
+def g(x, v):
+    """The outputs: linear, with a sinusoidal part when c > 0."""
+    return C @ x + c * np.sin(H @ x)
+'''
+
+
+def write_case(case: dict, folder: Path, path_mode: bool) -> tuple[Path, Path]:
+    """model.py, model.toml and log.csv of ``case`` in ``folder``."""
+    system, log = case["system"], case["log"]
+    closure = {name: cell.cell_contents for name, cell in zip(system.f.__code__.co_freevars, system.f.__closure__)}
+    closure.update({name: cell.cell_contents for name, cell in zip(system.g.__code__.co_freevars, system.g.__closure__)})
+    n, m = case["n"], case["m"]
+    r = 0 if case["input_kind"] == "none" else 1
+    (folder / "model.py").write_text(MODEL_PY.format(
+        A=closure["A"].tolist(), B=closure["B"].ravel().tolist(), C=closure["C"].tolist(), W=closure["W"].tolist(),
+        H=closure["H"].tolist(), a=float(closure["a"]), c=float(closure["c"]), n=n, r=r))
+    outputs = [f"y{j + 1}" for j in range(m)]
+    lines = ["[model]", 'python = "model.py"', f"n_states = {n}", f"n_inputs = {r}", f"n_outputs = {m}", "",
+             "[outputs]", f"columns = {outputs}".replace("'", '"'), ""]
+    if case["input_kind"] == "measured":
+        lines += ["[[inputs]]", 'name = "u1"', 'column = "u1"', ""]
+    elif case["input_kind"] == "unknown":
+        lines += ["[[inputs]]", 'name = "u1"', "prior_mean = 0.0", "prior_precision = 1.0", ""]
+    lines += ["[observer]", f"kernel_width = {case['s']!r}", f"sensor_precision = {case['sigma_z'] ** -2!r}",
+              f"process_precision = {case['sigma_w'] ** -2!r}"]
+    if case["input_kind"] == "unknown":
+        lines.append(f"input_kernel_width = {case['input_width']!r}")
+    if path_mode:
+        lines += ['method = "dem"', 'states = "path"']
+    (folder / "model.toml").write_text("\n".join(lines) + "\n")
+    columns = [case["time"], log.outputs] + ([log.inputs] if case["input_kind"] == "measured" else [])
+    header = ["t"] + outputs + (["u1"] if case["input_kind"] == "measured" else [])
+    np.savetxt(folder / "log.csv", np.column_stack(columns), delimiter=",", header=",".join(header), comments="",
+               fmt="%.17g")
+    return folder / "model.toml", folder / "log.csv"
+
+
+def run_cli(case: dict, folder: Path, path_mode: bool, reference: float) -> str:
+    """One line: exit status, SSE ratio to the library smoother with the true x[0] prior, warnings."""
+    model, log = write_case(case, folder, path_mode)
+    out = folder / "estimates.csv"
+    started = time.perf_counter()
+    done = subprocess.run([shutil.which("attend") or "attend", "estimate", str(model), str(log), "--out", str(out)],
+                          capture_output=True, text=True)
+    seconds = time.perf_counter() - started
+    if done.returncode != 0:
+        return f"exit {done.returncode}: {(done.stderr or done.stdout).strip()[:160]}"
+    estimate = np.genfromtxt(out, delimiter=",", names=True)
+    states = np.column_stack([estimate[f"x{i + 1}"] for i in range(case["n"])])
+    p = case["p"]
+    trim = slice(p + 1, bank.SAMPLES - p - 1)
+    sse = float(np.sum((states - case["log"].states)[trim] ** 2))
+    finite = "" if np.all(np.isfinite(states)) else " NON-FINITE"
+    warned = " [warned: " + done.stderr.strip().splitlines()[0][:100] + "]" if done.stderr.strip() else ""
+    return f"{sse / reference:7.3f} x the smoother told x[0] ~ N(0, I) ({seconds:4.1f} s){finite}{warned}"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", type=int, default=36)
+    parser.add_argument("--first", type=int, default=0)
+    parser.add_argument("--path", action="store_true", help="also run method = \"dem\", states = \"path\"")
+    args = parser.parse_args()
+    from attend.perception.nonlinear_baselines import input_random_walk_variance, unscented_kalman, \
+        white_noise_covariances
+
+    print(f"== attend estimate (defaults) on {args.cases} random nonlinear model files; state SSE over the library's "
+          "unscented smoother told the true prior of x[0]")
+    ratios = {"ukf": [], "path": []}
+    with tempfile.TemporaryDirectory(prefix="attend-nonlinear-cli-") as work:
+        for index in range(args.first, args.first + args.cases):
+            case = bank.draw_case(index)
+            n, unknown = case["n"], case["input_kind"] == "unknown"
+            Q, R = white_noise_covariances(case["system"], bank.DT, case["s"], case["sigma_w"], case["sigma_z"])
+            options = dict(process_covariance=Q, measurement_covariance=R, initial_mean=np.zeros(n),
+                           initial_covariance=1.0)
+            if unknown:
+                options.update(input_variance=float(input_random_walk_variance(1.0, case["input_width"], bank.DT)))
+            inputs = case["log"].inputs if case["input_kind"] == "measured" else None
+            smoother = unscented_kalman(case["system"], bank.DT, case["log"].outputs, inputs, **options)
+            p = case["p"]
+            trim = slice(p + 1, bank.SAMPLES - p - 1)
+            reference = float(np.sum((smoother.states - case["log"].states)[trim] ** 2))
+            for label, path_mode in (("ukf", False), ("path", True)):
+                if path_mode and not args.path:
+                    continue
+                folder = Path(work) / f"{index}-{label}"
+                folder.mkdir()
+                line = run_cli(case, folder, path_mode, reference)
+                print(f"  {bank.describe(case)} {label:4s}: {line}", flush=True)
+                try:
+                    ratios[label].append(float(line.split()[0]))
+                except ValueError:
+                    ratios[label].append(np.nan)
+    for label, values in ratios.items():
+        if values:
+            values = np.array(values)
+            print(f"  {label}: median {np.nanmedian(values):.3f}, 90th percentile {np.nanpercentile(values, 90):.3f}, "
+                  f"worst {np.nanmax(values):.3g}, failed {int(np.sum(np.isnan(values)))} of {len(values)}")
+
+
+if __name__ == "__main__":
+    main()

@@ -235,6 +235,36 @@ def test_the_smoother_start_is_the_unscented_smoother_with_the_documented_settin
     np.testing.assert_allclose(inputs, direct.inputs, rtol=1e-12, atol=1e-12)
 
 
+def test_the_prior_on_x0_is_the_d_steps_start_as_wide_as_its_states_or_its_widened_local_std():
+    from attend.perception.nonlinear.path_starts import first_samples_prior, initial_state_prior
+
+    dem, log = _pendulum_case()
+    signals = dem._signals(log.outputs, None)
+    start = dem._sample_estimate(signals, True, None, check=False)
+    mean, std = initial_state_prior(dem, signals, start)  # a log from the model: the D-step is trusted
+    np.testing.assert_allclose(mean, start.states[0])
+    np.testing.assert_allclose(std, np.std(start.states, axis=0), rtol=1e-6)
+    # inputs held over each sample with almost no process noise: the D-step's misfit is far above
+    # MISFIT_LIMIT, so its spread means nothing: its std on the first samples, widened by sqrt(misfit)
+    from attend.systems import LinearSystem
+
+    A = np.array([[-0.24, 0.02], [-0.02, -0.18]])
+    B, C = np.array([[-0.22], [-0.53]]), np.array([[-0.81, 0.58]])
+    system = NonlinearSystem(lambda x, v: A @ x + B @ v, lambda x, v: C @ x, 2, 1, 1)
+    u = np.sin(2.0 * np.arange(160) * 0.05)[:, None]
+    held = simulate(LinearSystem(A, B, C), u, 0.05, kernel_width=0.25, process_std=1e-5, measurement_std=2.6e-4,
+                    seed=1)
+    held_dem = NonlinearDEM(system, 0.05, 0.25, 1 / 2.6e-4**2, 1 / 1e-5**2, known_inputs=True)
+    held_signals = held_dem._signals(held.outputs, u)
+    held_start = held_dem._sample_estimate(held_signals, True, None, check=False)
+    mean, std = initial_state_prior(held_dem, held_signals, held_start)
+    first_mean, first_std = first_samples_prior(held_dem, held_signals)
+    np.testing.assert_allclose(mean, first_mean)
+    np.testing.assert_allclose(std, first_std)
+    local = held_dem._sample_estimate(held_signals[:28], False, None, check=False).state_std[0]
+    assert np.all(std > 3 * local)  # widened: the misfit ratio is far above 1
+
+
 def test_no_smoother_start_without_a_positive_definite_precision():
     from attend.perception.nonlinear.path_starts import smoother_start
 

@@ -178,7 +178,7 @@ class NonlinearFileEstimator:
     state as random walks whose one-sample increments have the variance of their prior's
     (:func:`attend.perception.nonlinear_baselines.input_random_walk_variance`), started at the prior mean; measured inputs drive f and g.
     Without [observer] initial_state the smoother starts from DEM's estimate of the first sample
-    and its std. method "dem": :class:`attend.perception.nonlinear.NonlinearDEM` (measured inputs,
+    with the spread of DEM's states over the log as its std (:meth:`_start`). method "dem": :class:`attend.perception.nonlinear.NonlinearDEM` (measured inputs,
     when some are unknown, get their measurement as prior mean with precision known_input_precision).
 
     model: the parsed :class:`ModelFile`; dt: sample time [s]; method: "ukf" or "dem";
@@ -254,30 +254,32 @@ class NonlinearFileEstimator:
                                 initial_covariance=np.diag(np.asarray(std, dtype=float) ** 2), **options)
 
     def _start(self, outputs, signals):
-        """x[0] and its std from DEM's D-step on the first samples (the smoother's prior on the
-        initial state). Where those samples are far from DEM's generalised model (misfit ratio
-        rho = e' Pi~ e / dim(e) > 1, :mod:`attend.perception.nonlinear.misfit`) the std is widened
-        by sqrt(rho), the usual variance-factor correction, instead of warning of the D-step's estimate
-        of a run that returns the smoother's."""
+        """x[0] and its std, the smoother's prior on the initial state when the file gives none:
+        :func:`attend.perception.nonlinear.path_starts.initial_state_prior` (the D-step's first
+        estimate with the spread of its states over the log, or its widened std on the first
+        samples where its estimate of the log is not to be trusted)."""
+        from attend.perception.nonlinear.path_starts import initial_state_prior
+
         import warnings
 
-        from attend.perception.nonlinear.misfit import sample_misfit
         from attend.systems import ModelWarning
 
         dem = self.dem()
-        count = min(len(outputs), 4 * (max(self.embedding_order, self.model.input_order) + 1))
+        failure = None
         try:
-            with warnings.catch_warnings():
+            with warnings.catch_warnings():  # of the D-step, which only starts the smoother here
                 warnings.simplefilter("ignore", ModelWarning)
-                first = dem.estimate(outputs[:count], signals[:count], keep_generalized=True)
+                checked = dem._signals(outputs, signals)
+                mean, std = initial_state_prior(dem, checked, dem._sample_estimate(checked, True, None, check=False))
         except AttendInputError as error:
             if self.model.python_path and str(error).startswith(self.model.python_path):
                 raise
-            raise AttendInputError(f"the smoother starts from DEM's estimate of the first sample, which failed "
-                                   f"({error}); give initial_state and initial_state_std") from None
-        ratio = sample_misfit(dem, dem._signals(outputs[:count], signals[:count]), first.generalized)
-        widening = np.sqrt(ratio) if np.isfinite(ratio) and ratio > 1.0 else 1.0
-        return first.states[0], first.state_std[0] * widening
+            failure = error
+        if failure is not None or not (np.all(np.isfinite(mean)) and np.all(np.isfinite(std))):
+            reason = f" ({failure})" if failure is not None else " (non-finite)"
+            raise AttendInputError(f"the smoother starts from DEM's estimate of the first sample, which failed"
+                                   f"{reason}; give initial_state and initial_state_std") from None
+        return mean, std
 
 
 def _path_prior_std(model) -> np.ndarray | None:

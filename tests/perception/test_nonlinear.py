@@ -302,6 +302,33 @@ def test_white_noise_options_of_dem_precisions():
         white_noise_options(0.05, Pi_w, Pi_z, [0.0, 0.0], 0.1, known_inputs=[True, False])
 
 
+def test_rk4_substeps_follow_the_fastest_mode():
+    from attend.perception.nonlinear_baselines.kalman import rk4_substeps
+
+    def linear(A):
+        return NonlinearSystem(lambda x, v: A @ x, lambda x, v: x[:1], 2, 0, 1)
+
+    points = np.zeros((5, 2))
+    # ceil(dt rho / 0.1): rho = 50 1/s at dt = 0.01 s -> 5; a rotation at 3 rad/s -> 1; clipped to 1..limit
+    assert rk4_substeps(linear(np.diag([-50.0, -1.0])), 0.01, points, np.zeros((5, 0))) == 5
+    assert rk4_substeps(linear(np.array([[0.0, 3.0], [-3.0, 0.0]])), 0.01, points, np.zeros((5, 0))) == 1
+    assert rk4_substeps(linear(np.diag([-1e6, -1.0])), 0.01, points, np.zeros((5, 0)), limit=300) == 300
+    nan = NonlinearSystem(lambda x, v: np.sqrt(x - 1.0), lambda x, v: x[:1], 2, 0, 1)
+    with np.errstate(invalid="ignore"):
+        assert rk4_substeps(nan, 0.01, points, np.zeros((5, 0))) == 10
+    # a stiff mode (rho dt = 50) diverges with the fixed 10 sub-steps (RK4 is stable to h rho ~ 2.8)
+    stiff = linear(np.diag([-5000.0, -1.0]))
+    y = np.ones((30, 1))
+    options = dict(process_covariance=1e-4, measurement_covariance=1e-2, initial_mean=[1.0, 1.0],
+                   initial_covariance=1.0)
+    with pytest.raises(AttendInputError, match=r"substeps: 10 RK4 sub-steps per sample are unstable for this model "
+                                                r"\(dt rho\(df/dx\) = 50"):
+        unscented_kalman(stiff, 0.01, y, **options)  # it returned ~1e29 without an error before
+    steps = rk4_substeps(stiff, 0.01, points, np.zeros((30, 0)))
+    assert steps == 500
+    assert np.all(np.isfinite(unscented_kalman(stiff, 0.01, y, substeps=steps, **options).states))
+
+
 def test_particle_smoother_near_exact_posterior_on_a_linear_model():
     linear = mass_spring_damper()
     dt, s = 0.1, 0.2

@@ -220,17 +220,19 @@ def _pendulum_case():
 
 
 def test_the_smoother_start_is_the_unscented_smoother_with_the_documented_settings():
-    from attend.perception.nonlinear.path_starts import smoother_start
+    from attend.perception.nonlinear.path_starts import smoother_start, smoother_substeps
     from attend.perception.nonlinear_baselines import input_random_walk_variance, unscented_kalman
 
     dem, log = _pendulum_case()
     signals = dem._signals(log.outputs, None)
     prior = (np.array([0.5, 0.0]), np.array([1 / 0.05**2, 1 / 0.2**2]))
     states, inputs = smoother_start(dem, signals, prior, start=None)
+    substeps = smoother_substeps(dem, signals, None)
+    assert substeps == 2  # dt rho(df/dx) = 0.05 s x sqrt(9.81) rad/s = 0.16: ceil(0.16 / 0.1) RK4 steps
     direct = unscented_kalman(dem.system, dem.dt, log.outputs, process_covariance=dem.dt**2 * np.linalg.inv(
         dem.process_precision), measurement_covariance=np.linalg.inv(dem.sensor_precision),
         input_variance=np.diag(input_random_walk_variance(np.array([0.135]), 0.7, dem.dt)), input_mean=np.zeros(1),
-        initial_mean=prior[0], initial_covariance=np.diag(1 / prior[1]), smooth=True)
+        initial_mean=prior[0], initial_covariance=np.diag(1 / prior[1]), smooth=True, substeps=substeps)
     np.testing.assert_allclose(states, direct.states, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(inputs, direct.inputs, rtol=1e-12, atol=1e-12)
 

@@ -244,42 +244,47 @@ class NonlinearFileEstimator:
             np.array([spec.prior_precision for spec in model.inputs]) if unknown else None,
             self.input_kernel_width, known, signals[0] if unknown else None, who='method "ukf"')
         inputs = (signals if known.any() else None) if unknown else (signals if r else None)
-        if initial is None:
-            mean, std = self._start(outputs, signals)
-        else:
-            mean = initial
-            std = np.broadcast_to(np.asarray(0.0 if model.initial_state_std is None else model.initial_state_std,
-                                             dtype=float), (n,))
+        mean, std, substeps = self._start(outputs, signals, initial)
         return unscented_kalman(self.system, self.dt, outputs, inputs, initial_mean=mean,
-                                initial_covariance=np.diag(np.asarray(std, dtype=float) ** 2), **options)
+                                initial_covariance=np.diag(np.asarray(std, dtype=float) ** 2), substeps=substeps,
+                                **options)
 
-    def _start(self, outputs, signals):
-        """x[0] and its std, the smoother's prior on the initial state when the file gives none:
+    def _start(self, outputs, signals, initial):
+        """(x[0], its std, RK4 sub-steps) of the smoother, from DEM's D-step over the log: the file's
+        initial_state and initial_state_std, or else
         :func:`attend.perception.nonlinear.path_starts.initial_state_prior` (the D-step's first
         estimate with the spread of its states over the log, or its widened std on the first
-        samples where its estimate of the log is not to be trusted)."""
-        from attend.perception.nonlinear.path_starts import initial_state_prior
-
+        samples where its estimate of the log is not to be trusted); the sub-steps from
+        :func:`attend.perception.nonlinear.path_starts.smoother_substeps` (10 where the D-step
+        fails and the file gives initial_state). initial: the file's initial_state or None."""
         import warnings
 
+        from attend.perception.nonlinear.path_starts import initial_state_prior, smoother_substeps
         from attend.systems import ModelWarning
 
-        dem = self.dem()
-        failure = None
+        dem, n = self.dem(), self.system.n_states
+        failure = mean = std = None
+        substeps = 10
         try:
             with warnings.catch_warnings():  # of the D-step, which only starts the smoother here
                 warnings.simplefilter("ignore", ModelWarning)
                 checked = dem._signals(outputs, signals)
-                mean, std = initial_state_prior(dem, checked, dem._sample_estimate(checked, True, None, check=False))
+                start = dem._sample_estimate(checked, True, None, check=False)
+                if initial is None:
+                    mean, std = initial_state_prior(dem, checked, start)
+                substeps = smoother_substeps(dem, checked, start)
         except AttendInputError as error:
             if self.model.python_path and str(error).startswith(self.model.python_path):
                 raise
             failure = error
+        if initial is not None:
+            given = self.model.initial_state_std
+            return initial, np.broadcast_to(np.asarray(0.0 if given is None else given, dtype=float), (n,)), substeps
         if failure is not None or not (np.all(np.isfinite(mean)) and np.all(np.isfinite(std))):
             reason = f" ({failure})" if failure is not None else " (non-finite)"
             raise AttendInputError(f"the smoother starts from DEM's estimate of the first sample, which failed"
                                    f"{reason}; give initial_state and initial_state_std") from None
-        return mean, std
+        return mean, std, substeps
 
 
 def _path_prior_std(model) -> np.ndarray | None:

@@ -158,7 +158,9 @@ class NonlinearSystem:
                                            f"d{which}/dv ({size}, {r})) ({error})") from None
             else:
                 function = self.f if which == "f" else self.g
-                if self.vectorized or self.jacobian_method == "complex":
+                if self.vectorized:  # columns, shape-checked; complex steps keep their dtype
+                    joint = lambda z, w=which: _batched(self, w, z, dtype=None)  # noqa: E731
+                elif self.jacobian_method == "complex":
                     joint = lambda z, fn=function: np.asarray(self._call(fn, z[:n], z[n:]))  # noqa: E731
                 else:
                     joint = lambda z, w=which: self._value(w, z[:n], z[n:])  # noqa: E731
@@ -170,12 +172,13 @@ class NonlinearSystem:
         return fx, fv, gx, gv
 
 
-def _batched(system: "NonlinearSystem", which: str, z: np.ndarray) -> np.ndarray:
-    """f or g of a vectorized system at the columns of z ((n + r), K): a (size, K) array."""
+def _batched(system: "NonlinearSystem", which: str, z: np.ndarray, dtype=float) -> np.ndarray:
+    """f or g of a vectorized system at the columns of z ((n + r), K): a (size, K) array (of
+    ``dtype``; None keeps the function's, e.g. complex steps)."""
     n = system.n_states
     function, size = (system.f, n) if which == "f" else (system.g, system.n_outputs)
     try:
-        values = np.asarray(system._call(function, z[:n], z[n:]), dtype=float)
+        values = np.asarray(system._call(function, z[:n], z[n:]), dtype=dtype)
     except AttendInputError:
         raise
     except Exception as error:

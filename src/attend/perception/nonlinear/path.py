@@ -494,7 +494,7 @@ def estimate_path(dem, signals: np.ndarray, initial_state=None, *, initial_state
     """
     m, r = dem.system.n_outputs, dem.system.n_inputs
     prior = _initial_prior(dem.system.n_states, initial_state, initial_state_std)
-    start = dem._sample_estimate(signals, dem.path_starts == "both" and prior is None, initial_state, check=False)
+    start = dem._sample_estimate(signals, dem.path_starts == "both", initial_state, check=False)
     with single_blas_thread():
         problem = _Problem(dem, signals[:, :m], signals[:, m:], prior)
         layout = problem.layout

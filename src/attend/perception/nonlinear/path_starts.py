@@ -20,8 +20,9 @@ def smoother_start(dem, signals: np.ndarray, prior, start) -> tuple[np.ndarray, 
     """(states (N, n), inputs (N, r)) of the unscented RTS smoother on the white-noise model
     Q = dt^2 inv(Pi_w), R = inv(Pi_z), unknown inputs as random walks with their prior's one-sample
     steps (:func:`attend.perception.nonlinear_baselines.white_noise_options`), x[0] from
-    ``prior`` (mean, precision) or else from :func:`initial_state_prior`; None where it does not
-    apply (a precision that is not positive definite) or fails.
+    ``prior`` (mean, precision) or else from :func:`initial_state_prior`, RK4 sub-steps from
+    :func:`smoother_substeps`; None where it does not apply (a precision that is not positive
+    definite) or fails.
 
     dem: the NonlinearDEM; signals: (N, m + r) outputs then inputs (measured, or the prior mean
     eta); prior: path mode's prior on x[0] or None; start: the D-step's DEMEstimate of the log."""
@@ -42,8 +43,10 @@ def smoother_start(dem, signals: np.ndarray, prior, start) -> tuple[np.ndarray, 
         options.update(initial_mean=prior[0], initial_covariance=np.diag(1.0 / prior[1]))
     inputs = signals[:, m:] if r and not unknown else None
     try:
+        substeps = smoother_substeps(dem, signals, start)
         with np.errstate(all="ignore"):
-            estimate = unscented_kalman(dem.system, dem.dt, signals[:, :m], inputs, smooth=True, **options)
+            estimate = unscented_kalman(dem.system, dem.dt, signals[:, :m], inputs, smooth=True, substeps=substeps,
+                                        **options)
     except (AttendInputError, np.linalg.LinAlgError, ValueError):
         return None
     states, estimated_inputs = estimate.states, estimate.inputs
@@ -65,18 +68,37 @@ def initial_state_prior(dem, signals: np.ndarray, start) -> tuple[np.ndarray, np
 
     dem: the NonlinearDEM; signals: (N, m + r) outputs then inputs; start: the D-step's
     DEMEstimate of the log, with its generalised states."""
+    if trusted(dem, signals, start):
+        return start.states[0], np.std(start.states, axis=0) + 1e-9 * (1.0 + np.abs(start.states[0]))
+    return first_samples_prior(dem, signals)
+
+
+def trusted(dem, signals: np.ndarray, start) -> bool:
+    """Whether the D-step's estimate ``start`` of the log (a DEMEstimate with generalised states) is
+    finite, keeps its predicted outputs near the data and has a misfit ratio within MISFIT_LIMIT
+    (:mod:`attend.perception.nonlinear.misfit`). dem: the NonlinearDEM; signals: (N, m + r)."""
     from attend.perception.nonlinear.misfit import MISFIT_LIMIT, check_excursion, sample_misfit
 
-    spread = np.std(start.states, axis=0)
-    if start.generalized is not None and np.all(np.isfinite(spread)):
-        try:
-            check_excursion(dem, signals, start.states, start.inputs, "NonlinearDEM")
-            trusted = sample_misfit(dem, signals, start.generalized) <= MISFIT_LIMIT
-        except AttendInputError:
-            trusted = False
-        if trusted:
-            return start.states[0], spread + 1e-9 * (1.0 + np.abs(start.states[0]))
-    return first_samples_prior(dem, signals)
+    if start is None or start.generalized is None or not np.all(np.isfinite(start.states)):
+        return False
+    try:
+        check_excursion(dem, signals, start.states, start.inputs, "NonlinearDEM")
+    except AttendInputError:
+        return False
+    return bool(sample_misfit(dem, signals, start.generalized) <= MISFIT_LIMIT)
+
+
+def smoother_substeps(dem, signals: np.ndarray, start) -> int:
+    """RK4 sub-steps per sample of the unscented smoother's transition
+    (:func:`attend.perception.nonlinear_baselines.kalman.rk4_substeps`) at the D-step's estimate of
+    the log ``start`` where it is :func:`trusted`, else at its estimate of the first samples.
+    dem: the NonlinearDEM; signals: (N, m + r) outputs then inputs."""
+    from attend.perception.nonlinear_baselines.kalman import rk4_substeps
+
+    if not trusted(dem, signals, start):
+        count = min(len(signals), 4 * (max(dem.embedding_order, dem.input_order) + 1))
+        start = dem._sample_estimate(signals[:count], False, None, check=False)
+    return rk4_substeps(dem.system, dem.dt, start.states, start.inputs)
 
 
 def first_samples_prior(dem, signals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

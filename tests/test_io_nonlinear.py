@@ -387,6 +387,16 @@ def test_nonlinear_identify_errors_name_the_field(tmp_path, capsys, learning, me
     assert message in err and len(err.strip().splitlines()) == 1, err
 
 
+ONE_OUTPUT_ONE_MEASURED_INPUT = """
+[outputs]
+columns = ["y"]
+
+[[inputs]]
+name = "u"
+column = "u"
+"""
+
+
 def test_linear_models_refuse_the_nonlinear_keys(tmp_path):
     linear = """
 [model]
@@ -394,14 +404,7 @@ A = [[0.0, 1.0], [-1.0, -0.5]]
 B = [[0.0], [1.0]]
 C = [[1.0, 0.0]]
 n_states = 2
-
-[outputs]
-columns = ["y"]
-
-[[inputs]]
-name = "u"
-column = "u"
-
+""" + ONE_OUTPUT_ONE_MEASURED_INPUT + """
 [observer]
 kernel_width = 0.1
 sensor_precision = 1.0
@@ -492,14 +495,7 @@ python = "held.py"
 n_states = 2
 n_inputs = 1
 n_outputs = 1
-
-[outputs]
-columns = ["y"]
-
-[[inputs]]
-name = "u"
-column = "u"
-
+''' + ONE_OUTPUT_ONE_MEASURED_INPUT + '''
 [observer]
 kernel_width = 0.25
 sensor_precision = 1.479e7

@@ -64,7 +64,7 @@ def initial_state_prior(dem, signals: np.ndarray, start) -> tuple[np.ndarray, np
     and the prior is :func:`first_samples_prior` instead. On the random nonlinear bank written as
     model files (``benchmarks/bench_nonlinear_cli.py``) this took the unscented smoother from
     median 1.004 / 90th percentile 1.64 / worst 11.8 times the smoother told the true prior of x[0]
-    (first samples only) to 1.001 / 1.10 / 8.0 (a case where every prior tried failed).
+    (first samples only) to 1.000 / 1.17 / 8.0 (a case where every prior tried failed).
 
     dem: the NonlinearDEM; signals: (N, m + r) outputs then inputs; start: the D-step's
     DEMEstimate of the log, with its generalised states."""

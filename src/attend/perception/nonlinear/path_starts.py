@@ -105,7 +105,7 @@ def first_samples_prior(dem, signals: np.ndarray) -> tuple[np.ndarray, np.ndarra
     """x[0] and its std from the D-step on the first 4 (max(p, d) + 1) samples: its Laplace std,
     widened by sqrt(rho) where those samples are far from DEM's generalised model (misfit ratio
     rho = e' Pi~ e / dim(e) > 1), the usual variance-factor correction, and no wider than the largest
-    |x_i| the D-step gives each state there (a wider prior lets the sigma points alias on periodic
+    |x_i| the D-step gives any state there (a wider prior lets the sigma points alias on periodic
     sensors: 23-25 against 25-665 state SSE on bank case 24). An estimate that leaves the
     data there, or whose misfit ratio exceeds MISFIT_LIMIT^2, is an AttendInputError (no usable
     start), as are errors in f or g. dem: the
@@ -121,7 +121,8 @@ def first_samples_prior(dem, signals: np.ndarray) -> tuple[np.ndarray, np.ndarra
                                f"(misfit ratio {ratio:.3g}, above {MISFIT_LIMIT**2:g}), so it gives no usable x[0]")
     widening = np.sqrt(ratio) if np.isfinite(ratio) and ratio > 1.0 else 1.0
     # where the data hardly fix x[0] its Laplace std is huge (1e4 on a sinusoidal-sensor bank case)
-    # and the smoother's sigma points then alias; no wider than the states' size on these samples
-    size = np.max(np.abs(first.states), axis=0)
+    # and the smoother's sigma points then alias; no wider than the state vector's size on these
+    # samples (one scale for all states, so that a state estimated near 0 is not pinned there)
+    size = float(np.max(np.abs(first.states)))
     std = first.state_std[0] * widening
-    return first.states[0], np.where(size > 0, np.minimum(std, size), std)
+    return first.states[0], np.minimum(std, size) if size > 0 else std

@@ -385,3 +385,26 @@ def test_one_maximum_raises_no_such_warning():
         warnings.simplefilter("always")
         dem.estimate(log.outputs)
     assert not [w for w in caught if "more than one maximum" in str(w.message)]
+
+
+def test_the_first_samples_prior_is_widened_capped_and_refused_by_its_misfit(monkeypatch):
+    import attend.perception.nonlinear.misfit as misfit
+    from attend.perception.dem import DEMEstimate
+    from attend.perception.nonlinear.path_starts import first_samples_prior
+
+    dem, log = _pendulum_case()
+    signals = dem._signals(log.outputs, None)
+    states = np.array([[0.5, -2.0]] * 28)
+    fake = DEMEstimate(np.arange(28) * dem.dt, states, np.zeros((28, 1)), np.array([[0.01, 0.02]] * 28),
+                       np.zeros((28, 1)), np.zeros((28, 3)))
+    monkeypatch.setattr(NonlinearDEM, "_sample_estimate", lambda self, *args, **kwargs: fake)
+    monkeypatch.setattr(misfit, "check_excursion", lambda *args, **kwargs: None)
+    for ratio, expected in ((0.5, [0.01, 0.02]), (100.0, [0.1, 0.2]), (400.0, [0.2, 0.4])):
+        monkeypatch.setattr(misfit, "sample_misfit", lambda *args, ratio=ratio: ratio)
+        np.testing.assert_allclose(first_samples_prior(dem, signals)[1], expected)  # std x sqrt(max(1, ratio))
+    fake.state_std[0] = [1e4, 3e4]  # the data hardly fix x[0]: no wider than the state vector's size, 2
+    monkeypatch.setattr(misfit, "sample_misfit", lambda *args: 4.0)
+    np.testing.assert_allclose(first_samples_prior(dem, signals)[1], [2.0, 2.0])
+    monkeypatch.setattr(misfit, "sample_misfit", lambda *args: 401.0)
+    with pytest.raises(AttendInputError, match=r"misfit ratio 401, above 400\), so it gives no usable x\[0\]"):
+        first_samples_prior(dem, signals)

@@ -220,14 +220,14 @@ def _pendulum_case():
 
 
 def test_the_smoother_start_is_the_unscented_smoother_with_the_documented_settings():
-    from attend.perception.nonlinear.path_starts import smoother_start, smoother_substeps
+    from attend.perception.nonlinear.path_starts import d_step_basis, smoother_start, smoother_substeps
     from attend.perception.nonlinear_baselines import input_random_walk_variance, unscented_kalman
 
     dem, log = _pendulum_case()
     signals = dem._signals(log.outputs, None)
     prior = (np.array([0.5, 0.0]), np.array([1 / 0.05**2, 1 / 0.2**2]))
     states, inputs = smoother_start(dem, signals, prior, start=None)
-    substeps = smoother_substeps(dem, signals, None)
+    substeps = smoother_substeps(dem, d_step_basis(dem, signals, None))
     assert substeps == 2  # dt rho(df/dx) = 0.05 s x sqrt(9.81) rad/s = 0.16: ceil(0.16 / 0.1) RK4 steps
     direct = unscented_kalman(dem.system, dem.dt, log.outputs, process_covariance=dem.dt**2 * np.linalg.inv(
         dem.process_precision), measurement_covariance=np.linalg.inv(dem.sensor_precision),
@@ -238,12 +238,13 @@ def test_the_smoother_start_is_the_unscented_smoother_with_the_documented_settin
 
 
 def test_the_prior_on_x0_is_the_d_steps_start_as_wide_as_its_states_or_its_widened_local_std():
-    from attend.perception.nonlinear.path_starts import first_samples_prior, initial_state_prior
+    from attend.perception.nonlinear.path_starts import d_step_basis, initial_state_prior
 
     dem, log = _pendulum_case()
     signals = dem._signals(log.outputs, None)
     start = dem._sample_estimate(signals, True, None, check=False)
-    mean, std = initial_state_prior(dem, signals, start)  # a log from the model: the D-step is trusted
+    assert d_step_basis(dem, signals, start)[1]  # a log from the model: the D-step is trusted
+    mean, std = initial_state_prior(dem, signals, d_step_basis(dem, signals, start))
     np.testing.assert_allclose(mean, start.states[0])
     np.testing.assert_allclose(std, np.std(start.states, axis=0), rtol=1e-6)
     # inputs held over each sample with almost no process noise: the D-step's misfit is far above
@@ -259,8 +260,9 @@ def test_the_prior_on_x0_is_the_d_steps_start_as_wide_as_its_states_or_its_widen
     held_dem = NonlinearDEM(system, 0.05, 0.25, 1 / 2.6e-4**2, 1 / 1e-5**2, known_inputs=True)
     held_signals = held_dem._signals(held.outputs, u)
     held_start = held_dem._sample_estimate(held_signals, True, None, check=False)
-    mean, std = initial_state_prior(held_dem, held_signals, held_start)
-    first_mean, first_std = first_samples_prior(held_dem, held_signals)
+    assert not d_step_basis(held_dem, held_signals, held_start)[1]
+    mean, std = initial_state_prior(held_dem, held_signals, d_step_basis(held_dem, held_signals, held_start))
+    first_mean, first_std = initial_state_prior(held_dem, held_signals, d_step_basis(held_dem, held_signals, None))
     np.testing.assert_allclose(mean, first_mean)
     np.testing.assert_allclose(std, first_std)
     local = held_dem._sample_estimate(held_signals[:28], False, None, check=False).state_std[0]
@@ -390,14 +392,16 @@ def test_one_maximum_raises_no_such_warning():
 def test_the_first_samples_prior_is_widened_capped_and_refused_by_its_misfit(monkeypatch):
     import attend.perception.nonlinear.misfit as misfit
     from attend.perception.dem import DEMEstimate
-    from attend.perception.nonlinear.path_starts import first_samples_prior
+    from attend.perception.nonlinear.path_starts import initial_state_prior
+
+    def first_samples_prior(dem, signals):
+        return initial_state_prior(dem, signals, (fake, False))
 
     dem, log = _pendulum_case()
     signals = dem._signals(log.outputs, None)
     states = np.array([[0.5, -2.0]] * 28)
     fake = DEMEstimate(np.arange(28) * dem.dt, states, np.zeros((28, 1)), np.array([[0.01, 0.02]] * 28),
                        np.zeros((28, 1)), np.zeros((28, 3)))
-    monkeypatch.setattr(NonlinearDEM, "_sample_estimate", lambda self, *args, **kwargs: fake)
     monkeypatch.setattr(misfit, "check_excursion", lambda *args, **kwargs: None)
     for ratio, expected in ((0.5, [0.01, 0.02]), (100.0, [0.1, 0.2]), (400.0, [0.2, 0.4])):
         monkeypatch.setattr(misfit, "sample_misfit", lambda *args, ratio=ratio: ratio)

@@ -256,10 +256,11 @@ class NonlinearFileEstimator:
         estimate with the spread of its states over the log, or its widened std on the first
         samples where its estimate of the log is not to be trusted); the sub-steps from
         :func:`attend.perception.nonlinear.path_starts.smoother_substeps` (10 where the D-step
-        fails and the file gives initial_state). initial: the file's initial_state or None."""
+        fails and the file gives initial_state); both from one
+        :func:`attend.perception.nonlinear.path_starts.d_step_basis`. initial: the file's initial_state or None."""
         import warnings
 
-        from attend.perception.nonlinear.path_starts import initial_state_prior, smoother_substeps
+        from attend.perception.nonlinear.path_starts import d_step_basis, initial_state_prior, smoother_substeps
         from attend.systems import ModelWarning
 
         dem, n = self.dem(), self.system.n_states
@@ -269,10 +270,10 @@ class NonlinearFileEstimator:
             with warnings.catch_warnings():  # of the D-step, which only starts the smoother here
                 warnings.simplefilter("ignore", ModelWarning)
                 checked = dem._signals(outputs, signals)
-                start = dem._sample_estimate(checked, True, None, check=False)
+                basis = d_step_basis(dem, checked, dem._sample_estimate(checked, True, None, check=False))
+                substeps = smoother_substeps(dem, basis)
                 if initial is None:
-                    mean, std = initial_state_prior(dem, checked, start)
-                substeps = smoother_substeps(dem, checked, start)
+                    mean, std = initial_state_prior(dem, checked, basis)
         except AttendInputError as error:
             if self.model.python_path and str(error).startswith(self.model.python_path):
                 raise

@@ -21,7 +21,7 @@ def smoother_start(dem, signals: np.ndarray, prior, start) -> tuple[np.ndarray, 
     Q = dt^2 inv(Pi_w), R = inv(Pi_z), unknown inputs as random walks with their prior's one-sample
     steps (:func:`attend.perception.nonlinear_baselines.white_noise_options`), x[0] from
     ``prior`` (mean, precision) or else from :func:`initial_state_prior`, RK4 sub-steps from
-    :func:`smoother_substeps`; None where it does not apply (a precision that is not positive
+    :func:`smoother_substeps`, both read off :func:`d_step_basis`; None where it does not apply (a precision that is not positive
     definite) or fails.
 
     dem: the NonlinearDEM; signals: (N, m + r) outputs then inputs (measured, or the prior mean
@@ -36,14 +36,15 @@ def smoother_start(dem, signals: np.ndarray, prior, start) -> tuple[np.ndarray, 
             dem.input_kernel_width or dem.kernel_width, input_mean=signals[0, m:] if unknown else None)
     except AttendInputError:
         return None
-    if prior is None:
-        mean, std = initial_state_prior(dem, signals, start)
-        options.update(initial_mean=mean, initial_covariance=np.diag(std**2))
-    else:
-        options.update(initial_mean=prior[0], initial_covariance=np.diag(1.0 / prior[1]))
     inputs = signals[:, m:] if r and not unknown else None
     try:
-        substeps = smoother_substeps(dem, signals, start)
+        basis = d_step_basis(dem, signals, start)
+        if prior is None:
+            mean, std = initial_state_prior(dem, signals, basis)
+            options.update(initial_mean=mean, initial_covariance=np.diag(std**2))
+        else:
+            options.update(initial_mean=prior[0], initial_covariance=np.diag(1.0 / prior[1]))
+        substeps = smoother_substeps(dem, basis)
         with np.errstate(all="ignore"):
             estimate = unscented_kalman(dem.system, dem.dt, signals[:, :m], inputs, smooth=True, substeps=substeps,
                                         **options)
@@ -55,74 +56,64 @@ def smoother_start(dem, signals: np.ndarray, prior, start) -> tuple[np.ndarray, 
     return states, estimated_inputs.reshape(len(states), r)
 
 
-def initial_state_prior(dem, signals: np.ndarray, start) -> tuple[np.ndarray, np.ndarray]:
-    """A weak Gaussian prior (mean (n,), std (n,)) on x[0] for an unscented smoother when none is
-    given, from the D-step: its first estimate, with the spread of its states over the log (their
-    std per state) as the std, a prior as wide as the range the states take. Where the D-step's
-    estimate of the log is not to be trusted (its predicted outputs leave the data, or its misfit
-    ratio exceeds MISFIT_LIMIT, :mod:`attend.perception.nonlinear.misfit`) the spread means nothing,
-    and the prior is :func:`first_samples_prior` instead. On the random nonlinear bank written as
-    model files (``benchmarks/bench_nonlinear_cli.py``) this took the unscented smoother from
-    median 1.004 / 90th percentile 1.64 / worst 11.8 times the smoother told the true prior of x[0]
-    (first samples only) to 1.000 / 1.17 / 8.0 (a case where every prior tried failed).
-
-    dem: the NonlinearDEM; signals: (N, m + r) outputs then inputs; start: the D-step's
-    DEMEstimate of the log, with its generalised states."""
-    if trusted(dem, signals, start):
-        return start.states[0], np.std(start.states, axis=0) + 1e-9 * (1.0 + np.abs(start.states[0]))
-    return first_samples_prior(dem, signals)
-
-
-def trusted(dem, signals: np.ndarray, start) -> bool:
-    """Whether the D-step's estimate ``start`` of the log (a DEMEstimate with generalised states) is
+def d_step_basis(dem, signals: np.ndarray, start):
+    """(estimate, whole): the D-step estimate the unscented smoother's start is read from. The
+    D-step's estimate of the log ``start`` (a DEMEstimate with generalised states) when it is
     finite, keeps its predicted outputs near the data and has a misfit ratio within MISFIT_LIMIT
-    (:mod:`attend.perception.nonlinear.misfit`). dem: the NonlinearDEM; signals: (N, m + r)."""
+    (:mod:`attend.perception.nonlinear.misfit`), whole = True; else its estimate of the first
+    4 (max(p, d) + 1) samples, whole = False. dem: the NonlinearDEM; signals: (N, m + r)."""
     from attend.perception.nonlinear.misfit import MISFIT_LIMIT, check_excursion, sample_misfit
 
-    if start is None or start.generalized is None or not np.all(np.isfinite(start.states)):
-        return False
-    try:
-        check_excursion(dem, signals, start.states, start.inputs, "NonlinearDEM")
-    except AttendInputError:
-        return False
-    return bool(sample_misfit(dem, signals, start.generalized) <= MISFIT_LIMIT)
-
-
-def smoother_substeps(dem, signals: np.ndarray, start) -> int:
-    """RK4 sub-steps per sample of the unscented smoother's transition
-    (:func:`attend.perception.nonlinear_baselines.kalman.rk4_substeps`) at the D-step's estimate of
-    the log ``start`` where it is :func:`trusted`, else at its estimate of the first samples.
-    dem: the NonlinearDEM; signals: (N, m + r) outputs then inputs."""
-    from attend.perception.nonlinear_baselines.kalman import rk4_substeps
-
-    if not trusted(dem, signals, start):
-        count = min(len(signals), 4 * (max(dem.embedding_order, dem.input_order) + 1))
-        start = dem._sample_estimate(signals[:count], False, None, check=False)
-    return rk4_substeps(dem.system, dem.dt, start.states, start.inputs)
-
-
-def first_samples_prior(dem, signals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """x[0] and its std from the D-step on the first 4 (max(p, d) + 1) samples: its Laplace std,
-    widened by sqrt(rho) where those samples are far from DEM's generalised model (misfit ratio
-    rho = e' Pi~ e / dim(e) > 1), the usual variance-factor correction, and no wider than the largest
-    |x_i| the D-step gives any state there (a wider prior lets the sigma points alias on periodic
-    sensors: 23-25 against 25-665 state SSE on bank case 24). An estimate that leaves the
-    data there, or whose misfit ratio exceeds MISFIT_LIMIT^2, is an AttendInputError (no usable
-    start), as are errors in f or g. dem: the
-    NonlinearDEM; signals: (N, m + r) outputs then inputs."""
-    from attend.perception.nonlinear.misfit import MISFIT_LIMIT, check_excursion, sample_misfit
-
+    if start is not None and start.generalized is not None and np.all(np.isfinite(start.states)):
+        try:
+            check_excursion(dem, signals, start.states, start.inputs, "NonlinearDEM")
+            if sample_misfit(dem, signals, start.generalized) <= MISFIT_LIMIT:
+                return start, True
+        except AttendInputError:
+            pass
     count = min(len(signals), 4 * (max(dem.embedding_order, dem.input_order) + 1))
-    first = dem._sample_estimate(signals[:count], True, None, check=False)
-    check_excursion(dem, signals[:count], first.states, first.inputs, "NonlinearDEM on the first samples")
-    ratio = sample_misfit(dem, signals[:count], first.generalized)
+    return dem._sample_estimate(signals[:count], True, None, check=False), False
+
+
+def initial_state_prior(dem, signals: np.ndarray, basis) -> tuple[np.ndarray, np.ndarray]:
+    """A weak Gaussian prior (mean (n,), std (n,)) on x[0] for an unscented smoother when none is
+    given, from the D-step's ``basis`` (:func:`d_step_basis`). From the whole log: its first
+    estimate, with the spread of its states over the log (their std per state) as the std, a prior
+    as wide as the range the states take. From the first samples (the estimate of the log is not
+    to be trusted, so its spread means nothing): its Laplace std, widened by sqrt(rho) where those
+    samples are far from DEM's generalised model (misfit ratio rho = e' Pi~ e / dim(e) > 1, the
+    usual variance-factor correction), and no wider than the largest |x_i| the D-step gives any
+    state there (a wider prior lets the sigma points alias on periodic sensors: 23-25 against
+    25-665 state SSE on bank case 24); an estimate that leaves the data there, or whose misfit
+    ratio exceeds MISFIT_LIMIT^2, is an AttendInputError (no usable start). On the random
+    nonlinear bank written as model files (``benchmarks/bench_nonlinear_cli.py``) this took the
+    unscented smoother from median 1.004 / 90th percentile 1.64 / worst 11.8 times the smoother
+    told the true prior of x[0] (first samples only) to 1.000 / 1.17 / 8.0 (a case where every
+    prior tried failed).
+
+    dem: the NonlinearDEM; signals: (N, m + r) outputs then inputs; basis: (estimate, whole)."""
+    from attend.perception.nonlinear.misfit import MISFIT_LIMIT, check_excursion, sample_misfit
+
+    estimate, whole = basis
+    if whole:
+        return estimate.states[0], np.std(estimate.states, axis=0) + 1e-9 * (1.0 + np.abs(estimate.states[0]))
+    count = len(estimate.states)
+    check_excursion(dem, signals[:count], estimate.states, estimate.inputs, "NonlinearDEM on the first samples")
+    ratio = sample_misfit(dem, signals[:count], estimate.generalized)
     if ratio > MISFIT_LIMIT**2:  # not a start to widen: the flow failed on these samples too
         raise AttendInputError(f"NonlinearDEM on the first {count} samples: its estimate is far from the data "
                                f"(misfit ratio {ratio:.3g}, above {MISFIT_LIMIT**2:g}), so it gives no usable x[0]")
     widening = np.sqrt(ratio) if np.isfinite(ratio) and ratio > 1.0 else 1.0
-    # where the data hardly fix x[0] its Laplace std is huge (1e4 on a sinusoidal-sensor bank case)
-    # and the smoother's sigma points then alias; no wider than the state vector's size on these
-    # samples (one scale for all states, so that a state estimated near 0 is not pinned there)
-    size = float(np.max(np.abs(first.states)))
-    std = first.state_std[0] * widening
-    return first.states[0], np.minimum(std, size) if size > 0 else std
+    # one scale for the state vector, so that a state estimated near 0 is not pinned there
+    size = float(np.max(np.abs(estimate.states)))
+    std = estimate.state_std[0] * widening
+    return estimate.states[0], np.minimum(std, size) if size > 0 else std
+
+
+def smoother_substeps(dem, basis) -> int:
+    """RK4 sub-steps per sample of the unscented smoother's transition at the D-step's ``basis``
+    (:func:`d_step_basis`; :func:`attend.perception.nonlinear_baselines.kalman.rk4_substeps`).
+    dem: the NonlinearDEM."""
+    from attend.perception.nonlinear_baselines.kalman import rk4_substeps
+
+    return rk4_substeps(dem.system, dem.dt, basis[0].states, basis[0].inputs)

@@ -97,13 +97,17 @@ def rk4_substeps(system: NonlinearSystem, dt: float, states, inputs, limit: int 
     dt rho > 28). system: the NonlinearSystem; dt: sample time [s]."""
     states, inputs = np.asarray(states, dtype=float), np.asarray(inputs, dtype=float)
     rows = np.unique(np.linspace(0, len(states) - 1, min(50, len(states))).astype(int))
-    radius = 0.0
-    for row in rows:
-        fx = system._jacobians(states[row], inputs[row].reshape(system.n_inputs))[0]
-        if not np.all(np.isfinite(fx)):
-            return 10
-        radius = max(radius, float(np.max(np.abs(np.linalg.eigvals(fx)))))
-    return int(np.clip(np.ceil(dt * radius / RK4_STEP_RATE), 1, limit))
+    radii = [_fastest_rate(system, states[row], inputs[row].reshape(system.n_inputs)) for row in rows]
+    if not np.all(np.isfinite(radii)):
+        return 10
+    return int(np.clip(np.ceil(dt * max(radii) / RK4_STEP_RATE), 1, limit))
+
+
+def _fastest_rate(system: NonlinearSystem, x, u) -> float:
+    """rho(df/dx) at (x, u) [1/s], the spectral radius of the state Jacobian (NaN where it is not finite)."""
+    with np.errstate(all="ignore"):
+        fx = system._jacobians(np.asarray(x, dtype=float), np.asarray(u, dtype=float))[0]
+    return float(np.max(np.abs(np.linalg.eigvals(fx)))) if np.all(np.isfinite(fx)) else np.nan
 
 
 #: RK4 is stable for h |lambda| up to ~2.8 on the negative real axis; sub-steps beyond this are refused
@@ -116,12 +120,10 @@ def _check_substeps(system: NonlinearSystem, dt: float, substeps: int, x0, u0) -
     if substeps < 1:
         raise AttendInputError(f"substeps: expected an integer >= 1, got {substeps}")
     try:
-        with np.errstate(all="ignore"):
-            fx = system._jacobians(np.asarray(x0, dtype=float), np.asarray(u0, dtype=float))[0]
-            radius = float(np.max(np.abs(np.linalg.eigvals(fx)))) if np.all(np.isfinite(fx)) else 0.0
+        radius = _fastest_rate(system, x0, u0)
     except (AttendInputError, np.linalg.LinAlgError):
         return  # the model's own errors are reported where it is integrated
-    if dt / substeps * radius > RK4_STABLE_RATE:
+    if dt / substeps * radius > RK4_STABLE_RATE:  # False for NaN
         raise AttendInputError(
             f"substeps: {substeps} RK4 sub-steps per sample are unstable for this model (dt rho(df/dx) = "
             f"{dt * radius:.3g} at the initial mean, a stiff mode); use substeps >= "
@@ -234,23 +236,13 @@ class _Model:
         if self.augmented:
             self.Qz[n:, n:] = self.Qu
 
-    def split(self, z, k):
-        n = self.system.n_states
-        if not self.augmented:
-            return z, self.u[k]
-        if self.known.any():
-            return z[:n], np.where(self.known, self.u[k], z[n:])
-        return z[:n], z[n:]
-
     def transition(self, z, k):
-        """z[k] = F(z[k-1]) with the input of sample k - 1."""
-        x, u = self.split(z, k - 1)
-        x_new = _rk4(self.system, x, u, self.dt, self.substeps)
-        return np.concatenate([x_new, u]) if self.augmented else x_new
+        """z[k] = F(z[k-1]) with the input of sample k - 1 (one point: :meth:`transition_points`)."""
+        return self.transition_points(z[None], k)[0]
 
     def observation(self, z, k):
-        x, u = self.split(z, k)
-        return self.system.observe(x, u)
+        """g at the point z of sample k (:meth:`observation_points`)."""
+        return self.observation_points(z[None], k)[0]
 
     def split_points(self, Z, k):
         """(x (P, n), u (P, r)) of the rows Z (P, size) at sample k."""

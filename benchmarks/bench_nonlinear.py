@@ -1,6 +1,6 @@
 """Nonlinear DEM against its references on the Lorenz and pendulum reproductions.
 
-    PYTHONPATH=src python benchmarks/bench_nonlinear.py [--seeds 20] [--sweep-seeds 10] [--prior-seeds 20]
+    PYTHONPATH=src python benchmarks/bench_nonlinear.py [--seeds 20] [--sweep-seeds 10] [--prior-seeds 20] [--parts 8]
 
 Part 0 (speed): samples/s of nonlinear DEM's D-step (NumPy, and backend="jax" when JAX is installed,
 with its first call's compilation time) on a 2 s and a 20 s Lorenz log, and of the UKF smoother on
@@ -29,6 +29,10 @@ damping from the zero-order-hold simulator).
 Part 7 (``--bank-cases`` cases): path mode on unseen systems, bench_bank.py's random LTI bank
 (tiny cases with one kernel width, s/dt >= 1) written as f, g, with the exact posterior's prior on x[0],
 against the exact posterior.
+Part 8 (``--paired-seeds`` seeds): path mode against the UKF smoother, seed by seed, on the reproductions'
+settings (``--fine`` K > 1: simulated K times finer, noise held over each fine step, every K-th sample
+kept): state (and input) SSE with SPM's linearised motion and with motion="path", the per-seed ratio's
+median with a bootstrap 95 % interval, the seeds on which path mode is better, paired Wilcoxon p.
 Not part of the test run. No BLAS environment variable is needed (attend._threads).
 """
 
@@ -404,6 +408,57 @@ def part7(cases: int) -> None:
                   f"pooled {part[:, 1].mean():.3f} (exact posterior {part[:, 2].mean():.3f})")
 
 
+def _paired_log(module, cfg: dict, seed: int, fine: int):
+    """The reproduction's log of ``seed``, simulated ``fine`` times finer and sampled at cfg's dt."""
+    from attend.perception.nonlinear import simulate_nonlinear
+
+    name = module.__name__.rsplit(".", 1)[-1]
+    system, u, _, n_samples = _nonlinear._setup(name, cfg)
+    dt = cfg["dt"]
+    fine_u = module.true_input(np.arange((n_samples - 1) * fine + 1) * dt / fine) if system.n_inputs else \
+        (n_samples - 1) * fine + 1
+    log = simulate_nonlinear(system, fine_u, dt / fine, kernel_width=cfg["kernel_width"],
+                             process_std=cfg["process_std"], measurement_std=cfg["measurement_std"],
+                             initial_state=cfg["initial_state"], seed=seed, substeps=max(1, 10 // fine))
+    return system, log.states[::fine], log.inputs[::fine], log.outputs[::fine]
+
+
+def part8(seeds: int, fine: int) -> None:
+    from scipy.stats import wilcoxon
+    from attend.perception.nonlinear_baselines import unscented_kalman
+
+    print(f"\n== path mode against the UKF smoother, seed by seed ({seeds} seeds, simulated {fine}x finer than dt; "
+          "per-seed SSE ratio: median [bootstrap 95 %], seeds where path mode is better, paired Wilcoxon p)")
+    rng = np.random.default_rng(0)
+    for module in (lorenz, pendulum):
+        cfg = dict(module.SETTINGS)
+        p = cfg["embedding_order"]
+        sse = {key: [] for key in ("linearized", "path", "UKF")}
+        for seed in range(seeds):
+            system, states, inputs, outputs = _paired_log(module, cfg, seed, fine)
+            trim = slice(p + 1, len(states) - p - 1)
+            estimates = {motion: _nonlinear._dem(system, cfg, states="path", motion=motion).estimate(outputs)
+                         for motion in ("linearized", "path")}
+            estimates["UKF"] = unscented_kalman(system, cfg["dt"], outputs, **_nonlinear.kalman_options(system, cfg))
+            for key, estimate in estimates.items():
+                sse[key].append((np.sum((estimate.states - states)[trim] ** 2),
+                                 np.sum((estimate.inputs - inputs)[trim] ** 2) if system.n_inputs else np.nan))
+        ukf = np.array(sse["UKF"])
+        print(f"  {module.__name__.rsplit('.', 1)[-1]}: UKF smoother state SSE median {np.median(ukf[:, 0]):.3f}")
+        for motion in ("linearized", "path"):
+            mine = np.array(sse[motion])
+            for column, label in ((0, "states"), (1, "input")):
+                if np.isnan(mine[:, column]).all():
+                    continue
+                ratio = mine[:, column] / ukf[:, column]
+                draws = [np.median(ratio[rng.integers(0, seeds, seeds)]) for _ in range(2000)]
+                low, high = np.percentile(draws, [2.5, 97.5])
+                print(f"    motion={motion:10s} {label:6s} SSE median {np.median(mine[:, column]):9.3f} vs "
+                      f"{np.median(ukf[:, column]):9.3f}; per-seed ratio {np.median(ratio):.4f} [{low:.4f}, {high:.4f}]"
+                      f", better on {np.sum(ratio < 1)}/{seeds}, Wilcoxon p {wilcoxon(mine[:, column], ukf[:, column]).pvalue:.2g}",
+                      flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20)
@@ -413,9 +468,11 @@ def main() -> None:
     parser.add_argument("--conv-seeds", type=int, default=4)
     parser.add_argument("--particles", type=int, default=100_000, help="P of the convergence check (part 4)")
     parser.add_argument("--linear-seeds", type=int, default=12)
-    parser.add_argument("--parts", default="01234567", help="which parts to run (default: all)")
+    parser.add_argument("--parts", default="012345678", help="which parts to run (default: all)")
     parser.add_argument("--bank-cases", type=int, default=24, help="cases of part 7 (path mode on the random bank)")
     parser.add_argument("--learn-seeds", type=int, default=12, help="seeds of part 6 (learn_path calibration)")
+    parser.add_argument("--paired-seeds", type=int, default=100, help="seeds of part 8 (path mode vs UKF smoother)")
+    parser.add_argument("--fine", type=int, default=1, help="part 8: simulate this many times finer than dt")
     parser.add_argument("--speed-worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.speed_worker:
@@ -437,6 +494,8 @@ def main() -> None:
         part6(args.learn_seeds)
     if "7" in args.parts and args.bank_cases > 0:
         part7(args.bank_cases)
+    if "8" in args.parts and args.paired_seeds > 0:
+        part8(args.paired_seeds, args.fine)
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """Nonlinear DEM on unseen nonlinear systems: a random bank against the unscented smoothers.
 
-    PYTHONPATH=src python benchmarks/bench_nonlinear_bank.py [--cases 36] [--first 0]
+    PYTHONPATH=src python benchmarks/bench_nonlinear_bank.py [--cases 36] [--first 0] [--fine 1] [--motion path]
 
 Each case (seeded by its index) draws a system nobody tuned for:
 
@@ -50,6 +50,8 @@ SAMPLES = 400
 #: step, 1: over each sample as robots' logs) and is then sampled every FINE[0] steps
 FINE = [1]
 METHODS = ("DEM", "DEM path", "UKF", "coloured UKS")
+#: path mode's generalised motion (--motion): None = NonlinearDEM's default
+MOTION = [None]
 
 
 def draw_case(index: int) -> dict:
@@ -110,6 +112,7 @@ def run_case(case: dict) -> dict:
     inputs = log.inputs if case["input_kind"] == "measured" else None
     prior_precision = 1.0  # the pushes' std is 1
     dem_options = dict(embedding_order=p, input_order=2, known_inputs=case["input_kind"] == "measured")
+    path_options = {} if MOTION[0] is None else dict(motion=MOTION[0])
     if unknown:
         dem_options.update(input_prior_precision=prior_precision, input_kernel_width=case["input_width"])
     Pi_z, Pi_w = 1 / case["sigma_z"] ** 2, 1 / case["sigma_w"] ** 2
@@ -119,7 +122,7 @@ def run_case(case: dict) -> dict:
         ukf_options.update(input_variance=float(input_random_walk_variance(prior_precision, case["input_width"], DT)))
     runs = {
         "DEM": lambda: NonlinearDEM(system, DT, s, Pi_z, Pi_w, **dem_options).estimate(log.outputs, inputs),
-        "DEM path": lambda: NonlinearDEM(system, DT, s, Pi_z, Pi_w, states="path", **dem_options).estimate(
+        "DEM path": lambda: NonlinearDEM(system, DT, s, Pi_z, Pi_w, states="path", **dem_options, **path_options).estimate(
             log.outputs, inputs, initial_state=np.zeros(n), initial_state_std=1.0),
         "UKF": lambda: unscented_kalman(system, DT, log.outputs, inputs, smooth=True, **ukf_options),
         "coloured UKS": lambda: coloured_unscented_smoother(
@@ -201,8 +204,10 @@ def main() -> None:
     parser.add_argument("--first", type=int, default=0, help="index of the first case")
     parser.add_argument("--fine", type=int, default=1, help="simulate this many times finer than dt (1: inputs and "
                         "noise held over each sample)")
+    parser.add_argument("--motion", choices=("linearized", "path"), default=None,
+                        help="path mode's generalised motion (default: NonlinearDEM's)")
     args = parser.parse_args()
-    FINE[0] = args.fine
+    FINE[0], MOTION[0] = args.fine, args.motion
     print(f"== nonlinear DEM on {args.cases} random nonlinear systems ({SAMPLES} samples at dt = {DT} s each, "
           f"simulated {FINE[0]}x finer; ratios to the white-noise UKF smoother)")
     rows = []

@@ -50,16 +50,8 @@ def _one_seed(name: str, cfg: dict, seed: int) -> dict:
     trim = slice(p + 1, n_samples - p - 1)
     methods = tuple(cfg.get("methods", METHODS))
     input_width = cfg.get("input_kernel_width") or s  # the input prior's smoothness s_v (default: the noise's)
-    prior_precision = np.exp(cfg["input_prior_log_precision"])
     dem = _dem(system, cfg)
-    Q, R = white_noise_covariances(system, dt, s, sw, sz)
-    kalman = dict(process_covariance=Q, measurement_covariance=R, initial_mean=cfg["initial_state"],
-                  initial_covariance=np.asarray(cfg["initial_std"], float) ** 2)
-    if unknown:
-        # the random walk whose one-sample steps have the prior's variance (same prior information)
-        # (a settings key input_random_walk_variance overrides it: the reproduction before this matching)
-        kalman["input_variance"] = cfg.get("input_random_walk_variance") or float(
-            input_random_walk_variance(prior_precision, input_width, dt))
+    kalman = kalman_options(system, cfg)
     log = simulate_nonlinear(system, u, dt, kernel_width=s, process_std=sw, measurement_std=sz,
                              initial_state=cfg["initial_state"], seed=seed)
     estimates, runtime = {}, {}
@@ -164,6 +156,23 @@ def _dem(system, cfg: dict, **options) -> NonlinearDEM:
                         cfg["embedding_order"], cfg["input_order"],
                         input_kernel_width=(cfg.get("input_kernel_width") or cfg["kernel_width"]) if unknown else None,
                         **options)
+
+
+def kalman_options(system, cfg: dict) -> dict:
+    """The white-noise Kalman baselines' keywords for the reproduction's settings ``cfg``: Q, R of
+    the noise integrated over a sample (white_noise_covariances), the prior on x[0], and for unknown
+    inputs the random walk whose one-sample steps have the input prior's variance (the same prior
+    information; a settings key input_random_walk_variance overrides it)."""
+    dt, s = cfg["dt"], cfg["kernel_width"]
+    Q, R = white_noise_covariances(system, dt, s, np.asarray(cfg["process_std"], float),
+                                   np.asarray(cfg["measurement_std"], float))
+    options = dict(process_covariance=Q, measurement_covariance=R, initial_mean=cfg["initial_state"],
+                   initial_covariance=np.asarray(cfg["initial_std"], float) ** 2)
+    if system.n_inputs:
+        width = cfg.get("input_kernel_width") or s
+        options["input_variance"] = cfg.get("input_random_walk_variance") or float(
+            input_random_walk_variance(np.exp(cfg["input_prior_log_precision"]), width, dt))
+    return options
 
 
 def _jax_speed(name: str, cfg: dict, outs: list) -> dict:

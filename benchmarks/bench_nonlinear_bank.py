@@ -148,6 +148,7 @@ def run_case(case: dict) -> dict:
             out["coverage"] = float(np.mean(np.abs(error) < 2 * estimate.state_std[trim]))
             out["warned"] = any("far from DEM's generalised model" in str(w.message) for w in caught)
             out["maxima"] = any("more than one maximum" in str(w.message) for w in caught)
+            out["unconverged"] = any("not converged" in str(w.message) for w in caught)
     return out
 
 
@@ -192,6 +193,8 @@ def summarise(rows: list[tuple[dict, dict]]) -> None:
         print(f"  path mode warned of several maxima of F in {sum(several)} cases: |error| < 2 std pooled "
               f"{np.mean(split[True]):.3f} there ({np.min(split[True]):.3f}-{np.max(split[True]):.3f}), "
               f"{np.mean(split[False]):.3f} in the other {len(split[False])} cases")
+    unconverged = [case["index"] for case, result in rows if result.get("unconverged")]
+    print(f"  path mode stopped unconverged (max_iterations) in {len(unconverged)} cases {unconverged[:10]}")
     for method in METHODS:
         failed = [case["index"] for case, result in rows if method in result["failed"]]
         speed = [SAMPLES / result["seconds"][method] for _, result in rows if method in result["seconds"]]

@@ -344,8 +344,8 @@ def _describe_estimator(estimator) -> str:
                  else "DEM's estimate of the first sample, as wide as its states' spread")
         return (f"method ukf (unscented Kalman smoother, the default for nonlinear models; model "
                 f"{model.python_path}): white-noise model with the per-sample variance of the coloured noise "
-                f"(kernel width {model.kernel_width:g} s){inputs}; start: {start}; [observer] method = \"dem\" "
-                "runs the nonlinear DEM")
+                f"(kernel width {model.kernel_width:g} s){inputs}; start: {start}; std: the smoother's error "
+                "spread under the coloured noise (200 draws); [observer] method = \"dem\" runs the nonlinear DEM")
     if isinstance(estimator, DEMObserver):
         analysis = estimator.analysis()
         chosen = " (automatic)" if analysis.automatic else ""

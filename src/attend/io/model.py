@@ -245,9 +245,12 @@ class NonlinearFileEstimator:
             self.input_kernel_width, known, signals[0] if unknown else None, who='method "ukf"')
         inputs = (signals if known.any() else None) if unknown else (signals if r else None)
         mean, std, substeps = self._start(outputs, signals, initial)
+        # the std: the smoother's error spread under the file's coloured noise (error_spread)
+        prior = (1.0 / np.array([spec.prior_precision if not spec.known else 1.0 for spec in model.inputs]),
+                 self.input_kernel_width) if unknown else None
         return unscented_kalman(self.system, self.dt, outputs, inputs, initial_mean=mean,
                                 initial_covariance=np.diag(np.asarray(std, dtype=float) ** 2), substeps=substeps,
-                                **options)
+                                noise_kernel_width=model.kernel_width, input_prior=prior, **options)
 
     def _start(self, outputs, signals, initial):
         """(x[0], its std, RK4 sub-steps) of the smoother, from DEM's D-step over the log: the file's

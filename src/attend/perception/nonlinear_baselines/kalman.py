@@ -278,14 +278,15 @@ class _Model:
 
 
 def _update(mean, cov, y, predicted, H_cov_cross, S):
-    """Kalman update from predicted output, cross covariance C = Cov(z, y) and S = Cov(y)."""
+    """Kalman update from predicted output, cross covariance C = Cov(z, y) and S = Cov(y):
+    (mean, covariance, log-likelihood of y, gain K = C inv(S))."""
     gain = np.linalg.solve(S, H_cov_cross.T).T
     innovation = y - predicted
     mean = mean + gain @ innovation
     cov = cov - gain @ S @ gain.T
     sign, logdet = np.linalg.slogdet(S)
     ll = -0.5 * (innovation @ np.linalg.solve(S, innovation) + logdet + len(y) * np.log(2 * np.pi))
-    return mean, 0.5 * (cov + cov.T), ll
+    return mean, 0.5 * (cov + cov.T), ll, gain
 
 
 def _smooth(mf, Pf, mp, Pp, cross, smooth):
@@ -294,7 +295,7 @@ def _smooth(mf, Pf, mp, Pp, cross, smooth):
     if smooth is False or smooth == 0:
         return mf, Pf
     N = mf.shape[0]
-    gains = [np.linalg.lstsq(Pp[k + 1], cross[k].T, rcond=None)[0].T for k in range(N - 1)]
+    gains = smoother_gains(Pp, cross)
     if smooth is True:
         return _rts(mf, Pf, mp, Pp, gains)
     ms, Ps = mf.copy(), Pf.copy()
@@ -303,6 +304,12 @@ def _smooth(mf, Pf, mp, Pp, cross, smooth):
         means, covs = _rts(mf[window], Pf[window], mp[window], Pp[window], gains[window])
         ms[k], Ps[k] = means[0], covs[0]
     return ms, Ps
+
+
+def smoother_gains(Pp, cross) -> list:
+    """The RTS gains G_k = C_k inv(Pp[k+1]), C_k = Cov(z[k], z[k+1] | y[0..k]) (cross (N-1, d, d)),
+    by least squares (Pp may be singular where a coordinate is known)."""
+    return [np.linalg.lstsq(Pp[k + 1], cross[k].T, rcond=None)[0].T for k in range(len(cross))]
 
 
 def _rts(mf, Pf, mp, Pp, gains):
@@ -348,7 +355,7 @@ def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
         mp[k], Pp[k] = mean, cov
         H = finite_difference_jacobian(lambda Z: model.observation_points(Z.T, k).T, mean, vectorized=True)
         S = H @ cov @ H.T + model.R
-        mean, cov, step_ll = _update(mean, cov, model.y[k], model.observation(mean, k), cov @ H.T, S)
+        mean, cov, step_ll, _ = _update(mean, cov, model.y[k], model.observation(mean, k), cov @ H.T, S)
         ll += step_ll
         mf[k], Pf[k] = mean, cov
     _check(mf, "extended_kalman")
@@ -376,7 +383,8 @@ def _sigma_points(mean, cov, alpha, beta, kappa):
 def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance,
                      measurement_covariance, input_variance=None, input_mean=None, initial_mean=None,
                      initial_covariance=None, smooth: bool | int = True, substeps: int = 10, alpha: float = 1.0,
-                     beta: float = 2.0, kappa: float = 0.0, known_inputs=None) -> KalmanEstimate:
+                     beta: float = 2.0, kappa: float = 0.0, known_inputs=None, noise_kernel_width: float | None = None,
+                     input_prior=None, spread_draws: int = 200, seed: int = 0) -> KalmanEstimate:
     """Unscented Kalman filter (``smooth=False``), filter + unscented RTS smoother (``True``,
     Sarkka 2008) or fixed-lag smoother (``smooth=L`` samples).
 
@@ -386,21 +394,60 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
     (lambda = alpha^2 (d + kappa) - d; the defaults put the 2d points at +-sqrt(d) std with equal
     weights and none on the mean). known_inputs: with ``input_variance``, a mask (r,) of the inputs
     that are measured (their values from ``inputs``, no random walk); the others are estimated.
+    noise_kernel_width: s [s] when the real noises are coloured (Q / dt^2 and R their per-sample
+    covariances): the reported std and covariances are then the filter's or smoother's error
+    spread under that noise, from ``spread_draws`` draws seeded by ``seed``
+    (:mod:`attend.perception.nonlinear_baselines.error_spread`; the estimates are unchanged);
+    input_prior: with unknown inputs, (per-sample covariance (r, r) or variances (r,), kernel
+    width s_v [s]) of the prior their truth is drawn from there. None (default): the white-noise
+    model's own covariance.
     """
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
                    measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs)
+    spread = _spread_settings(model, smooth, noise_kernel_width, input_prior, spread_draws)
+    record = None if spread is None else {}
     means, covs, ll = _unscented(model.transition_points, model.observation_points, model.y, model.m0, model.P0, model.Qz,
-                                 model.R, smooth, (alpha, beta, kappa), "unscented_kalman")
+                                 model.R, smooth, (alpha, beta, kappa), "unscented_kalman", record)
+    if spread is not None:
+        from attend.perception.nonlinear_baselines.error_spread import smoother_error_spread
+
+        covs = smoother_error_spread(model, record, *spread, bool(smooth), int(spread_draws), seed)
     return model.result(means, covs, ll)
 
 
-def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name):
+def _spread_settings(model, smooth, kernel_width, input_prior, draws):
+    """(s, input prior) of the error spread after checking them, or None (no coloured noise given)."""
+    if kernel_width is None:
+        return None
+    if smooth not in (True, False):
+        raise AttendInputError("noise_kernel_width: the error spread is computed for the filter (smooth=False) "
+                               "and the RTS smoother (smooth=True), not for a fixed lag")
+    if not (np.isscalar(kernel_width) and np.isfinite(kernel_width) and kernel_width >= 0):
+        raise AttendInputError(f"noise_kernel_width: expected a kernel width >= 0 [s], got {kernel_width!r}")
+    if not (isinstance(draws, (int, np.integer)) and draws >= 2):
+        raise AttendInputError(f"spread_draws: expected an integer >= 2, got {draws!r}")
+    if not (model.augmented and not model.known.all()):
+        return float(kernel_width), None
+    r = model.system.n_inputs
+    if input_prior is None or len(input_prior) != 2:
+        raise AttendInputError("input_prior: with unknown inputs and noise_kernel_width, give (per-sample "
+                               "covariance (r, r) or variances (r,), kernel width s_v [s]) of the inputs' prior")
+    covariance = symmetric_matrix(input_prior[0], r, "input_prior", "variances")
+    width = positive_scalar(input_prior[1], "input_prior kernel width", "s")
+    return float(kernel_width), (covariance, width)
+
+
+def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, record=None):
     """Unscented filter (+ RTS smoother) for z[k] = transition(z[k-1], k) + q, y[k] = observation(z[k], k) + r;
-    transition and observation take the sigma points as rows (P, d) and return rows."""
+    transition and observation take the sigma points as rows (P, d) and return rows. record: a
+    dict that receives the filter's statistical linearisation (:mod:`.error_spread`): the
+    covariances Pf, Pp, cross (k -> k + 1), the output cross covariances Cy = Cov(z_k, y_k) and
+    the gains K."""
     N, d = y.shape[0], m0.shape[0]
     mf, Pf = np.empty((N, d)), np.empty((N, d, d))
     mp, Pp = np.empty((N, d)), np.empty((N, d, d))
     cross = np.empty((max(N - 1, 0), d, d))
+    Cy, K = np.empty((N, d, y.shape[1])), np.empty((N, d, y.shape[1]))
     mean, cov, ll = m0.copy(), P0.copy(), 0.0
     for k in steps(range(N), name):
         if k > 0:
@@ -415,11 +462,13 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name):
         observed = observation(points, k)
         predicted = wm @ observed
         S = ((observed - predicted).T * wc) @ (observed - predicted) + R
-        C = ((points - mean).T * wc) @ (observed - predicted)
-        mean, cov, step_ll = _update(mean, cov, y[k], predicted, C, S)
+        Cy[k] = ((points - mean).T * wc) @ (observed - predicted)
+        mean, cov, step_ll, K[k] = _update(mean, cov, y[k], predicted, Cy[k], S)
         ll += step_ll
         mf[k], Pf[k] = mean, cov
     _check(mf, name)
+    if record is not None:
+        record.update(Pf=Pf, Pp=Pp, cross=cross, Cy=Cy, K=K)
     means, covs = _smooth(mf, Pf, mp, Pp, cross, smooth)
     return means, covs, ll
 

@@ -9,8 +9,9 @@ process precisions, kernel width, the unknown input's prior), and ``log.csv`` (t
 measured input). The command line runs on them with its defaults (method "ukf": the unscented
 smoother started from DEM's estimate of the first sample, x[0] unknown) and, with ``--path``,
 with ``method = "dem"`` and ``states = "path"``. Per case: the exit status, any warning line,
-and the state SSE (samples p + 1 .. N - p - 2) over that of the library's unscented smoother told
-the true prior of x[0] (N(0, I)). Not part of the test run.
+the state SSE (samples p + 1 .. N - p - 2) over that of the library's unscented smoother told
+the true prior of x[0] (N(0, I)), and the fraction of those state samples within 2 reported std
+of the truth (calibrated: ~0.95). Not part of the test run.
 """
 
 from __future__ import annotations
@@ -81,8 +82,9 @@ def write_case(case: dict, folder: Path, path_mode: bool) -> tuple[Path, Path]:
     return folder / "model.toml", folder / "log.csv"
 
 
-def run_cli(case: dict, folder: Path, path_mode: bool, reference: float) -> str:
-    """One line: exit status, SSE ratio to the library smoother with the true x[0] prior, warnings."""
+def run_cli(case: dict, folder: Path, path_mode: bool, reference: float) -> tuple[str, float, float]:
+    """(one line: exit status, SSE ratio to the library smoother with the true x[0] prior, |error| <
+    2 std, warnings; the ratio; the fraction of state samples within 2 std) (NaN on a failure)."""
     model, log = write_case(case, folder, path_mode)
     out = folder / "estimates.csv"
     started = time.perf_counter()
@@ -90,15 +92,18 @@ def run_cli(case: dict, folder: Path, path_mode: bool, reference: float) -> str:
                           capture_output=True, text=True)
     seconds = time.perf_counter() - started
     if done.returncode != 0:
-        return f"exit {done.returncode}: {(done.stderr or done.stdout).strip()[:160]}"
+        return f"exit {done.returncode}: {(done.stderr or done.stdout).strip()[:160]}", np.nan, np.nan
     estimate = np.genfromtxt(out, delimiter=",", names=True)
     states = np.column_stack([estimate[f"x{i + 1}"] for i in range(case["n"])])
+    std = np.column_stack([estimate[f"x{i + 1}_std"] for i in range(case["n"])])
     p = case["p"]
     trim = slice(p + 1, bank.SAMPLES - p - 1)
     sse = float(np.sum((states - case["log"].states)[trim] ** 2))
+    inside = float(np.mean(np.abs(states - case["log"].states)[trim] < 2 * std[trim]))
     finite = "" if np.all(np.isfinite(states)) else " NON-FINITE"
     warned = " [warned: " + done.stderr.strip().splitlines()[0][:100] + "]" if done.stderr.strip() else ""
-    return f"{sse / reference:7.3f} x the smoother told x[0] ~ N(0, I) ({seconds:4.1f} s){finite}{warned}"
+    return (f"{sse / reference:7.3f} x the smoother told x[0] ~ N(0, I), |error| < 2 std {inside:.2f} "
+            f"({seconds:4.1f} s){finite}{warned}", sse / reference, inside)
 
 
 def main() -> None:
@@ -113,6 +118,7 @@ def main() -> None:
     print(f"== attend estimate (defaults) on {args.cases} random nonlinear model files; state SSE over the library's "
           "unscented smoother told the true prior of x[0]")
     ratios = {"ukf": [], "path": []}
+    coverage = {"ukf": [], "path": []}
     with tempfile.TemporaryDirectory(prefix="attend-nonlinear-cli-") as work:
         for index in range(args.first, args.first + args.cases):
             case = bank.draw_case(index)
@@ -132,17 +138,18 @@ def main() -> None:
                     continue
                 folder = Path(work) / f"{index}-{label}"
                 folder.mkdir()
-                line = run_cli(case, folder, path_mode, reference)
+                line, ratio, inside = run_cli(case, folder, path_mode, reference)
                 print(f"  {bank.describe(case)} {label:4s}: {line}", flush=True)
-                try:
-                    ratios[label].append(float(line.split()[0]))
-                except ValueError:
-                    ratios[label].append(np.nan)
+                ratios[label].append(ratio)
+                coverage[label].append(inside)
     for label, values in ratios.items():
         if values:
             values = np.array(values)
             print(f"  {label}: median {np.nanmedian(values):.3f}, 90th percentile {np.nanpercentile(values, 90):.3f}, "
                   f"worst {np.nanmax(values):.3g}, failed {int(np.sum(np.isnan(values)))} of {len(values)}")
+            inside = np.array(coverage[label])
+            print(f"  {label}: |error| < 2 std pooled {np.nanmean(inside):.3f} (calibrated: ~0.95), per case "
+                  f"{np.nanmin(inside):.2f}-{np.nanmax(inside):.2f}, below 0.85 in {int(np.sum(inside < 0.85))} cases")
 
 
 if __name__ == "__main__":

@@ -15,7 +15,10 @@ u[k] = u[k-1] + e, e ~ N(0, input_variance) (a random walk), started at ``input_
 or same low-frequency power).
 
 Results are :class:`attend.perception.baselines.KalmanEstimate` (time, states, inputs, state_std,
-input_std first, as :class:`attend.perception.dem.DEMEstimate`).
+input_std first, as :class:`attend.perception.dem.DEMEstimate`). With ``noise_kernel_width``, the
+unscented filter's or smoother's std is its error spread under coloured noise of that width
+(:mod:`attend.perception.nonlinear_baselines.error_spread`) instead of the white-noise model's own
+covariance, which is too small there.
 
 :func:`particle_smoother`: a bootstrap particle filter whose state carries the coloured noises
 (each channel an autoregressive model AR(q) fitted by Yule-Walker to rho(tau) =

@@ -8,7 +8,7 @@ from attend.experiments import pendulum
 from attend.experiments._nonlinear import _setup, kalman_options
 from attend.noise import coloured_noise
 from attend.perception.nonlinear import NonlinearSystem, simulate_nonlinear
-from attend.perception.nonlinear_baselines import unscented_kalman
+from attend.perception.nonlinear_baselines import extended_kalman, unscented_kalman
 
 A = np.array([[0.0, 1.0], [-4.0, -0.6]])
 C = np.array([[1.0, 0.0]])
@@ -17,16 +17,17 @@ LINEAR_OPTIONS = dict(process_covariance=np.diag([1e-4, 4e-3]), measurement_cova
                       initial_mean=[1.0, 0.0], initial_covariance=0.04)
 
 
+@pytest.mark.parametrize("smoother", [unscented_kalman, extended_kalman])
 @pytest.mark.parametrize("smooth", [True, False])
-def test_with_white_noise_the_spread_is_the_linear_smoothers_own_covariance(smooth):
+def test_with_white_noise_the_spread_is_the_linear_smoothers_own_covariance(smooth, smoother):
     """s = 0 (white noise) on a linear model: the error draws' covariance equals the Kalman
     filter's / RTS smoother's exact covariance, within the Monte Carlo error of 4000 draws
     (relative std error of a variance ~ sqrt(2 / 4000) = 2.2 %)."""
     log = simulate_nonlinear(LINEAR, 150, 0.05, kernel_width=0.0, process_std=[0.2, 1.26], measurement_std=0.1,
                              initial_state=[1.0, 0.0], seed=1)
-    own = unscented_kalman(LINEAR, 0.05, log.outputs, smooth=smooth, **LINEAR_OPTIONS)
-    spread = unscented_kalman(LINEAR, 0.05, log.outputs, smooth=smooth, noise_kernel_width=0.0, spread_draws=4000,
-                              **LINEAR_OPTIONS)
+    own = smoother(LINEAR, 0.05, log.outputs, smooth=smooth, **LINEAR_OPTIONS)
+    spread = smoother(LINEAR, 0.05, log.outputs, smooth=smooth, noise_kernel_width=0.0, spread_draws=4000,
+                      **LINEAR_OPTIONS)
     np.testing.assert_array_equal(spread.states, own.states)  # only the uncertainty changes
     ratio = spread.state_std[1:] ** 2 / own.state_std[1:] ** 2
     assert np.abs(np.median(ratio) - 1) < 0.02 and np.all(np.abs(ratio - 1) < 0.12), (np.median(ratio), ratio.min(),

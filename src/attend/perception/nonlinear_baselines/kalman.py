@@ -327,7 +327,9 @@ def _rts(mf, Pf, mp, Pp, gains):
 @with_single_blas_thread
 def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance,
                     measurement_covariance, input_variance=None, input_mean=None, initial_mean=None,
-                    initial_covariance=None, smooth: bool | int = True, substeps: int = 10) -> KalmanEstimate:
+                    initial_covariance=None, smooth: bool | int = True, substeps: int = 10,
+                    noise_kernel_width: float | None = None, input_prior=None, spread_draws: int = 200,
+                    seed: int = 0) -> KalmanEstimate:
     """Extended Kalman filter (``smooth=False``), filter + RTS smoother (``True``) or fixed-lag
     smoother (``smooth=L`` samples: row k uses y[0..k+L], e.g. the DEM estimator's delay).
 
@@ -338,13 +340,17 @@ def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
     process_covariance: Q [state unit^2], the covariance of q per sample; measurement_covariance:
     R [output unit^2]; substeps: RK4 sub-steps of F per sample.
     Jacobians of F and g by central differences at the filtered / predicted means.
+    noise_kernel_width, input_prior, spread_draws, seed: the std as the error spread under coloured
+    noise of that width (as :func:`unscented_kalman`).
     """
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
                    measurement_covariance, initial_mean, initial_covariance, substeps)
+    spread = _spread_settings(model, smooth, noise_kernel_width, input_prior, spread_draws)
     N, d = model.y.shape[0], model.size
     mf, Pf = np.empty((N, d)), np.empty((N, d, d))
     mp, Pp = np.empty((N, d)), np.empty((N, d, d))
     cross = np.empty((max(N - 1, 0), d, d))
+    Cy, K = np.empty((N, d, model.R.shape[0])), np.empty((N, d, model.R.shape[0]))
     mean, cov, ll = model.m0.copy(), model.P0.copy(), 0.0
     for k in steps(range(N), "extended_kalman"):
         if k > 0:
@@ -355,12 +361,14 @@ def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
         mp[k], Pp[k] = mean, cov
         H = finite_difference_jacobian(lambda Z: model.observation_points(Z.T, k).T, mean, vectorized=True)
         S = H @ cov @ H.T + model.R
-        mean, cov, step_ll, _ = _update(mean, cov, model.y[k], model.observation(mean, k), cov @ H.T, S)
+        Cy[k] = cov @ H.T
+        mean, cov, step_ll, K[k] = _update(mean, cov, model.y[k], model.observation(mean, k), Cy[k], S)
         ll += step_ll
         mf[k], Pf[k] = mean, cov
     _check(mf, "extended_kalman")
     means, covs = _smooth(mf, Pf, mp, Pp, cross, smooth)
-    return model.result(means, covs, ll)
+    return model.result(means, _error_spread(model, smooth, spread, dict(Pf=Pf, Pp=Pp, cross=cross, Cy=Cy, K=K),
+                                             spread_draws, seed, covs), ll)
 
 
 def _sigma_points(mean, cov, alpha, beta, kappa):
@@ -405,14 +413,20 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
                    measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs)
     spread = _spread_settings(model, smooth, noise_kernel_width, input_prior, spread_draws)
-    record = None if spread is None else {}
+    record = {}
     means, covs, ll = _unscented(model.transition_points, model.observation_points, model.y, model.m0, model.P0, model.Qz,
                                  model.R, smooth, (alpha, beta, kappa), "unscented_kalman", record)
-    if spread is not None:
-        from attend.perception.nonlinear_baselines.error_spread import smoother_error_spread
+    return model.result(means, _error_spread(model, smooth, spread, record, spread_draws, seed, covs), ll)
 
-        covs = smoother_error_spread(model, record, *spread, bool(smooth), int(spread_draws), seed)
-    return model.result(means, covs, ll)
+
+def _error_spread(model, smooth, spread, record: dict, draws: int, seed: int, covs):
+    """The covariances to report: the error spread under coloured noise where ``spread`` (from
+    :func:`_spread_settings`) is given, else the white-noise model's own ``covs``."""
+    if spread is None:
+        return covs
+    from attend.perception.nonlinear_baselines.error_spread import smoother_error_spread
+
+    return smoother_error_spread(model, record, *spread, bool(smooth), int(draws), seed)
 
 
 def _spread_settings(model, smooth, kernel_width, input_prior, draws):

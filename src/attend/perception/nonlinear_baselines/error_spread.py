@@ -28,8 +28,8 @@ import numpy as np
 from attend.noise import coloured_noise
 from attend.perception.nonlinear_baselines.kalman import smoother_gains
 
-#: floats held at once by the error draws (N samples x d coordinates x draws x 3 passes)
-DRAW_BUDGET = 6_000_000
+#: floats held at once by the error draws (N samples x d coordinates x draws x 3 arrays)
+DRAW_BUDGET = 20_000_000
 
 
 def _regressions(record: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -60,10 +60,14 @@ def smoother_error_spread(model, record: dict, kernel_width: float, input_prior,
     draws: noise draws; seed: their seed."""
     A, H = _regressions(record)
     K = record["K"]
-    gains = np.array(smoother_gains(record["Pp"], record["cross"])) if smooth else None
+    gains = record.get("gains")
+    if smooth and gains is None:
+        gains = smoother_gains(record["Pp"], record["cross"])
     N, d = K.shape[0], K.shape[1]
     n, dt = model.system.n_states, model.dt
     unknown = np.flatnonzero(~model.known) if model.augmented else np.zeros(0, dtype=int)
+    update = np.eye(d) - K @ H  # M_k
+    carry = update[1:] @ A  # M_k A_k-1
     rng = np.random.default_rng(seed)
     root0 = np.linalg.cholesky(model.P0[:n, :n] + 1e-300 * np.eye(n))
     batch = max(1, min(draws, DRAW_BUDGET // max(1, 3 * N * d)))
@@ -82,17 +86,16 @@ def smoother_error_spread(model, record: dict, kernel_width: float, input_prior,
             deviation[:, unknown] = _draws(rng, count, N, dt, width, np.asarray(variance)[np.ix_(unknown, unknown)])
             q[1:, n:] = np.diff(deviation, axis=0)
             first[n:] = -deviation[0]
-        predicted, filtered = np.empty((N, d, count)), np.empty((N, d, count))
-        error = first
-        for k in range(N):
-            if k:
-                error = A[k - 1] @ error - q[k]
-            predicted[k] = error
-            error = error - K[k] @ (H[k] @ error) + K[k] @ r[k]
-            filtered[k] = error
+        # e^f_k = M_k A_k-1 e^f_k-1 + (K_k r_k - M_k q_k), M_k = I - K_k H_k: one product per sample
+        drive = np.einsum("nim,nmc->nic", K, r) - np.einsum("nij,njc->nic", update, q)
+        filtered = np.empty((N, d, count))
+        filtered[0] = update[0] @ first + drive[0]
+        for k in range(1, N):
+            filtered[k] = carry[k - 1] @ filtered[k - 1] + drive[k]
         if smooth:
+            predicted = np.einsum("nij,njc->nic", A, filtered[:-1]) - q[1:]  # e^p_k, k >= 1
             for k in range(N - 2, -1, -1):
-                filtered[k] += gains[k] @ (filtered[k + 1] - predicted[k + 1])
+                filtered[k] += gains[k] @ (filtered[k + 1] - predicted[k])
         second += np.einsum("nic,njc->nij", filtered, filtered)
         done += count
     return second / draws

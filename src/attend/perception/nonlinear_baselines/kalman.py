@@ -289,13 +289,14 @@ def _update(mean, cov, y, predicted, H_cov_cross, S):
     return mean, 0.5 * (cov + cov.T), ll, gain
 
 
-def _smooth(mf, Pf, mp, Pp, cross, smooth):
+def _smooth(mf, Pf, mp, Pp, cross, smooth, gains=None):
     """smooth True: RTS over the whole log; False: the filter; an integer L >= 0: fixed-lag,
-    row k = x[k] | y[0..min(k + L, N - 1)] (the RTS pass over samples k..k + L, from every k)."""
+    row k = x[k] | y[0..min(k + L, N - 1)] (the RTS pass over samples k..k + L, from every k).
+    gains: the RTS gains if already computed (:func:`smoother_gains`)."""
     if smooth is False or smooth == 0:
         return mf, Pf
     N = mf.shape[0]
-    gains = smoother_gains(Pp, cross)
+    gains = smoother_gains(Pp, cross) if gains is None else gains
     if smooth is True:
         return _rts(mf, Pf, mp, Pp, gains)
     ms, Ps = mf.copy(), Pf.copy()
@@ -366,9 +367,10 @@ def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
         ll += step_ll
         mf[k], Pf[k] = mean, cov
     _check(mf, "extended_kalman")
-    means, covs = _smooth(mf, Pf, mp, Pp, cross, smooth)
-    return model.result(means, _error_spread(model, smooth, spread, dict(Pf=Pf, Pp=Pp, cross=cross, Cy=Cy, K=K),
-                                             spread_draws, seed, covs), ll)
+    gains = smoother_gains(Pp, cross) if smooth is True else None
+    means, covs = _smooth(mf, Pf, mp, Pp, cross, smooth, gains)
+    record = dict(Pf=Pf, Pp=Pp, cross=cross, Cy=Cy, K=K, gains=gains)
+    return model.result(means, _error_spread(model, smooth, spread, record, spread_draws, seed, covs), ll)
 
 
 def _sigma_points(mean, cov, alpha, beta, kappa):
@@ -455,8 +457,8 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, 
     """Unscented filter (+ RTS smoother) for z[k] = transition(z[k-1], k) + q, y[k] = observation(z[k], k) + r;
     transition and observation take the sigma points as rows (P, d) and return rows. record: a
     dict that receives the filter's statistical linearisation (:mod:`.error_spread`): the
-    covariances Pf, Pp, cross (k -> k + 1), the output cross covariances Cy = Cov(z_k, y_k) and
-    the gains K."""
+    covariances Pf, Pp, cross (k -> k + 1), the output cross covariances Cy = Cov(z_k, y_k), the
+    gains K and the RTS gains (None for the filter)."""
     N, d = y.shape[0], m0.shape[0]
     mf, Pf = np.empty((N, d)), np.empty((N, d, d))
     mp, Pp = np.empty((N, d)), np.empty((N, d, d))
@@ -481,9 +483,10 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, 
         ll += step_ll
         mf[k], Pf[k] = mean, cov
     _check(mf, name)
+    gains = smoother_gains(Pp, cross) if smooth is True else None
     if record is not None:
-        record.update(Pf=Pf, Pp=Pp, cross=cross, Cy=Cy, K=K)
-    means, covs = _smooth(mf, Pf, mp, Pp, cross, smooth)
+        record.update(Pf=Pf, Pp=Pp, cross=cross, Cy=Cy, K=K, gains=gains)
+    means, covs = _smooth(mf, Pf, mp, Pp, cross, smooth, gains)
     return means, covs, ll
 
 

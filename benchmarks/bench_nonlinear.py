@@ -166,7 +166,7 @@ def part1(seeds: int, experiments=("lorenz", "pendulum")) -> None:
             for dem in _nonlinear.DEM_MODES:
                 print(f"  {dem} / augmented UKF input SSE median ratio "
                       f"{value(f'{dem} / augmented UKF input SSE (median ratio)'):6.3f}   (no target)")
-        for dem in _nonlinear.DEM_MODES:
+        for dem in _nonlinear.DEM_MODES + (_nonlinear.UKF_WHITE_STD, _nonlinear.UKF_SPREAD):
             print(f"  {dem} |error| < 2 std: {value(f'{dem} |error| < 2 std (fraction of samples)'):.3f} of samples "
                   "(calibrated if in 0.93-0.97)")
 

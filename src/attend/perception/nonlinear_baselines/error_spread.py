@@ -41,10 +41,19 @@ def _regressions(record: dict) -> tuple[np.ndarray, np.ndarray]:
     return A, H
 
 
+def _root(covariance: np.ndarray) -> np.ndarray:
+    """L with L L' = covariance (k, k) positive semi-definite (zero variances allowed)."""
+    try:
+        return np.linalg.cholesky(covariance)
+    except np.linalg.LinAlgError:
+        values, vectors = np.linalg.eigh(covariance)
+        return vectors * np.sqrt(np.clip(values, 0.0, None))
+
+
 def _draws(rng, count: int, N: int, dt: float, kernel_width: float, covariance: np.ndarray) -> np.ndarray:
     """(N, k, count) coloured noise of per-sample covariance ``covariance`` (k, k), kernel width s [s]."""
     k = covariance.shape[0]
-    root = np.linalg.cholesky(covariance + 1e-300 * np.eye(k)) if k else np.zeros((0, 0))
+    root = _root(covariance)
     unit = coloured_noise(N, k * count, dt, kernel_width, 1.0, rng).reshape(N, count, k)
     return np.einsum("ij,ncj->nic", root, unit)
 
@@ -69,7 +78,7 @@ def smoother_error_spread(model, record: dict, kernel_width: float, input_prior,
     update = np.eye(d) - K @ H  # M_k
     carry = update[1:] @ A  # M_k A_k-1
     rng = np.random.default_rng(seed)
-    root0 = np.linalg.cholesky(model.P0[:n, :n] + 1e-300 * np.eye(n))
+    root0 = _root(model.P0[:n, :n])
     batch = max(1, min(draws, DRAW_BUDGET // max(1, 3 * N * d)))
     second = np.zeros((N, d, d))
     done = 0

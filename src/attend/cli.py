@@ -31,7 +31,8 @@ format and a worked example on the bundled quadrotor flight:
     attend estimate --demo --out roll_estimates.csv
 
 Nonlinear models: [model] python = "model.py" (f(x, v) and g(x, v)) with n_states, n_inputs,
-n_outputs. Default method "ukf" (unscented RTS smoother); [observer] method = "dem" runs
+n_outputs. Default method "ukf" (unscented RTS smoother; its std is its error spread under the
+coloured noise, ~95 % of errors within 2 std on simulated logs); [observer] method = "dem" runs
 nonlinear DEM's D-step, and adding states = "path" runs DEM in path mode (one trajectory for
 the whole log: a smoother; it warns on logs it does not describe; docs/nonlinear.md);
 backend = "jax" compiles the D-step (f, g written with jax.numpy; pip install "attend[jax]").

@@ -78,3 +78,19 @@ def test_unknown_inputs_need_their_prior_for_the_spread():
     with pytest.raises(AttendInputError, match="input_prior: with unknown inputs"):
         unscented_kalman(system, cfg["dt"], log.outputs, process_covariance=1e-4, measurement_covariance=0.01,
                          input_variance=0.1, noise_kernel_width=0.1)
+
+
+def test_a_spread_that_overflows_is_an_error_not_a_result(monkeypatch):
+    """Error dynamics that grow without bound (forced here through the recorded gains) stop with an
+    error naming the field and the sample instead of returning non-finite std."""
+    from attend.perception.nonlinear_baselines import error_spread
+
+    original = error_spread._regressions
+
+    def growing(record):
+        A, H = original(record)
+        return A * 1e6, H * 0.0  # no correction from the data, a huge transition
+    monkeypatch.setattr(error_spread, "_regressions", growing)
+    log = simulate_nonlinear(LINEAR, 200, 0.05, kernel_width=0.1, process_std=0.1, measurement_std=0.1, seed=0)
+    with pytest.raises(AttendInputError, match="noise_kernel_width: the error spread became non-finite at sample"):
+        unscented_kalman(LINEAR, 0.05, log.outputs, noise_kernel_width=0.1, **LINEAR_OPTIONS)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from attend._validation import AttendInputError
 from attend.noise import coloured_noise
 from attend.perception.nonlinear_baselines.kalman import smoother_gains
 
@@ -58,6 +59,7 @@ def _draws(rng, count: int, N: int, dt: float, kernel_width: float, covariance: 
     return np.einsum("ij,ncj->nic", root, unit)
 
 
+@np.errstate(over="ignore", invalid="ignore")  # growing error dynamics are reported at the end, as an error
 def smoother_error_spread(model, record: dict, kernel_width: float, input_prior, smooth: bool, draws: int,
                           seed: int) -> np.ndarray:
     """(N, d, d) covariances of the unscented filter's (smooth False) or smoother's (True) errors
@@ -107,4 +109,9 @@ def smoother_error_spread(model, record: dict, kernel_width: float, input_prior,
                 filtered[k] += gains[k] @ (filtered[k + 1] - predicted[k])
         second += np.einsum("nic,njc->nij", filtered, filtered)
         done += count
+    if not np.all(np.isfinite(second)):
+        first_bad = int(np.argmax(~np.isfinite(second).all(axis=(1, 2))))
+        raise AttendInputError(f"noise_kernel_width: the error spread became non-finite at sample {first_bad} (the "
+                               "filter's linearised error dynamics grow there); report the white-noise std "
+                               "(noise_kernel_width=None) or check the model's stability and noise settings")
     return second / draws

@@ -89,8 +89,9 @@ def _add_estimate(add_command) -> None:
         "estimate",
         help="estimate states and inputs of your own system from a CSV log",
         description="Estimate the states (and unknown inputs) of a model file's system from a CSV log and "
-        "write them with their posterior standard deviations (CSV; units of the log). Default method: the "
-        "Kalman smoother under the coloured-noise model (the exact Gaussian posterior up to ~1 %); "
+        "write them with their standard deviations (CSV; units of the log). Default method: the "
+        "Kalman smoother under the coloured-noise model (the exact Gaussian posterior up to ~1 %; for "
+        "nonlinear models the unscented smoother, its std the error spread under the coloured noise); "
         "[observer] method = \"dem\" runs the paper's DEM observer instead.",
         epilog=EPILOG_ESTIMATE,
         formatter_class=argparse.RawDescriptionHelpFormatter,

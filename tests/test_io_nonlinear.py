@@ -202,6 +202,22 @@ def test_path_mode_from_a_nonlinear_model_file(tmp_path, capsys):
     assert out.exists()
 
 
+def test_the_files_motion_reaches_nonlinear_dem(tmp_path):
+    """[observer] motion = "path" (with method = "dem") builds NonlinearDEM(motion="path"); without
+    it the estimate uses SPM's linearised motion."""
+    from attend.perception.nonlinear import NonlinearDEM
+
+    for extra, motion in (('motion = "path"\n', "path"), ("", "linearized")):
+        model_path, log_path, _ = _lorenz_files(tmp_path, LORENZ_TOML + 'method = "dem"\nembedding_order = 6\n' + extra)
+        model, log = io.read_model(model_path), io.read_log(log_path)
+        estimator, estimate = io.estimate_from_files(model, log)
+        dem = estimator.dem()
+        assert dem.motion == motion
+        direct = NonlinearDEM(dem.system, dem.dt, dem.kernel_width, dem.sensor_precision, dem.process_precision,
+                              embedding_order=6, motion=motion).estimate(log.matrix(["y1", "y2", "y3"]))
+        np.testing.assert_allclose(estimate.states, direct.states, rtol=1e-12, atol=1e-12)
+
+
 def test_path_mode_takes_the_files_initial_state_as_a_prior(tmp_path):
     """[observer] initial_state (std 0: known) reaches path mode as a prior on x[0] with std
     1e-6 (1 + |x0|); initial_state_std, when given, is used as it is."""
@@ -322,6 +338,10 @@ def _error(tmp_path, capsys, model=PENDULUM_TOML, code=PENDULUM_PY):
      "[observer] states: expected 'sample' or 'path', got 'paths'"),
     (lambda m: m.replace("process_precision = [400.0, 4.0]", "process_precision = [400.0, 0.0]"), None,
      "method \"ukf\" needs a positive definite precision"),
+    (lambda m: m.replace("[observer]", '[observer]\nmotion = "path"'), None,
+     "[observer] motion: the generalised motion f~ of nonlinear DEM (method = \"dem\""),
+    (lambda m: m.replace("[observer]", '[observer]\nmethod = "dem"\nmotion = "curved"'), None,
+     "[observer] motion: expected 'linearized' or 'path', got 'curved'"),
     (lambda m: m.replace("n_states = 2", "n_states = 2\nvectorized = 1"), None,
      "[model] vectorized: expected true or false"),
     (lambda m: m.replace("n_states = 2", "n_states = 2\nvectorized = true"),

@@ -40,6 +40,8 @@ Model file (all times in seconds)::
     # edges = "clamp"               # DEM only: "order0" (default) or "clamp" (SPM's; docs/spm.md)
     # states = "path"               # nonlinear DEM only: "sample" (default, the D-step) or "path"
                                     # (one trajectory for the whole log: a smoother; docs/nonlinear.md)
+    # motion = "path"               # nonlinear DEM only: "linearized" (default, SPM's) or "path"
+                                    # (f~ along the path; Lorenz path mode: ties the UKF smoother)
 
     [log]
     time_column = "t"               # CSV column with time stamps [s], uniform spacing

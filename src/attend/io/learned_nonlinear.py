@@ -105,7 +105,7 @@ def identify_nonlinear(model, log: Log):
                             input_prior_precision=prior, embedding_order=p, input_order=model.input_order,
                             input_kernel_width=model.input_kernel_width,
                             max_iterations=int(learning.get("max_iterations", 50)),
-                            tolerance=float(learning.get("tolerance", 1e-10)))
+                            tolerance=float(learning.get("tolerance", 1e-10)), motion=model.dem_motion or "path")
     except AttendInputError as error:
         raise AttendInputError(f"{model.path}: identify: {error}") from None
     return names, result

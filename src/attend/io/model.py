@@ -55,7 +55,9 @@ class ModelFile:
     or "spm" (spm_DEM's conventions, docs/spm.md); edges: DEM's windows at the ends of the log,
     "order0" or "clamp" (SPM's); dem_states: nonlinear DEM's "sample" (D-step) or "path" (one
     trajectory, a smoother; :mod:`attend.perception.nonlinear.path`); dem_backend: nonlinear DEM's
-    "numpy" or "jax" (:mod:`attend.perception.nonlinear.jax_backend`).
+    "numpy" or "jax" (:mod:`attend.perception.nonlinear.jax_backend`); dem_motion: nonlinear DEM's
+    generalised motion, "linearized" (SPM's) or "path" (f~ along the path, keeping its curvature);
+    None: the default of each use (estimate: "linearized"; identify's learn_path: "path").
     """
 
     system: LinearSystem
@@ -83,6 +85,7 @@ class ModelFile:
     edges: str = "order0"
     dem_states: str = "sample"
     dem_backend: str = "numpy"
+    dem_motion: str | None = None
 
     @property
     def nonlinear(self) -> bool:
@@ -213,6 +216,7 @@ class NonlinearFileEstimator:
             self.embedding_order, model.input_order, known_inputs=all_known,
             precision_convention=model.precision_convention, input_kernel_width=model.input_kernel_width,
             integration=model.integration, edges=model.edges, states=model.dem_states, backend=model.dem_backend,
+            motion=model.dem_motion or "linearized",
         )
 
     @property

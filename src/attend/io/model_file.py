@@ -43,7 +43,7 @@ _SECTIONS = {
         "method", "kernel_width", "process_kernel_width", "sensor_kernel_width", "input_kernel_width",
         "embedding_order", "input_order", "sensor_precision", "process_precision", "precision_convention",
         "known_input_precision", "initial_state", "initial_state_std", "integration", "edges", "states",
-        "backend",
+        "backend", "motion",
     },
     "log": {"time_column"},
     "learning": {
@@ -126,6 +126,7 @@ def read_model(path: str | Path) -> ModelFile:
         edges=observer.get("edges", "order0"),
         dem_states=observer.get("states", "sample"),
         dem_backend=observer.get("backend", "numpy"),
+        dem_motion=observer.get("motion"),
     )
 
 
@@ -335,8 +336,8 @@ def _check_observer(observer: dict, system: LinearSystem, where: str) -> None:
 def _check_dem_conventions(observer: dict, method: str, nonlinear: bool, where: str) -> None:
     """[observer] integration ("attend" or "spm": how the data enter DEM's one-sample step, see
     docs/spm.md) and edges ("order0" or "clamp"), which only method = "dem" has, and states
-    ("sample" or "path", nonlinear DEM only) and backend ("numpy" or "jax", nonlinear DEM only).
-    nonlinear: the model is f, g ([model] python)."""
+    ("sample" or "path"), backend ("numpy" or "jax") and motion ("linearized" or "path"), nonlinear
+    DEM only. nonlinear: the model is f, g ([model] python)."""
     for key, allowed in (("integration", ("attend", "spm")), ("edges", ("order0", "clamp"))):
         if key not in observer:
             continue
@@ -348,7 +349,9 @@ def _check_dem_conventions(observer: dict, method: str, nonlinear: bool, where: 
     nonlinear_only = (("states", ("sample", "path"), "DEM's path mode is for nonlinear models with method = \"dem\" "
                        "(for a linear model, method = \"kalman\" is already the exact smoother)"),
                       ("backend", ("numpy", "jax"), "the JAX D-step is for nonlinear models with method = \"dem\" "
-                       "(f and g written with jax.numpy)"))
+                       "(f and g written with jax.numpy)"),
+                      ("motion", ("linearized", "path"), "the generalised motion f~ of nonlinear DEM (method = \"dem\"; "
+                       "for a linear model both are the same)"))
     for key, allowed, scope in nonlinear_only:
         if key not in observer:
             continue

@@ -242,16 +242,17 @@ class NonlinearFileEstimator:
             if bad:
                 raise AttendInputError(f"[[inputs]] {', '.join(map(repr, bad))} prior_precision: method \"ukf\" "
                                        "needs a prior precision > 0 (it sets the random walk of the input)")
+        # the unknown inputs' prior precisions (1 in the places of the measured ones, which are masked)
+        precisions = np.array([1.0 if spec.known else spec.prior_precision for spec in model.inputs]) if unknown \
+            else None
         options = white_noise_options(
             self.dt, precision_matrix(model.process_precision, n, "process_precision"),
             precision_matrix(model.sensor_precision, self.system.n_outputs, "sensor_precision"),
-            np.array([spec.prior_precision for spec in model.inputs]) if unknown else None,
-            self.input_kernel_width, known, signals[0] if unknown else None, who='method "ukf"')
+            precisions, self.input_kernel_width, known, signals[0] if unknown else None, who='method "ukf"')
         inputs = (signals if known.any() else None) if unknown else (signals if r else None)
         mean, std, substeps = self._start(outputs, signals, initial)
         # the std: the smoother's error spread under the file's coloured noise (error_spread)
-        prior = (1.0 / np.array([spec.prior_precision if not spec.known else 1.0 for spec in model.inputs]),
-                 self.input_kernel_width) if unknown else None
+        prior = (1.0 / precisions, self.input_kernel_width) if unknown else None
         return unscented_kalman(self.system, self.dt, outputs, inputs, initial_mean=mean,
                                 initial_covariance=np.diag(np.asarray(std, dtype=float) ** 2), substeps=substeps,
                                 noise_kernel_width=model.kernel_width, input_prior=prior, **options)

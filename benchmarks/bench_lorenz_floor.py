@@ -49,6 +49,7 @@ from scipy.linalg import cholesky, solve_triangular  # noqa: E402
 from attend.experiments import _nonlinear, lorenz  # noqa: E402
 from attend.noise import gaussian_kernel  # noqa: E402
 from attend.perception.nonlinear_baselines import unscented_kalman  # noqa: E402
+from attend.perception.nonlinear_baselines.kalman import _rk4  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_nonlinear import _paired_log  # noqa: E402
@@ -68,15 +69,10 @@ def convolution_matrix(kernel: np.ndarray, n_samples: int) -> np.ndarray:
     return K
 
 
-def one_sample(flow, x: np.ndarray, w: np.ndarray, h: float, substeps: int = SUBSTEPS) -> np.ndarray:
-    """Phi(x, w): RK4 over one sample of dx/dt = flow(x) + w with w held; x, w (n, batch)."""
-    for _ in range(substeps):
-        k1 = flow(x) + w
-        k2 = flow(x + 0.5 * h * k1) + w
-        k3 = flow(x + 0.5 * h * k2) + w
-        k4 = flow(x + h * k3) + w
-        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return x
+def one_sample(flow, x: np.ndarray, w: np.ndarray, dt: float, substeps: int = SUBSTEPS) -> np.ndarray:
+    """Phi(x, w): RK4 over one sample dt [s] of dx/dt = flow(x) + w with w held; x, w (n, batch)
+    (the Kalman baselines' integrator, as simulate_nonlinear steps)."""
+    return _rk4(None, x, None, dt, substeps, w=w, call=flow)
 
 
 class SimulatorModel:
@@ -85,7 +81,7 @@ class SimulatorModel:
     sigma_w, sigma_z: the noises' stds per sample; m0, s0: the prior on x[0]."""
 
     def __init__(self, flow, y, dt, s, sigma_w, sigma_z, m0, s0, jitter=SENSOR_JITTER, defect_std=DEFECT_STD):
-        self.flow, self.y, self.h = flow, y, dt / SUBSTEPS
+        self.flow, self.y, self.dt = flow, y, dt
         self.sigma_w, self.m0, self.s0, self.defect_std = sigma_w, np.asarray(m0, float), s0, defect_std
         n_samples = len(y)
         self.K = convolution_matrix(gaussian_kernel(dt, s), n_samples)
@@ -95,7 +91,7 @@ class SimulatorModel:
     def residuals(self, x, e):
         """(r, w): r = [whitened y - x per channel; defects / defect_std; e_w; (x[0] - m0) / s0]."""
         w = self.sigma_w * (self.K @ e)
-        predicted = one_sample(self.flow, x[:-1].T, w[:-1].T, self.h).T
+        predicted = one_sample(self.flow, x[:-1].T, w[:-1].T, self.dt).T
         r = np.concatenate([(self.whiten @ (self.y - x)).T.ravel(), ((x[1:] - predicted) / self.defect_std).ravel(),
                             e.ravel(), (x[0] - self.m0) / self.s0])
         return r, w
@@ -109,7 +105,7 @@ class SimulatorModel:
         shift = np.concatenate([np.eye(n), -np.eye(n)], axis=1)[:, None, :] * step
         out = []
         for moved_states, moved_noises in ((states + shift, noises), (states, noises + shift)):
-            ends = one_sample(self.flow, moved_states.reshape(n, -1), moved_noises.reshape(n, -1), self.h)
+            ends = one_sample(self.flow, moved_states.reshape(n, -1), moved_noises.reshape(n, -1), self.dt)
             ends = ends.reshape(n, len(x) - 1, 2 * n)
             out.append(np.transpose((ends[:, :, :n] - ends[:, :, n:]) / (2 * step), (1, 0, 2)))
         return out
@@ -177,9 +173,8 @@ def linear_check(seed: int = 0) -> float:
     rng = np.random.default_rng(seed)
     kernel = gaussian_kernel(dt, s)
     K = convolution_matrix(kernel, n_samples)
-    h = dt / SUBSTEPS
-    M = one_sample(flow, np.eye(n), np.zeros((n, n)), h)  # x[k] = M x[k-1] + G w[k-1] (+ defect)
-    G = one_sample(flow, np.zeros((n, n)), np.eye(n), h)
+    M = one_sample(flow, np.eye(n), np.zeros((n, n)), dt)  # x[k] = M x[k-1] + G w[k-1] (+ defect)
+    G = one_sample(flow, np.zeros((n, n)), np.eye(n), dt)
     x = np.zeros((n_samples, n))
     x[0] = m0 + s0 * rng.standard_normal(n)
     w = sigma_w * (K @ rng.standard_normal((K.shape[1], n)))

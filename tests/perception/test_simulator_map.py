@@ -31,7 +31,7 @@ def test_one_sample_is_the_simulators_map(floor):
     log = simulate_nonlinear(system, 40, cfg["dt"], kernel_width=cfg["kernel_width"], process_std=cfg["process_std"],
                              initial_state=cfg["initial_state"], seed=1)
     predicted = floor.one_sample(lambda x: system.f(x, np.zeros((0, x.shape[1]))), log.states[:-1].T,
-                                 log.process_noise[:-1].T, cfg["dt"] / floor.SUBSTEPS).T
+                                 log.process_noise[:-1].T, cfg["dt"]).T
     assert np.max(np.abs(predicted - log.states[1:])) < 1e-10 * np.max(np.abs(log.states))
 
 

@@ -42,7 +42,11 @@ import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-from scipy.linalg import expm, toeplitz  # noqa: E402
+from scipy.linalg import expm  # noqa: E402
+
+from attend.perception.baselines import kalman_filter  # noqa: E402
+from attend.perception.baselines.exact import _transfer_matrix, coloured_noise_correlation  # noqa: E402
+from attend.systems import LinearSystem  # noqa: E402
 
 TOOL = Path(os.environ.get("ATTEND_SHARED", Path(__file__).resolve().parents[2] / "shared")) / "tools" / \
     "random_system_check.py"
@@ -77,7 +81,7 @@ def redraw(tool, seed: int) -> dict:
     x = np.zeros((n_samples, n))
     for k in range(1, n_samples):
         x[k] = Ad @ x[k - 1] + Bd @ u[k - 1] + dt * w[k - 1]
-    return dict(Ad=Ad, Bd=Bd, C=C, dt=dt, s=s, sigma_w=sigma_w, sigma_z=sigma_z, u=u, x=x, y=x @ C.T + z)
+    return dict(system=LinearSystem(A, B, C), Ad=Ad, Bd=Bd, C=C, dt=dt, s=s, sigma_w=sigma_w, sigma_z=sigma_z, u=u, x=x, y=x @ C.T + z)
 
 
 def posterior_operator(case: dict, start_std: float = 0.0):
@@ -87,22 +91,12 @@ def posterior_operator(case: dict, start_std: float = 0.0):
     kernel (its autocorrelation, exactly), by dense Gaussian conditioning."""
     Ad, C, dt = case["Ad"], case["C"], case["dt"]
     n_samples, n = case["x"].shape
-    half = int(np.ceil(6 * case["s"] / dt))
-    kernel = np.exp(-(np.arange(-half, half + 1) * dt) ** 2 / (2 * case["s"] ** 2))
-    kernel /= np.sqrt(np.sum(kernel**2))
-    lags = np.correlate(kernel, kernel, "full")[len(kernel) - 1:]
-    time_cov = toeplitz(np.concatenate([lags, np.zeros(n_samples)])[:n_samples])
-    powers = np.empty((n_samples, n, n))
-    powers[0] = np.eye(n)
-    for k in range(1, n_samples):
-        powers[k] = Ad @ powers[k - 1]
-    later, earlier = np.meshgrid(np.arange(n_samples), np.arange(n_samples), indexing="ij")
-    blocks = dt * powers[np.clip(later - 1 - earlier, 0, None)] * (later > earlier)[:, :, None, None]
-    L = blocks.transpose(0, 2, 1, 3).reshape(n_samples * n, n_samples * n)
+    time_cov = coloured_noise_correlation(n_samples, dt, case["s"])  # the check's kernel: the same samples
+    L, start = _transfer_matrix(Ad, n_samples)
+    L = dt * L
     mean = np.zeros((n_samples, n))
     for k in range(1, n_samples):
         mean[k] = Ad @ mean[k - 1] + case["Bd"] @ case["u"][k - 1]
-    start = powers.reshape(n_samples * n, n)
     cov_x = case["sigma_w"] ** 2 * (L @ np.kron(time_cov, np.eye(n)) @ L.T) + start_std**2 * start @ start.T
     observe = np.kron(np.eye(n_samples), C)
     cross = cov_x @ observe.T
@@ -124,14 +118,12 @@ def validate(tool, seed: int, logs: int) -> None:
     """Mean state SSE of attend's Kalman smoother and of the posterior operator over ``logs`` fresh
     logs of the check's system ``seed`` (x[0] known, and x[0] ~ N(0, 0.1^2 I)): equal where both are
     the posterior mean."""
-    import attend
     from attend.perception.kalman import KalmanEstimator
 
     case = redraw(tool, seed)
-    A, B, C = tool.random_system(np.random.default_rng(seed))
-    n, m = A.shape[0], C.shape[0]
+    n, m = case["Ad"].shape[0], case["C"].shape[0]
     for start_std in (0.0, 0.1):
-        smoother = KalmanEstimator(attend.LinearSystem(A, B, C), case["dt"], np.eye(m) / case["sigma_z"] ** 2,
+        smoother = KalmanEstimator(case["system"], case["dt"], np.eye(m) / case["sigma_z"] ** 2,
                                    np.eye(n) / case["sigma_w"] ** 2, kernel_width=case["s"],
                                    initial_state=np.zeros(n), initial_state_std=start_std)
         posterior = posterior_operator(case, start_std)
@@ -159,18 +151,12 @@ def simulate(tool, case: dict, rng, start_std: float) -> dict:
 
 def white_kalman_filter(case: dict) -> np.ndarray:
     """The check's white-noise Kalman filter (N, n): x[0] = 0 with P0 = 1e-9 I, Q = (dt sigma_w)^2 I,
-    R = sigma_z^2 I, the true Ad, Bd, C."""
-    Ad, Bd, C, u, y = case["Ad"], case["Bd"], case["C"], case["u"], case["y"]
-    n, m = Ad.shape[0], C.shape[0]
-    Q, R = np.eye(n) * (case["dt"] * case["sigma_w"]) ** 2, np.eye(m) * case["sigma_z"] ** 2
-    mean, cov, out = np.zeros(n), np.eye(n) * 1e-9, np.zeros((len(y), n))
-    for k in range(len(y)):
-        if k:
-            mean, cov = Ad @ mean + Bd @ u[k - 1], Ad @ cov @ Ad.T + Q
-        gain = cov @ C.T @ np.linalg.inv(C @ cov @ C.T + R)
-        mean, cov = mean + gain @ (y[k] - C @ mean), (np.eye(n) - gain @ C) @ cov
-        out[k] = mean
-    return out
+    R = sigma_z^2 I, the true ZOH model (attend's baseline :func:`kalman_filter`)."""
+    n, m = case["Ad"].shape[0], case["C"].shape[0]
+    return kalman_filter(case["system"], case["dt"], case["y"], case["u"],
+                         process_covariance=np.eye(n) * (case["dt"] * case["sigma_w"]) ** 2,
+                         measurement_covariance=np.eye(m) * case["sigma_z"] ** 2, initial_mean=np.zeros(n),
+                         initial_covariance=np.eye(n) * 1e-9).states
 
 
 def attend_with_known_start(work: Path, seed: int, n: int, attend: str) -> np.ndarray:

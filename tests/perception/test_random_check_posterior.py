@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 from conftest import load_benchmark
 
-import attend
 from attend.perception.kalman import KalmanEstimator
 
 
@@ -27,9 +26,8 @@ def test_attend_with_x0_given_is_the_exact_posterior_of_the_checks_model(check, 
     case = bench.redraw(tool, seed)
     keep = 150
     case = dict(case, x=case["x"][:keep], y=case["y"][:keep], u=case["u"][:keep])
-    A, B, C = tool.random_system(np.random.default_rng(seed))
-    n, m = A.shape[0], C.shape[0]
-    smoother = KalmanEstimator(attend.LinearSystem(A, B, C), case["dt"], np.eye(m) / case["sigma_z"] ** 2,
+    n, m = case["Ad"].shape[0], case["C"].shape[0]
+    smoother = KalmanEstimator(case["system"], case["dt"], np.eye(m) / case["sigma_z"] ** 2,
                                np.eye(n) / case["sigma_w"] ** 2, kernel_width=case["s"], initial_state=np.zeros(n))
     mine = smoother.estimate(case["y"], case["u"]).states
     exact = bench.posterior_operator(case)(case["y"])

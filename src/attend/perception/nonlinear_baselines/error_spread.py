@@ -27,7 +27,6 @@ import numpy as np
 
 from attend._validation import AttendInputError
 from attend.noise import coloured_noise
-from attend.perception.nonlinear_baselines.kalman import smoother_gains
 
 #: floats held at once by the error draws (N samples x d coordinates x draws x 3 arrays)
 DRAW_BUDGET = 20_000_000
@@ -71,9 +70,7 @@ def smoother_error_spread(model, record: dict, kernel_width: float, input_prior,
     draws: noise draws; seed: their seed."""
     A, H = _regressions(record)
     K = record["K"]
-    gains = record.get("gains")
-    if smooth and gains is None:
-        gains = smoother_gains(record["Pp"], record["cross"])
+    gains = record["gains"]  # the RTS gains (None for the filter)
     N, d = K.shape[0], K.shape[1]
     n, dt = model.system.n_states, model.dt
     unknown = np.flatnonzero(~model.known) if model.augmented else np.zeros(0, dtype=int)

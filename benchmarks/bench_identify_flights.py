@@ -14,7 +14,7 @@ the model is a linearisation there, and a learned A[2,1] != 0 would otherwise tu
 trim angle into a bias). "raw" repeats it with absolute states (the earlier comparison). The ratio
 learned / prior should be <= 1. Default: whole flights (--samples 0). exp_26_WW_WM_0 is known to be
 corrupted (data README); it is kept in the table but left out of the prediction summary.
-Needs /work/shared/data/quadrotor-wind (or ATTEND_QUADROTOR_DATA).
+Needs ../shared/data/quadrotor-wind beside the repository (or ATTEND_QUADROTOR_DATA).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import numpy as np
 from attend.perception.learning import identify, parameter_vector
 from attend.systems import LinearSystem
 
-DATA = Path(os.environ.get("ATTEND_QUADROTOR_DATA", "/work/shared/data/quadrotor-wind"))
+DATA = Path(os.environ.get("ATTEND_QUADROTOR_DATA", Path(__file__).resolve().parents[2] / "shared" / "data" / "quadrotor-wind"))
 FREE = ["A[2,1]", "A[2,2]", "B[2,1]", "B[2,2]", "B[2,3]", "B[2,4]"]
 LEARNING = dict(free=FREE, free_prior_precision=1.0, known_prior_precision=np.inf, noise_prior_mean=(0.0, 0.0),
                 noise_prior_precision=1.0, max_iterations=50, tolerance=1e-3)

@@ -1,19 +1,17 @@
 """Costs of switching between action and perception in the UAV search: motion blur of images
-taken while moving, planning latency spent hovering. Off by default: then the episode is today's,
-bit for bit."""
+taken while moving, planning latency spent hovering. Off by default: then the episode is the plain
+one, bit for bit (both run here, in one process).
+
+No end value of a whole mission is stored here: a mission is a chain of arg-max decisions over
+candidate scores, and on another BLAS kernel a near tie falls the other way and the UAV flies
+another path (seed 1 under OPENBLAS_CORETYPE=PRESCOTT: final RSE 3.91 against 3.74), so such a
+number holds only on the machine that wrote it."""
 
 import numpy as np
 import pytest
 
 from attend.action import ActionInputError, Camera, Detector, FlightModel, PlanningSetup, make_field, make_planner
 from attend.rhythm.replanning import fly_scheduled_mission, make_replan_policy, path_gain
-
-# Final (RSE, trace(P)) of seed 1, per-cell belief, 6 CMA-ES evaluations, 5-waypoint look-ahead,
-# computed with the episode code before blur and latency existed (commit 19a6fbb).
-BEFORE = {"segment": (3.8260735477179955, 143.13071830419565),
-          "fixed_20s": (3.735489683709953, 142.05088311657147),
-          "precision": (3.9741380935810158, 144.49508593400142),
-          "oscillator": (3.948210851626857, 146.42316081419557)}
 
 
 def _episode(policy, seed=1, detector=None, latency=None, cma=6, mode="hover"):
@@ -25,14 +23,13 @@ def _episode(policy, seed=1, detector=None, latency=None, cma=6, mode="hover"):
     return fly_scheduled_mission(field, planner, make_replan_policy(policy), 150.0, seed, diagonal=True, **kwargs)
 
 
-@pytest.mark.parametrize("policy", sorted(BEFORE))
-def test_zero_cost_limit_is_todays_episode_bit_for_bit(policy):
-    today = _episode(policy)
+@pytest.mark.parametrize("policy", ["segment", "fixed_20s", "precision", "oscillator"])
+def test_zero_cost_limit_is_the_plain_episode_bit_for_bit(policy):
+    plain = _episode(policy)
     zero = _episode(policy, detector=Detector(motion_blur_per_speed=0.0, motion_blur_per_turn_rate=0.0), latency=0.0)
-    assert (today.series("rse")[-1], today.series("trace")[-1]) == BEFORE[policy]
     for key in ("rse", "trace", "people_found", "false_alarm_cells"):
-        assert np.array_equal(today.series(key), zero.series(key))
-    assert today.times_s == zero.times_s and today.replan_times_s == zero.replan_times_s
+        assert np.array_equal(plain.series(key), zero.series(key))
+    assert plain.times_s == zero.times_s and plain.replan_times_s == zero.replan_times_s
     assert zero.hover_s == 0.0
 
 

@@ -365,7 +365,7 @@ def test_path_mode_warns_above_order_six():
                       embedding_order=8, max_iterations=1, states="path")
 
 
-QUADROTOR = __import__("pathlib").Path("/work/shared/data/quadrotor-wind")
+from conftest import QUADROTOR_DATA as QUADROTOR  # noqa: E402  (../shared beside the clone, or ATTEND_SHARED)
 
 
 @pytest.mark.skipif(not QUADROTOR.exists(), reason="quadrotor flight data not available")
@@ -416,6 +416,21 @@ def test_top_order_option_is_validated_and_reported():
     assert result.settings["top_order"] == "marginal" and path.settings["top_order"] == "truncate"
 
 
+def _default_learner_theta3_seed0() -> float:
+    """theta3 that today's default learner (not PAPER_LEARNER) learns from fig3's quick seed 0."""
+    from attend.experiments import fig3
+
+    cfg = dict(fig3.SETTINGS, iterations=40)
+    std = np.exp(-cfg["noise_log_precision"] / 2)
+    Y, U = fig3.msd_logs(np.arange(1), std, std, cfg["dt"], cfg["duration"], cfg["kernel_width"])
+    P = np.where(fig3.MSD_FREE, cfg["free_prior_precision"], KNOWN_PRIOR_PRECISION)[None]
+    result = L.learn_batch(Y, U, cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"],
+                           prior_mean=fig3.msd_random_priors(np.arange(1)), prior_precision=P,
+                           noise_prior_mean=cfg["noise_prior_mean"], noise_prior_precision=cfg["noise_prior_precision"],
+                           embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"], progress=False)
+    return float(result.parameters[0, 2])
+
+
 def test_paper_reproduction_numbers_are_the_published_learners():
     """fig3 (quick) passes PAPER_LEARNER: its numbers are those of the learner before the top-order,
     over-relaxation, Newton and scaling changes (values from main before they were made)."""
@@ -423,11 +438,21 @@ def test_paper_reproduction_numbers_are_the_published_learners():
 
     assert L.PAPER_LEARNER == dict(top_order="truncate", overrelax=False, newton=False, scaled=False)
     got = {m.name: m.value for m in fig3.run(quick=True, progress=False).metrics}
+    # Tolerances from the computation's conditioning, not from the digits one machine printed.
+    # Seed 0 runs all 40 iterations; each E-step solves with a curvature whose condition number is
+    # about posterior / prior precision of theta3 (1.5e9 / 1), so rounding that differs between
+    # BLAS kernels and SIMD loops (eps = 2.2e-16) may move the results by eps * 1.5e9 = 3e-7
+    # relative: compare at 1e-6 (seen across kernels: 2e-10 to 7e-8).
     expected = {"theta3_seed0": -0.5312380550798431, "theta4_seed0": -0.2138427184277307,
-                "theta3_median_relative_error_path_mode": 0.019351323261938055,
                 "lambda_w_seed0": 15.890143322456774, "free_energy_rise_seed0": 10022.555505288108}
     for name, value in expected.items():
-        assert got[name] == pytest.approx(value, rel=1e-12, abs=0), name
+        assert got[name] == pytest.approx(value, rel=1e-6, abs=0), name
+    # Path mode stops when an iteration raises F by less than 1e-3, so where it stops depends on
+    # rounding (one seed stops at iteration 16 or 17 across kernels) and theta3 is fixed only to
+    # that stopping rule (up to 3e-5 of 0.56): the median relative error is compared at 1e-3.
+    assert got["theta3_median_relative_error_path_mode"] == pytest.approx(0.019351323261938055, abs=1e-3)
+    # The tolerances still tell the learners apart: today's defaults learn another theta3.
+    assert got["theta3_seed0"] != pytest.approx(_default_learner_theta3_seed0(), rel=1e-6)
 
 
 BUNDLED = __import__("pathlib").Path(__file__).parents[2] / "src" / "attend" / "data" / "quadrotor_roll_wind.csv"

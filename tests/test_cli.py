@@ -372,15 +372,15 @@ def test_reproduce_all_reports_bad_input_and_bugs_of_experiments_apart(tmp_path,
     assert main(["reproduce", "all", "--out", str(tmp_path)]) == 2
 
 
-def test_identify_readme_example_on_the_whole_bundled_flight(tmp_path, capsys):
-    """README 'Identify your model': the bundled roll model + its [learning] section on the whole bundled
+def test_identify_example_of_the_docs_on_the_whole_bundled_flight(tmp_path, capsys):
+    """docs/command-line.md 'Identify your model': the bundled roll model + its [learning] section on the whole bundled
     flight (3481 samples) converges (exit 0) and reports the learned A's eigenvalues."""
     import re
     from pathlib import Path
 
     root = Path(__file__).parents[1]
-    readme = (root / "README.md").read_text()
-    section = readme[readme.index("### Identify your model"):]
+    page = (root / "docs" / "command-line.md").read_text()
+    section = page[page.index("## Identify your model"):]
     learning = re.search(r"```toml\n(\[learning\].*?)```", section, re.S).group(1)
     assert "known_prior_precision = inf" in learning
     data = root / "src" / "attend" / "data"

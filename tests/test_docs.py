@@ -1,6 +1,6 @@
 """The documentation cannot rot: its examples run, its commands parse, its API page is current.
 
-- every ```python block of docs/*.md and docs/experiments/*.md runs (blocks of one page share a
+- every ```python block of README.md, docs/*.md and docs/experiments/*.md runs (blocks of one page share a
   namespace and a temporary working directory, in page order);
 - every ```console / ```bash block whose first command starts with ``attend `` runs through
   ``attend.cli.main`` in that directory and must exit 0; a block preceded by the line
@@ -28,7 +28,7 @@ from pathlib import Path
 import pytest
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
-PAGES = sorted(DOCS.glob("*.md")) + sorted((DOCS / "experiments").glob("*.md"))
+PAGES = [DOCS.parent / "README.md"] + sorted(DOCS.glob("*.md")) + sorted((DOCS / "experiments").glob("*.md"))
 NO_TEST = "<!-- no-test -->"
 FILE = re.compile(r"<!--\s*file:\s*(\S+)\s*-->")
 #: At most this many command blocks may be skipped (expensive reproductions only).
@@ -104,7 +104,7 @@ def run_cli(argv: list[str]) -> tuple[int, str]:
     return code, stdout.getvalue() + stderr.getvalue()
 
 
-@pytest.mark.parametrize("page", PAGES, ids=[str(p.relative_to(DOCS)) for p in PAGES])
+@pytest.mark.parametrize("page", PAGES, ids=[str(p.relative_to(DOCS.parent)) for p in PAGES])
 def test_page_examples_run(page: Path, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MPLBACKEND", "Agg")
@@ -112,7 +112,7 @@ def test_page_examples_run(page: Path, tmp_path, monkeypatch):
     with restored_experiment_modules(), warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for block in blocks(page):
-            where = f"{page.relative_to(DOCS)}:{block['line']}"
+            where = f"{page.relative_to(DOCS.parent)}:{block['line']}"
             target = FILE.search(block["directive"])
             if target:
                 (tmp_path / target.group(1)).write_text(block["code"] + "\n")
@@ -147,7 +147,7 @@ def check_parses(argv: list[str], where: str) -> None:
 
 
 def test_few_blocks_skipped():
-    skipped = [f"{p.relative_to(DOCS)}:{b['line']}" for p in PAGES for b in blocks(p)
+    skipped = [f"{p.relative_to(DOCS.parent)}:{b['line']}" for p in PAGES for b in blocks(p)
                if NO_TEST in b["directive"]]
     assert len(skipped) <= MAX_SKIPPED, f"too many <!-- no-test --> blocks: {skipped}"
     assert all(is_attend_block(b) for p in PAGES for b in blocks(p) if NO_TEST in b["directive"]), \

@@ -125,8 +125,10 @@ def test_search_offers_every_planner():
     from attend.cli import _build_parser
 
     parser = _build_parser()
+    from attend.action.search_run import SEARCH_PLANNERS
+
     search = next(a for a in parser._subparsers._group_actions[0].choices["search"]._actions if a.dest == "planner")
-    assert set(search.choices) == set(PLANNERS)
+    assert set(search.choices) == set(PLANNERS) | set(SEARCH_PLANNERS)
 
 
 # --- the user's path never fails silently ------------------------------------------------------
@@ -341,12 +343,12 @@ def test_reproduce_with_a_relative_out_embeds_every_figure_and_caches(tmp_path, 
 
 
 def test_search_shows_progress_unless_asked_not_to(tmp_path, capsys):
-    assert main(["search", "--planner", "lawnmower", "--budget", "12", "--no-gif", "--diagonal",
-                 "--out", str(tmp_path / "a")]) == 0
-    assert "s flown" in capsys.readouterr().err
-    assert main(["search", "--planner", "lawnmower", "--budget", "12", "--no-gif", "--diagonal",
-                 "--out", str(tmp_path / "b"), "--no-progress"]) == 0
-    assert "s flown" not in capsys.readouterr().err
+    for ground in (["--map", "gp", "--no-gif", "--diagonal"], []):
+        assert main(["search", "--planner", "lawnmower", "--budget", "12", *ground, "--out", str(tmp_path / "a")]) == 0
+        assert "s flown" in capsys.readouterr().err
+        assert main(["search", "--planner", "lawnmower", "--budget", "12", *ground,
+                     "--out", str(tmp_path / "b"), "--no-progress"]) == 0
+        assert "s flown" not in capsys.readouterr().err
 
 
 def test_reproduce_all_reports_bad_input_and_bugs_of_experiments_apart(tmp_path, capsys, monkeypatch):

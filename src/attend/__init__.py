@@ -11,7 +11,9 @@ Public API (everything else is private):
 - nonlinear models: :class:`NonlinearSystem` (f, g), :class:`NonlinearDEM`, :func:`simulate_nonlinear`
 - learning: :func:`identify`, :class:`IdentificationResult`
 - nonlinear perception: :class:`NonlinearDEM` for a :class:`NonlinearSystem`
-- action (UAV search, :mod:`attend.action`): :func:`make_field` / :class:`SearchField`,
+- action (UAV search, :mod:`attend.action`): at field scale :func:`make_world`,
+  :class:`ProbabilityMap`, :func:`fly_search` (several UAVs, the EFE planner); the paper's
+  field :func:`make_field` / :class:`SearchField`,
   :class:`OccupancyMap` (precision map), :func:`make_planner`, :func:`fly` (one mission in code),
   :func:`run_search` (one mission with its files)
 - rhythm (:mod:`attend.rhythm`): :class:`PrecisionOscillator`, the schedules
@@ -25,60 +27,73 @@ The presets also live in :mod:`attend.problems` with the paper's reference probl
 precisions in :mod:`attend.constants`.
 """
 
-from attend._progress import progress_bars
-from attend._validation import AttendInputError
-from attend.action import OccupancyMap, SearchField, fly, make_field, make_planner, run_search
-from attend.generalized import block_precisions, embed, embedding_weights, shift_operator, smoothness_precision
-from attend.noise import coloured_noise
-from attend.perception.dem import DEMEstimate, DEMObserver, OnlineDEM
-from attend.perception.kalman import KalmanEstimator, OnlineKalman, StateEstimate
-from attend.perception.learning import IdentificationResult, identify
-from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem, simulate_nonlinear
-from attend.problems import convolution_model, identification_system, mass_spring_damper, quadrotor_roll
-from attend.rhythm import (ActiveVisionAgent, FixedSchedule, PrecisionDrivenSchedule, PrecisionOscillator,
-                           RhythmicSchedule, drive)
-from attend.systems import LinearSystem, ModelWarning, Trajectory, simulate
+from __future__ import annotations
+
+import importlib
+import importlib.util
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "ActiveVisionAgent",
-    "AttendInputError",
-    "DEMEstimate",
-    "DEMObserver",
-    "FixedSchedule",
-    "IdentificationResult",
-    "KalmanEstimator",
-    "LinearSystem",
-    "ModelWarning",
-    "NonlinearDEM",
-    "NonlinearSystem",
-    "OccupancyMap",
-    "OnlineDEM",
-    "OnlineKalman",
-    "PrecisionDrivenSchedule",
-    "PrecisionOscillator",
-    "RhythmicSchedule",
-    "SearchField",
-    "StateEstimate",
-    "Trajectory",
-    "block_precisions",
-    "coloured_noise",
-    "convolution_model",
-    "drive",
-    "embed",
-    "embedding_weights",
-    "fly",
-    "identification_system",
-    "identify",
-    "make_field",
-    "make_planner",
-    "mass_spring_damper",
-    "progress_bars",
-    "quadrotor_roll",
-    "run_search",
-    "shift_operator",
-    "simulate",
-    "simulate_nonlinear",
-    "smoothness_precision",
-]
+#: public name -> the module that defines it; imported at the first use of the name (PEP 562), so
+#: ``import attend`` itself loads neither SciPy nor any subpackage.
+_EXPORTS = {
+    "ActiveVisionAgent": "attend.rhythm",
+    "AttendInputError": "attend._validation",
+    "block_precisions": "attend.generalized",
+    "coloured_noise": "attend.noise",
+    "convolution_model": "attend.problems",
+    "DEMEstimate": "attend.perception.dem",
+    "DEMObserver": "attend.perception.dem",
+    "drive": "attend.rhythm",
+    "embed": "attend.generalized",
+    "embedding_weights": "attend.generalized",
+    "FixedSchedule": "attend.rhythm",
+    "fly": "attend.action",
+    "fly_search": "attend.action",
+    "identification_system": "attend.problems",
+    "IdentificationResult": "attend.perception.learning",
+    "identify": "attend.perception.learning",
+    "KalmanEstimator": "attend.perception.kalman",
+    "LinearSystem": "attend.systems",
+    "make_field": "attend.action",
+    "make_planner": "attend.action",
+    "make_world": "attend.action",
+    "mass_spring_damper": "attend.problems",
+    "ModelWarning": "attend.systems",
+    "NonlinearDEM": "attend.perception.nonlinear",
+    "NonlinearSystem": "attend.perception.nonlinear",
+    "OccupancyMap": "attend.action",
+    "OnlineDEM": "attend.perception.dem",
+    "OnlineKalman": "attend.perception.kalman",
+    "PrecisionDrivenSchedule": "attend.rhythm",
+    "PrecisionOscillator": "attend.rhythm",
+    "ProbabilityMap": "attend.action",
+    "progress_bars": "attend._progress",
+    "quadrotor_roll": "attend.problems",
+    "RhythmicSchedule": "attend.rhythm",
+    "run_search": "attend.action",
+    "SearchField": "attend.action",
+    "shift_operator": "attend.generalized",
+    "simulate": "attend.systems",
+    "simulate_nonlinear": "attend.perception.nonlinear",
+    "smoothness_precision": "attend.generalized",
+    "StateEstimate": "attend.perception.kalman",
+    "Trajectory": "attend.systems",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    """The public name ``name`` (or the subpackage ``attend.name``), imported on first use."""
+    if name not in _EXPORTS:
+        if not name.startswith("_") and importlib.util.find_spec(f"attend.{name}") is not None:
+            return importlib.import_module(f"attend.{name}")  # the import binds it in globals()
+        raise AttributeError(f"module 'attend' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 import errno
 import inspect
+import json
+import math
 import sys
 import tempfile
 import time
@@ -64,7 +66,8 @@ def _build_parser() -> argparse.ArgumentParser:
             "  attend estimate --demo --out roll.csv    states of a real quadrotor from its log\n"
             "  attend estimate model.toml log.csv       your own robot (formats: README.md)\n"
             "  attend identify model.toml log.csv       learn its parameters and noise precisions\n"
-            "  attend search --planner efe --out run1   one UAV search-and-rescue mission\n"
+            "  attend search --out run1                 a UAV searching the paper's field for people\n"
+            "  attend search --area-size 500 --uavs 2   two UAVs on a 500 m x 500 m area\n"
             "Units: seconds, metres, radians; precisions are inverse variances.\n"
             "'attend COMMAND --help' explains each option."
         ),
@@ -180,7 +183,7 @@ def _add_identify(add_command) -> None:
                           "(the exit status is still 3)")
 
 
-#: What each planner of ``attend search --planner`` does (planners missing here are listed by name).
+#: What each planner of ``attend search --planner`` does on the Gaussian map (``--map gp``).
 PLANNER_HELP = {
     "precision_gain": "trace(P) reduction per second of flight",
     "adaptive": "gain weighted by optimistic occupancy and an altitude preference",
@@ -191,43 +194,98 @@ PLANNER_HELP = {
     "lawnmower": "baseline: lawnmower sweep at 10 m",
     "random": "baseline: random views",
 }
+#: Options of ``attend search`` that only the Gaussian map (``--map gp``) reads: dest -> option.
+GP_ONLY_OPTIONS = {"fov": "--fov", "altitude_limits": "--altitude-limits", "clutter": "--clutter",
+                   "diagonal": "--diagonal", "no_gif": "--no-gif"}
+#: Options of ``attend search`` that only the probability map reads: dest -> option.
+PROBABILITY_ONLY_OPTIONS = {"area_size": "--area-size", "cell_size": "--cell-size", "uavs": "--uavs",
+                            "buildings": "--buildings", "prior_map": "--prior-map", "image_rate": "--image-rate"}
+SEARCH_EPILOG = """\
+examples:
+  attend search --out run1                       EFE planner on the paper's 30 m field (7 people, 150 s)
+  attend search --planner lawnmower --out run2   the same field swept by a lawnmower at 10 m
+  attend search --area-size 500 --cell-size 1 --people 10 --uavs 2 --out big
+                                                 two UAVs on a 500 m x 500 m area (250 000 cells)
+  attend search --area-size 300 --prior-map likely.png --out prior
+                                                 people more likely where the picture is brighter
+  attend search --map gp --planner cover_confirm --out paper
+                                                 the paper's Gaussian occupancy map and its planners
+
+outputs (in --out): search_metrics.json (summary: people_total, people_found, found_times_s,
+time_to_find_all_s (null unless all were found), false_targets, p_all_found_end, area_covered_m2,
+distance_flown_m, median/max_planner_time_s, median_map_update_ms; per-image series), search_map.png
+(P(person) per cell, paths, people, targets), search_found.png (people found and P(all found) vs time).
+A person counts as found when a reported target (a cluster of cells holding >= 0.5 expected
+people) lies within 3 m of them; a target with nobody within 3 m is a false target.
+"""
 
 
 def _add_search(add_command) -> None:
     from attend.action.planners import PLANNERS
+    from attend.action.search_run import SEARCH_PLANNERS
 
     search = add_command(
         "search",
-        help="fly one UAV search-and-rescue mission with a precision-map planner",
-        description="One search-and-rescue episode on the 30 m x 30 m field (0.75 m cells, 7 people): plan, "
-        "fly, fuse detections into the occupancy map and its precision, replan until the flight budget "
-        "is spent. Writes metrics JSON, map snapshots (truth, belief, variance), the 3-D flight path, "
-        "metrics vs time and an animated GIF.",
+        help="fly a UAV search-and-rescue mission: probability map, expected-free-energy planner",
+        description="A search for people lying on the ground: plan, fly, fuse every image into a map of "
+        "P(person) per cell (Bayes' rule with the detector's detection probability, clutter and "
+        "position error by altitude), replan, until the flight time is spent. Without --area-size, the "
+        "paper's 30 m x 30 m field (0.75 m cells, 7 people, 150 s, one image every 6.7 s); with it, a "
+        "square area at field scale (1 m cells, 10 m/s, 1 image/s). --map gp flies the paper's Gaussian "
+        "occupancy map and its planners instead.",
+        epilog=SEARCH_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    planners = "; ".join(f"{name}: {PLANNER_HELP[name]}" if name in PLANNER_HELP else name for name in PLANNERS)
-    search.add_argument("--planner", default="efe", choices=list(PLANNERS),
-                        help=f"{planners} (default: %(default)s)")
+    gp_planners = "; ".join(f"{name}: {PLANNER_HELP[name]}" if name in PLANNER_HELP else name for name in PLANNERS)
+    probability_planners = "; ".join(f"{name}: {text}" for name, text in SEARCH_PLANNERS.items())
+    search.add_argument("--map", default="probability", choices=["probability", "gp"],
+                        help="probability: P(person) per cell as log-odds, scales to 10^6 cells; gp: the paper's "
+                        "Gaussian occupancy map with its full covariance (30 m field only) (default: %(default)s)")
+    search.add_argument("--planner", default="efe", choices=sorted(set(PLANNERS) | set(SEARCH_PLANNERS)),
+                        help=f"on the probability map: {probability_planners}. With --map gp: {gp_planners} "
+                        "(default: %(default)s)")
     search.add_argument("--seed", type=int, default=0,
                         help="seed of the people placement, detector and planner (default: %(default)s)")
+    search.add_argument("--area-size", type=float, default=None, metavar="M",
+                        help="side of a square search area [m] (default: the paper's 30 m field)")
+    search.add_argument("--cell-size", type=float, default=None, metavar="M",
+                        help="map cell side [m] (default: 1 with --area-size; 0.75 on the paper's field)")
+    search.add_argument("--people", type=int, default=None, metavar="N",
+                        help="people in the area; the map's prior expects this many (default: 7 on the paper's "
+                        "field, 10 with --area-size)")
+    search.add_argument("--uavs", type=int, default=None, metavar="K",
+                        help="UAVs sharing the map, planned one after another (default: 1)")
+    search.add_argument("--buildings", type=int, default=None, metavar="N",
+                        help="random buildings in the area (with --area-size; they hide the ground and block "
+                        "flight) (default: 0)")
+    search.add_argument("--prior-map", default=None, metavar="FILE",
+                        help="relative likelihood of a person over the area, row 0 north: a CSV table of numbers "
+                        ">= 0 or a PNG (brighter = more likely); people are drawn from it (with --area-size)")
     search.add_argument("--obstacles", default="none", choices=["none", "buildings"],
-                        help="buildings: a 4x4x26 m tower and a 4x4x13 m block that block flight and hide the "
+                        help="paper's field: a 4x4x26 m tower and a 4x4x13 m block that block flight and hide the "
                         "ground (default: %(default)s)")
-    search.add_argument("--people", default="all", choices=["all", "lower_half"],
-                        help="where people may lie: anywhere, or only in the half y < 0 (the paper's Fig. 9 case; "
+    search.add_argument("--people-region", default="all", choices=["all", "lower_half"],
+                        help="paper's field: people anywhere, or only at y < 0 (the paper's Fig. 9 case; "
                         "default: %(default)s)")
-    search.add_argument("--budget", type=float, default=150.0, help="flight budget [s] (default: %(default)s)")
-    search.add_argument("--speed", type=float, default=5.0, help="flight speed [m/s] (default: %(default)s)")
-    search.add_argument("--start", type=float, nargs=3, metavar=("X", "Y", "Z"), default=(10.0, 0.0, 7.0),
-                        help="take-off pose [m] in the field-centred frame, field spans -15..15 m (default: 10 0 7)")
-    search.add_argument("--fov", type=float, nargs=2, metavar=("X_DEG", "Y_DEG"), default=(45.0, 60.0),
-                        help="camera field of view [degrees], each in (0, 180) (default: 45 60)")
-    search.add_argument("--altitude-limits", type=float, nargs=2, metavar=("MIN", "MAX"), default=(2.0, 26.0),
-                        help="flight altitude limits [m] (default: 2 26)")
-    search.add_argument("--clutter", type=float, default=0.0,
-                        help="mean clutter false positives per image [1/image] (default: %(default)s)")
-    search.add_argument("--diagonal", action="store_true",
-                        help="fast per-cell (diagonal) Kalman map instead of the full 1600x1600 covariance")
-    search.add_argument("--no-gif", action="store_true", help="skip the animated GIF (faster)")
+    search.add_argument("--budget", type=float, default=None, metavar="S",
+                        help="flight time of each UAV [s] (default: 150 on the paper's field; with --area-size, "
+                        "1.25 x one lawnmower pass at the detector's best altitude, shared among the UAVs)")
+    search.add_argument("--speed", type=float, default=None, metavar="M_S",
+                        help="flight speed [m/s] (default: 5 on the paper's field, 10 with --area-size)")
+    search.add_argument("--image-rate", type=float, default=None, metavar="HZ",
+                        help="camera rate [1/s] (default: 0.15 on the paper's field, 1 with --area-size)")
+    search.add_argument("--start", type=float, nargs=3, metavar=("X", "Y", "Z"), default=None,
+                        help="take-off pose [m] (default: 10 0 7 on the paper's field, whose centre is 0 0; "
+                        "the south-west corner at 30 m with --area-size)")
+    search.add_argument("--fov", type=float, nargs=2, metavar=("X_DEG", "Y_DEG"), default=None,
+                        help="--map gp: camera field of view [degrees], each in (0, 180) (default: 45 60)")
+    search.add_argument("--altitude-limits", type=float, nargs=2, metavar=("MIN", "MAX"), default=None,
+                        help="--map gp: flight altitude limits [m] (default: 2 26)")
+    search.add_argument("--clutter", type=float, default=None,
+                        help="--map gp: mean clutter false positives per image [1/image] (default: 0)")
+    search.add_argument("--diagonal", action="store_true", default=None,
+                        help="--map gp: fast per-cell (diagonal) Kalman map instead of the full 1600x1600 covariance")
+    search.add_argument("--no-gif", action="store_true", default=None, help="--map gp: skip the animated GIF (faster)")
     search.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     search.add_argument("--out", default="search_out", help="output directory (default: %(default)s)")
 
@@ -263,22 +321,107 @@ def _output_directory(path: str, option: str) -> Path:
     return path
 
 
+#: The library's argument names in search errors -> the option of ``attend search`` that sets them.
+SEARCH_OPTION_OF = {"start_pose_m": "--start", "n_people": "--people", "people": "--people", "uavs": "--uavs",
+                    "n_uavs": "--uavs", "area_m": "--area-size", "area_size_m": "--area-size",
+                    "cell_size_m": "--cell-size", "budget_s": "--budget", "speed_m_s": "--speed",
+                    "image_rate_hz": "--image-rate", "n_buildings": "--buildings", "buildings": "--buildings",
+                    "prior_map": "--prior-map", "altitude_limits_m": "--altitude-limits", "fov_x_deg": "--fov",
+                    "fov_y_deg": "--fov", "clutter_rate_per_image": "--clutter"}
+
+
 def _command_search(args) -> int:
-    from attend.action.mission import run_search
+    from attend.action.errors import ActionInputError
 
     _output_directory(args.out, "--out")
+    _check_search_options(args)
+    try:
+        return _fly_search_command(args)
+    except ActionInputError as error:
+        name, _, rest = str(error).partition(":")
+        if name in SEARCH_OPTION_OF and rest:
+            raise AttendInputError(f"{SEARCH_OPTION_OF[name]}:{rest}") from None
+        raise
+
+
+def _fly_search_command(args) -> int:
     started = time.perf_counter()
-    paths = run_search(
-        planner=args.planner, seed=args.seed, obstacles=args.obstacles, people_region=args.people,
-        budget_s=args.budget, out_dir=args.out, start_pose_m=tuple(args.start), fov_deg=tuple(args.fov),
-        altitude_limits_m=tuple(args.altitude_limits), speed_m_s=args.speed,
-        clutter_rate_per_image=args.clutter, diagonal=args.diagonal, gif=not args.no_gif,
-        progress=not args.no_progress,
-    )
+    if args.map == "gp":
+        from attend.action.mission import run_search
+
+        paths = run_search(
+            planner=args.planner, seed=args.seed, obstacles=args.obstacles, people_region=args.people_region,
+            budget_s=args.budget or 150.0, out_dir=args.out, n_people=args.people or 7,
+            start_pose_m=tuple(args.start or (10.0, 0.0, 7.0)), fov_deg=tuple(args.fov or (45.0, 60.0)),
+            altitude_limits_m=tuple(args.altitude_limits or (2.0, 26.0)), speed_m_s=args.speed or 5.0,
+            clutter_rate_per_image=args.clutter or 0.0, diagonal=bool(args.diagonal), gif=not args.no_gif,
+            progress=not args.no_progress,
+        )
+    else:
+        from attend.action.search_run import run_probability_search
+
+        prior_map = None
+        if args.prior_map is not None:
+            from attend.io.prior_maps import read_prior_map
+
+            try:
+                prior_map = read_prior_map(args.prior_map)
+            except AttendInputError as error:
+                raise AttendInputError(f"--prior-map {error}") from None
+        paths = run_probability_search(
+            planner=args.planner, seed=args.seed, out_dir=args.out, progress=not args.no_progress,
+            area_size_m=args.area_size, cell_size_m=args.cell_size, people=args.people, uavs=args.uavs or 1,
+            buildings=args.buildings or 0, obstacles=args.obstacles, people_region=args.people_region,
+            prior_map=prior_map, budget_s=args.budget, speed_m_s=args.speed, image_rate_hz=args.image_rate,
+            start_pose_m=None if args.start is None else tuple(args.start),
+        )
+        summary = json.loads(Path(paths["metrics"]).read_text())["summary"]
+        found_all = summary["time_to_find_all_s"]
+        print(f"found {summary['people_found']} of {summary['people_total']} people"
+              + (f", all by {found_all:.0f} s" if found_all is not None else "")
+              + f"; {summary['false_targets']} false targets; P(all found) = {summary['p_all_found_end']:.2f}")
     print(f"mission with the {args.planner} planner done in {time.perf_counter() - started:.1f} s")
     for name, path in paths.items():
         print(f"  {name:13s} -> {path}")
     return 0
+
+
+def _check_search_options(args) -> None:
+    """Options of ``attend search`` that do not fit the chosen map, and numbers out of range,
+    as one-line errors naming the option."""
+    from attend.action.planners import PLANNERS
+    from attend.action.search_run import SEARCH_PLANNERS
+
+    given = {dest for dest in (*GP_ONLY_OPTIONS, *PROBABILITY_ONLY_OPTIONS) if getattr(args, dest) is not None}
+    if args.map == "gp":
+        wrong = [PROBABILITY_ONLY_OPTIONS[d] for d in PROBABILITY_ONLY_OPTIONS if d in given]
+        if wrong:
+            raise AttendInputError(f"{wrong[0]}: only with the probability map (drop --map gp)")
+        if args.planner not in PLANNERS:
+            raise AttendInputError(f"--planner: expected one of {sorted(PLANNERS)} with --map gp, got {args.planner!r}")
+    else:
+        wrong = [GP_ONLY_OPTIONS[d] for d in GP_ONLY_OPTIONS if d in given]
+        if wrong:
+            raise AttendInputError(f"{wrong[0]}: only with --map gp (the paper's Gaussian map)")
+        if args.planner not in SEARCH_PLANNERS:
+            raise AttendInputError(f"--planner: expected one of {sorted(SEARCH_PLANNERS)} on the probability map "
+                                   f"(the others fly with --map gp), got {args.planner!r}")
+    for option, value in (("--area-size", args.area_size), ("--cell-size", args.cell_size), ("--budget", args.budget),
+                          ("--speed", args.speed), ("--image-rate", args.image_rate)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise AttendInputError(f"{option}: expected a number > 0, got {value:g}")
+    for option, value, least in (("--people", args.people, 1), ("--uavs", args.uavs, 1), ("--buildings", args.buildings, 0)):
+        if value is not None and value < least:
+            raise AttendInputError(f"{option}: expected a whole number >= {least}, got {value}")
+    if args.area_size is not None:
+        cell = args.cell_size if args.cell_size is not None else 1.0
+        if cell > args.area_size:
+            raise AttendInputError(f"--cell-size: expected a cell no larger than --area-size {args.area_size:g} m, got {cell:g}")
+        cells = round(args.area_size / cell) ** 2
+        if args.people is not None and args.people > cells:
+            raise AttendInputError(f"--people: expected at most the {cells} cells of the area, got {args.people}")
+    if args.start is not None and not all(math.isfinite(v) for v in args.start):
+        raise AttendInputError(f"--start: expected three finite numbers X Y Z [m], got {args.start}")
 
 
 def _command_estimate(args) -> int:

@@ -13,7 +13,6 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from scipy.signal import fftconvolve
 
 from attend._validation import AttendInputError, positive_scalar
 
@@ -66,6 +65,8 @@ def coloured_noise(
     white = rng.standard_normal((n_samples + margin, n_channels))
     if n_channels == 0:
         return np.zeros((n_samples, 0))
+    from scipy.signal import fftconvolve  # scipy.signal loads scipy.stats (0.5 s): only when noise is drawn
+
     smooth = fftconvolve(white, kernel[:, None], mode="valid", axes=0)
     return smooth * std
 

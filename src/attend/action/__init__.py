@@ -1,5 +1,15 @@
-"""Precision-modulated action: informative path planning with precision maps for UAV search and
-rescue (seed §4.3, Figs. 6-9).
+"""Precision-modulated action: a UAV (or several) searching an area for people.
+
+At field scale (the default of ``attend search``): :class:`DetectionModel` (detection
+probability, clutter and position error by altitude) -> :class:`ProbabilityMap` (P(person) per
+cell as log-odds, Bayes' rule on every image, 10^6 cells) -> :class:`ExpectedFreeEnergySearchPlanner`
+(information gain plus the preference for confirming people, per second of flight) or
+:class:`FieldLawnmowerPlanner` -> :func:`fly_search` (several UAVs on one map, images fused in
+time order) -> :func:`run_probability_search` (one mission with its files). The ground:
+:func:`make_world` (a square area with people and buildings) or :func:`world_from_field` (the
+paper's field).
+
+The paper's Gaussian occupancy map (Figs. 6-9):
 
 Data path: SearchField (people, obstacles) -> Camera + Detector (images at 0.15 Hz) ->
 OccupancyMap (GP prior, Kalman fusion, precision map) -> Planner (expected precision gain,
@@ -18,12 +28,20 @@ from attend.action.belief import (
     prior_covariance,
 )
 from attend.action.camera import Camera, Detector, Image, noise_variance, take_image
+from attend.action.detection import DetectionModel
 from attend.action.episode import EpisodeLog, PlanContext, ReplanPolicy, fly
 from attend.action.errors import ActionInputError
 from attend.action.field import Grid, Obstacle, Person, SearchField, make_field
 from attend.action.flight import FlightModel
 from attend.action.metrics import FOUND_THRESHOLD, map_metrics, root_squared_error
 from attend.action.mission import run_search
+from attend.action.planners.field_lawnmower import FieldLawnmowerPlanner
+from attend.action.planners.salience import ExpectedFreeEnergySearchPlanner
+from attend.action.planners.search_base import SearchPlanner
+from attend.action.probability_map import ImageObservation, MapGrid, ProbabilityMap
+from attend.action.search_mission import SearchLog, SearchSettings, fly_search
+from attend.action.search_run import run_probability_search
+from attend.action.world import SearchWorld, make_world, simulate_image, world_from_field
 from attend.action.planners import (
     PLANNERS,
     AdaptivePlanner,
@@ -42,6 +60,21 @@ from attend.action.planners import (
 
 __all__ = [
     "ActionInputError",
+    "DetectionModel",
+    "ExpectedFreeEnergySearchPlanner",
+    "FieldLawnmowerPlanner",
+    "ImageObservation",
+    "MapGrid",
+    "ProbabilityMap",
+    "SearchLog",
+    "SearchPlanner",
+    "SearchSettings",
+    "SearchWorld",
+    "fly_search",
+    "make_world",
+    "run_probability_search",
+    "simulate_image",
+    "world_from_field",
     "AdaptivePlanner",
     "Camera",
     "CoverConfirmPlanner",

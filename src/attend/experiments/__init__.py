@@ -36,6 +36,7 @@ EXPERIMENTS: dict[str, tuple[str, str]] = {
     "rhythm-ipp": ("attend.experiments.rhythm_ipp", "when to replan in UAV search: precision-driven / rhythmic vs fixed flight budgets (paper §4.4, Fig. 10)"),
     "rhythm-tradeoff": ("attend.experiments.rhythm_tradeoff", "where rhythm helps: schedules tuned alike when switching costs (motion blur, planning latency, saccades)"),
     "vision": ("attend.experiments.vision", "active vision: saccades to the most informative location on a rhythm (paper Fig. 1)"),
+    "search-scale": ("attend.experiments.search_scale", "UAV search at field scale: probability map, EFE planner vs the best lawnmower and a truth oracle, several UAVs"),
     "lorenz": ("attend.experiments.lorenz", "nonlinear DEM on the Lorenz attractor under coloured noise vs EKF/UKF and a particle smoother"),
     "pendulum": ("attend.experiments.pendulum", "nonlinear DEM: pendulum state and unknown input through a (sin, cos) sensor vs augmented EKF/UKF"),
 }

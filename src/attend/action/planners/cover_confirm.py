@@ -38,7 +38,8 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
-import scipy.stats
+import scipy.special
+
 
 from attend.action.belief import OccupancyMap, connected_groups
 from attend.action.camera import DETECTED_VALUE, NOT_DETECTED_VALUE
@@ -234,7 +235,7 @@ class CoverConfirmPlanner(Planner):
             for g in groups:
                 grouped[g] = True
             sigma = np.sqrt(np.maximum(belief.variance, 1e-12))
-            undetected = scipy.stats.norm.sf((FOUND_THRESHOLD - belief.mean) / sigma) * ~grouped
+            undetected = scipy.special.ndtr(-(FOUND_THRESHOLD - belief.mean) / sigma) * ~grouped
             values = tpr * (visible @ undetected)
         best = np.lexsort((distance, -values))[0]  # highest value, then the nearest
         return views[best]

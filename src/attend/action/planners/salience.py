@@ -1,0 +1,756 @@
+"""Expected free energy search on a probability map, at field scale (10^6 cells).
+
+:class:`ExpectedFreeEnergySearchPlanner` ("efe") flies the path whose images have the lowest
+expected free energy per second of flight, -G / t with -G = epistemic + pragmatic value. No
+phase, altitude or coverage pattern is coded: when the planner re-images a detection, changes
+altitude or leaves resolved ground, the score chose it.
+
+Channel. A detection is associated with cell c when it is reported within 2 sigma(h) of c
+(sigma(h) the position error of the detector), an association area A(h) = a + pi (2 sigma(h))^2
+(a the cell area). One look at altitude h gives
+
+    P(detection | person in c) = pd(h, v),   P(detection | nobody in c) = pf(h) = 1 - exp(-kappa(h) A(h)),
+
+kappa(h) the clutter density [1/m^2], v the cruise speed.
+
+Epistemic value of one look (mutual information of the binary channel, nats):
+
+    I(q) = H_b(q pd + (1 - q) pf) - q H_b(pd) - (1 - q) H_b(pf),   H_b(q) = -q ln q - (1 - q) ln(1 - q),
+
+q the probability that the channel's unit holds a person. The unit ("disc", the default) is the
+target disc around c: q = m_c = min(1, sum of p over the (2 k + 1)^2 cells around c), k =
+round(r_t / s) (r_t the radius of the map's target discs, s the cell side), shared out over the
+disc's cells in proportion to their mass, e_c = (p_c / m_c) I(m_c), so that an image's sum
+counts each disc about once. The map updates cells independently and one detection lifts every
+cell within the position error, so a detected person soon holds m_c >= 1 and e_c = 0: the
+planner leaves resolved people instead of re-imaging the rim of their blur, where single cells
+stay near p = 1/2 for ever (with the unit "cell", e_c = I(p_c), it does).
+
+Pragmatic value (the prior preference for observing people: ln P~(o) = c_pref nats per newly
+confirmed person). A person counts as found when the mass of a target disc reaches theta; a
+look confirms the disc when m_c is below theta and a detection would lift it to theta or above:
+
+    k_c = p_c pd 1[m_c < theta <= m_c^+],   m^+ = m pd / (m pd + (1 - m) pf),
+
+the expected number of people newly confirmed, cell by cell. Value per cell and layer:
+v_h(c) = e_c + c_pref k_c; -G of an image = sum of v_h over the cells whose centres lie in its
+footprint (``Camera.footprint_m``), computed in O(1) from the summed-area table of v_h.
+
+Images of a path. One image every s = speed / rate metres along the path, the last at each
+waypoint: a straight leg of horizontal length L holds n = max(1, round(L / s)) images at
+distances L, L - s, ... from its start, all at the leg's altitude (the UAV changes altitude
+first, at its start, then flies level). Overlap: a cell seen by several images of a path
+counts once. Along a straight leg the union of the footprints is exact by inclusion-exclusion
+of consecutive images (F_j and F_k, k < j - 1, meet only inside F_{j-1}):
+V = sum_j [V(F_j) - V(F_j ∩ F_{j-1})]; for the second leg each image also loses its overlap with
+the nearest image of the first (the larger of the two overlaps; a lower bound of the union's).
+
+Time of a leg: t = L / v + |dz| / v_z, and at least n / rate (the camera's pace).
+
+Candidates (receding horizon, two legs): first legs to a lattice of headings x distances
+(geometric, from half the lowest footprint to ``horizon_m``) x altitude layers, plus legs that
+only change altitude, legs above the most probable cells within the horizon, and legs straight
+to the best blocks of a coarse block-summed value map of the whole area (so the UAV still goes
+where the value is when nothing near is worth looking at); then second legs from the best first
+legs. The first leg of the pair with the largest (V_1 + V_2) / (t_1 + t_2) is flown and the
+mission replans at its end (``fly_second_leg``: both legs). Rejected: legs leaving the map's
+extent or the altitude limits; legs passing within ``OBSTACLE_MARGIN_M`` of a building box
+(:func:`attend.action.camera.segments_hit_box`; margin 0 when no leg clears it, e.g. right after
+take-off next to a building); legs whose end lies within ``min_separation_m`` (3-D distance) of
+another UAV's pose or waypoints; legs that bring the UAV within ``min_separation_m`` of another
+UAV flying its plan (both at v, compared at the same times; a UAV already closer may only move
+apart). Optional CMA-ES refinement of the legs is not done.
+
+Several UAVs: plans are made one after another on the shared map; before scoring, the images
+the other UAVs will take along their plans are booked on a copy of the map as if they saw
+nothing (``ProbabilityMap.expected_no_detection_update``).
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+from scipy.special import expit
+from attend._threads import single_blas_thread
+
+from attend.action.camera import Camera, segments_hit_box
+from attend.action.detection import DetectionModel
+from attend.action.errors import ActionInputError
+from attend.action.planners.search_base import SearchPlanner
+
+#: Radius of the association disc in position errors: 2 sigma(h).
+ASSOCIATION_SIGMAS = 2.0
+#: Clearance [m] kept from every building box.
+OBSTACLE_MARGIN_M = 2.0
+#: Headings of the first-leg lattice and of the second legs.
+FIRST_HEADINGS = 24
+SECOND_HEADINGS = 16
+#: Distances of the first-leg lattice (geometric) and of the second legs.
+FIRST_DISTANCES = 6
+SECOND_DISTANCES = 3
+#: First legs expanded with a second leg.
+EXPANDED_FIRST_LEGS = 8
+#: Legs over the most probable cells within the horizon (per layer), and to the best coarse blocks (per layer).
+PEAK_CELLS = 6
+LONG_RANGE_BLOCKS = 4
+#: Times along a leg at which the distance to the other UAVs is checked.
+SEPARATION_SAMPLES = 24
+#: Side [cells] of the tiles on which value maps are recomputed when the map changed.
+VALUE_TILE_CELLS = 64
+#: Default number of altitude layers.
+DEFAULT_LAYERS = 5
+
+_EPS = 1e-12
+
+
+def binary_entropy(q: np.ndarray | float) -> np.ndarray:
+    """H_b(q) = -q ln q - (1 - q) ln(1 - q) in nats (0 at q = 0 and q = 1); q: probabilities."""
+    q = np.clip(np.asarray(q, dtype=float), 0.0, 1.0)
+    out = np.zeros_like(q)
+    inside = (q > 0) & (q < 1)
+    qi = q[inside]
+    out[inside] = -qi * np.log(qi) - (1 - qi) * np.log1p(-qi)
+    return out
+
+
+def mutual_information(p: np.ndarray | float, pd: float, pf: float) -> np.ndarray:
+    """I(p) = H_b(p pd + (1 - p) pf) - p H_b(pd) - (1 - p) H_b(pf) [nats]: the information one
+    look gives about a binary state that is 1 with probability p, the look reporting a detection
+    with probability pd when it is 1 and pf when it is 0.
+
+    p: prior probability of the state (array); pd: detection probability; pf: false-alarm
+    probability."""
+    p = np.clip(np.asarray(p, dtype=float), 0.0, 1.0)
+    h_pd, h_pf = binary_entropy(pd), binary_entropy(pf)
+    return np.maximum(binary_entropy(p * pd + (1 - p) * pf) - p * h_pd - (1 - p) * h_pf, 0.0)
+
+
+def summed_area_table(values: np.ndarray) -> np.ndarray:
+    """Summed-area table T (ny + 1, nx + 1) of values (ny, nx): T[i, j] = sum(values[:i, :j]), so
+    that the sum over rows r0:r1 and columns c0:c1 is T[r1, c1] - T[r0, c1] - T[r1, c0] + T[r0, c0]."""
+    values = np.asarray(values, dtype=float)
+    table = np.zeros((values.shape[0] + 1, values.shape[1] + 1))
+    np.cumsum(values, axis=0, out=table[1:, 1:])
+    np.cumsum(table[1:, 1:], axis=1, out=table[1:, 1:])
+    return table
+
+
+def rectangle_sums(table: np.ndarray, rows0, rows1, cols0, cols1) -> np.ndarray:
+    """Sums of the values over rows [rows0, rows1) and columns [cols0, cols1) from their
+    summed-area table (:func:`summed_area_table`), O(1) each; index arrays of one shape, clipped
+    to the table with rows0 <= rows1 and cols0 <= cols1."""
+    return table[rows1, cols1] - table[rows0, cols1] - table[rows1, cols0] + table[rows0, cols0]
+
+
+def box_sums(values: np.ndarray, half_width_cells: int) -> np.ndarray:
+    """Sum of values (ny, nx) over the (2 k + 1)^2 cells around each cell, clipped at the edges;
+    half_width_cells: k >= 0."""
+    k = int(half_width_cells)
+    if k == 0:
+        return np.asarray(values, dtype=float).copy()
+    table = summed_area_table(values)
+    ny, nx = values.shape
+    rows, cols = np.arange(ny), np.arange(nx)
+    r0, r1 = np.maximum(rows - k, 0), np.minimum(rows + k + 1, ny)
+    c0, c1 = np.maximum(cols - k, 0), np.minimum(cols + k + 1, nx)
+    return (table[np.ix_(r1, c1)] - table[np.ix_(r0, c1)]) - (table[np.ix_(r1, c0)] - table[np.ix_(r0, c0)])
+
+
+class _Lattice:
+    """Index geometry of a map grid: the cells whose centres lie in an axis-aligned rectangle."""
+
+    def __init__(self, grid) -> None:
+        self.nx, self.ny = int(grid.nx), int(grid.ny)
+        self.cell = float(grid.cell_size_m)
+        cx, cy = np.asarray(grid.centres_x, float), np.asarray(grid.centres_y, float)
+        self.x0, self.y0 = float(cx[0]), float(cy[0])
+        self.y_step = self.cell if cy.size < 2 or cy[-1] >= cy[0] else -self.cell
+        self.extent = tuple(float(v) for v in grid.extent_m)
+
+    def ranges(self, x, y, half_x, half_y):
+        """Half-open index ranges (r0, r1, c0, c1) of the cells whose centres lie in
+        [x - half_x, x + half_x] x [y - half_y, y + half_y] (arrays broadcast), clipped to the map."""
+        tol = 1e-9
+        c0 = np.ceil((x - half_x - self.x0) / self.cell - tol)
+        c1 = np.floor((x + half_x - self.x0) / self.cell + tol) + 1
+        ya = (y - half_y - self.y0) / self.y_step
+        yb = (y + half_y - self.y0) / self.y_step
+        low, high = np.minimum(ya, yb), np.maximum(ya, yb)
+        r0 = np.ceil(low - tol)
+        r1 = np.floor(high + tol) + 1
+        c0 = np.clip(c0, 0, self.nx).astype(np.intp)
+        c1 = np.clip(c1, 0, self.nx).astype(np.intp)
+        r0 = np.clip(r0, 0, self.ny).astype(np.intp)
+        r1 = np.clip(r1, 0, self.ny).astype(np.intp)
+        return r0, np.maximum(r1, r0), c0, np.maximum(c1, c0)
+
+    def cell_centre(self, rows, cols):
+        """Centres (x, y) [m] of the cells (rows, cols)."""
+        return self.x0 + cols * self.cell, self.y0 + rows * self.y_step
+
+
+def _intersect(a, b):
+    """Intersection of two sets of half-open index ranges (r0, r1, c0, c1)."""
+    r0, c0 = np.maximum(a[0], b[0]), np.maximum(a[2], b[2])
+    return r0, np.maximum(np.minimum(a[1], b[1]), r0), c0, np.maximum(np.minimum(a[3], b[3]), c0)
+
+
+def _take(ranges, index):
+    return tuple(r[index] for r in ranges)
+
+
+class ExpectedFreeEnergySearchPlanner(SearchPlanner):
+    """Fly the images with the lowest expected free energy per second of flight (module
+    docstring: channel, epistemic and pragmatic value, overlap, candidates).
+
+    model: the detector (pd, clutter density, position error); camera: the footprint;
+    speed_m_s: cruise speed v [m/s]; image_rate_hz: camera rate [1/s]; altitude_layers_m: the
+    candidate altitudes [m] (None: ``DEFAULT_LAYERS`` geometric layers from max(low limit,
+    h_best / 2) to min(high limit, h_best + 3/4 (h_useless - h_best))); altitude_limits_m:
+    (min, max) flight altitude [m]; buildings: boxes to keep ``OBSTACLE_MARGIN_M`` from (each
+    with ``.bounds`` (x0, x1, y0, y1, z0, z1) [m]); preference_nats_per_person: c_pref, the log
+    preference [nats] for newly confirming one person; horizon_m: longest first leg of the
+    lattice [m] (None: max(4 s, 3 widest footprint), s = v / rate the image spacing);
+    min_separation_m: least distance [m] kept from the other UAVs' poses and waypoints;
+    target_threshold: theta, the mass at which a person counts as confirmed; target_radius_m:
+    r_t, the radius of a target disc [m] (None: the map's ``default_target_radius_m()``, else
+    max(1.5 m, 2 cells)); climb_speed_m_s: v_z [m/s] (None: v); channel: "disc" (the unit of the
+    epistemic value is the target disc, module docstring) or "cell" (I(p_c) per cell);
+    single_legs: let a first leg alone compete with the two-leg paths (False: every path has
+    two legs when a second leg is feasible); fly_second_leg: return the second leg too (False:
+    only the first leg is flown and the mission replans at its end, a receding horizon of one
+    leg); seed: seeds the random rotation of the heading lattice.
+    """
+
+    name = "efe"
+
+    def __init__(
+        self,
+        model: DetectionModel,
+        camera: Camera,
+        speed_m_s: float,
+        image_rate_hz: float,
+        altitude_layers_m: Sequence[float] | None = None,
+        altitude_limits_m: Sequence[float] = (5.0, 120.0),
+        buildings: Sequence = (),
+        preference_nats_per_person: float = 1.0,
+        horizon_m: float | None = None,
+        min_separation_m: float = 10.0,
+        target_threshold: float = 0.5,
+        target_radius_m: float | None = None,
+        climb_speed_m_s: float | None = None,
+        channel: str = "disc",
+        single_legs: bool = False,
+        fly_second_leg: bool = False,
+        seed: int = 0,
+    ) -> None:
+        if not isinstance(model, DetectionModel):
+            raise ActionInputError(f"model: expected a DetectionModel, got {type(model).__name__}")
+        if not isinstance(camera, Camera):
+            raise ActionInputError(f"camera: expected a Camera, got {type(camera).__name__}")
+        for name, value in (("speed_m_s", speed_m_s), ("image_rate_hz", image_rate_hz)):
+            if not (_is_number(value) and value > 0):
+                raise ActionInputError(f"{name}: expected a finite number > 0, got {value!r}")
+        try:
+            low, high = (float(v) for v in altitude_limits_m)
+        except (TypeError, ValueError):
+            raise ActionInputError(f"altitude_limits_m: expected (min, max) in m, got {altitude_limits_m!r}") from None
+        if not (np.isfinite(low) and np.isfinite(high) and 0 < low < high):
+            raise ActionInputError(f"altitude_limits_m: expected 0 < min < max in m, got ({low!r}, {high!r})")
+        if altitude_layers_m is None:
+            bottom = max(low, model.best_altitude_m / 2)
+            top = min(high, model.best_altitude_m + 0.75 * (model.useless_altitude_m - model.best_altitude_m))
+            layers = np.geomspace(bottom, max(top, bottom), DEFAULT_LAYERS) if top > bottom else np.array([bottom])
+        else:
+            try:
+                layers = np.asarray([float(h) for h in altitude_layers_m])
+            except (TypeError, ValueError):
+                raise ActionInputError(
+                    f"altitude_layers_m: expected a sequence of altitudes in m, got {altitude_layers_m!r}") from None
+            if layers.size == 0 or not np.all(np.isfinite(layers)) or np.any((layers < low) | (layers > high)):
+                raise ActionInputError(
+                    f"altitude_layers_m: expected altitudes within altitude_limits_m [{low:g}, {high:g}] m, "
+                    f"got {tuple(layers)}")
+        for k, box in enumerate(buildings):
+            bounds = getattr(box, "bounds", None)
+            if bounds is None or len(tuple(bounds)) != 6:
+                raise ActionInputError(
+                    f"buildings[{k}]: expected a box with .bounds (x0, x1, y0, y1, z0, z1), got {box!r}")
+        if not (_is_number(preference_nats_per_person) and preference_nats_per_person >= 0):
+            raise ActionInputError(
+                f"preference_nats_per_person: expected a number >= 0 (nats), got {preference_nats_per_person!r}")
+        if horizon_m is not None and not (_is_number(horizon_m) and horizon_m > 0):
+            raise ActionInputError(f"horizon_m: expected a distance > 0 m or None, got {horizon_m!r}")
+        if not (_is_number(min_separation_m) and min_separation_m >= 0):
+            raise ActionInputError(f"min_separation_m: expected a distance >= 0 m, got {min_separation_m!r}")
+        if not (_is_number(target_threshold) and 0 < target_threshold < 1):
+            raise ActionInputError(f"target_threshold: expected a probability in (0, 1), got {target_threshold!r}")
+        if channel not in ("disc", "cell"):
+            raise ActionInputError(f"channel: expected 'disc' or 'cell', got {channel!r}")
+        if target_radius_m is not None and not (_is_number(target_radius_m) and target_radius_m > 0):
+            raise ActionInputError(f"target_radius_m: expected a radius > 0 m or None, got {target_radius_m!r}")
+        if climb_speed_m_s is not None and not (_is_number(climb_speed_m_s) and climb_speed_m_s > 0):
+            raise ActionInputError(f"climb_speed_m_s: expected a speed > 0 m/s or None, got {climb_speed_m_s!r}")
+        self.model = model
+        self.camera = camera
+        self.speed_m_s = float(speed_m_s)
+        self.image_rate_hz = float(image_rate_hz)
+        self.altitude_layers_m = np.sort(layers)
+        self.altitude_limits_m = (low, high)
+        self.buildings = tuple(buildings)
+        self.preference_nats_per_person = float(preference_nats_per_person)
+        self.min_separation_m = float(min_separation_m)
+        self.target_threshold = float(target_threshold)
+        self.channel = channel
+        self.single_legs = bool(single_legs)
+        self.fly_second_leg = bool(fly_second_leg)
+        self.target_radius_m = float(target_radius_m) if target_radius_m is not None else None
+        self.climb_speed_m_s = float(climb_speed_m_s) if climb_speed_m_s is not None else self.speed_m_s
+        self.image_spacing_m = self.speed_m_s / self.image_rate_hz
+        widths = np.array(camera.footprint_m(self.altitude_layers_m))  # (2, L)
+        self._half_widths = widths / 2
+        self.horizon_m = float(horizon_m) if horizon_m is not None else max(4 * self.image_spacing_m, 3 * widths.max())
+        # per layer: detection and false-alarm probabilities, association window
+        h = self.altitude_layers_m
+        self._pd = np.asarray(model.detection_probability(h, self.speed_m_s), dtype=float)
+        self._sigma = np.asarray(model.position_error_m(h), dtype=float)
+        self.reset(seed)
+
+    def reset(self, seed: int = 0) -> None:
+        """Start a new mission: forget the cached value maps; seed: reseeds the heading lattice's rotation."""
+        super().reset(seed)
+        self._cache = None
+
+    @classmethod
+    def for_world(cls, world, settings, **options) -> "ExpectedFreeEnergySearchPlanner":
+        """The planner for a :class:`attend.action.world.SearchWorld` flown with
+        :class:`attend.action.search_mission.SearchSettings` (detector, camera, speed, image
+        rate, separation, target threshold; altitude limits and buildings of the world).
+
+        world: the search world; settings: the mission settings; options: further constructor
+        arguments (e.g. preference_nats_per_person, horizon_m, altitude_layers_m, seed)."""
+        return cls(
+            model=settings.model,
+            camera=settings.camera,
+            speed_m_s=settings.speed_m_s,
+            image_rate_hz=settings.image_rate_hz,
+            altitude_limits_m=world.altitude_limits_m,
+            buildings=tuple(world.buildings),
+            min_separation_m=settings.min_separation_m,
+            target_threshold=settings.target_threshold,
+            **options,
+        )
+
+    # ----------------------------------------------------------------------------------------
+    # value maps
+
+    def layer_values(
+        self, probability: np.ndarray, cell_size_m: float, target_radius_m: float | None = None
+    ) -> np.ndarray:
+        """Value maps v_h (L, ny, nx) [nats per cell] of one look from each altitude layer
+        (module docstring: e_c + c_pref k_c).
+
+        probability: p (ny, nx), P(a person's centre is in the cell) (0 where not searchable);
+        cell_size_m: side s of a cell [m]; target_radius_m: r_t [m] (None: the planner's, else
+        max(1.5 m, 2 s))."""
+        p = np.asarray(probability, dtype=float)
+        radius = self._target_radius(cell_size_m) if target_radius_m is None else float(target_radius_m)
+        mass = np.minimum(box_sums(p, int(round(radius / cell_size_m))), 1.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            share = np.where(mass > _EPS, p / np.maximum(mass, _EPS), 0.0)
+        out = np.empty((len(self.altitude_layers_m),) + p.shape)
+        for layer in range(len(self.altitude_layers_m)):
+            out[layer] = self._layer_value(p, mass, share, layer, cell_size_m)
+        return out
+
+    def _target_radius(self, cell_size_m: float) -> float:
+        if self.target_radius_m is not None:
+            return self.target_radius_m
+        return max(1.5, 2 * cell_size_m)
+
+    def _layer_value(self, p, mass, share, layer: int, cell_size_m: float) -> np.ndarray:
+        """v_h of one layer from p, the disc masses m (clipped to 1) and the shares p / m."""
+        h = self.altitude_layers_m[layer]
+        pd = float(self._pd[layer])
+        association = cell_size_m**2 + np.pi * (ASSOCIATION_SIGMAS * self._sigma[layer]) ** 2
+        pf = float(self.model.false_alarm_probability_per_cell(h, self.camera, association))
+        if self.channel == "cell":
+            value = mutual_information(p, pd, pf)
+        else:
+            value = share * mutual_information(mass, pd, pf)
+        if self.preference_nats_per_person > 0:
+            theta = self.target_threshold
+            after = mass * pd / np.maximum(mass * pd + (1 - mass) * pf, _EPS)
+            confirms = (mass < theta) & (after >= theta)
+            value += self.preference_nats_per_person * pd * np.where(confirms, p, 0.0)
+        return value
+
+    # ----------------------------------------------------------------------------------------
+    # planning
+
+    def plan(
+        self, belief, uav: int, pose_m: np.ndarray, time_left_s: float, others: Sequence[np.ndarray] = ()
+    ) -> np.ndarray:
+        """Next waypoints (w, 3) [m] for UAV ``uav``: the two legs with the largest expected free
+        energy reduction per second (module docstring), an altitude change at the start of a leg
+        given as its own waypoint.
+
+        belief: the shared :class:`attend.action.probability_map.ProbabilityMap`; uav: index of
+        the UAV; pose_m: its pose (x, y, z) [m]; time_left_s: flight time left [s]; others: per
+        other UAV an array (k, 3) [m], its current pose then its planned waypoints."""
+        try:
+            pose = np.asarray(pose_m, dtype=float).reshape(3)
+        except (TypeError, ValueError):
+            raise ActionInputError(f"pose_m: expected (x, y, z) in m, got {pose_m!r}") from None
+        if not np.all(np.isfinite(pose)):
+            raise ActionInputError(f"pose_m: expected finite (x, y, z) in m, got {tuple(pose)}")
+        if not (_is_number(time_left_s) and time_left_s >= 0):
+            raise ActionInputError(f"time_left_s: expected a time >= 0 s, got {time_left_s!r}")
+        other_paths = []
+        for k, path in enumerate(others):
+            arr = np.asarray(path, dtype=float)
+            if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0 or not np.all(np.isfinite(arr)):
+                raise ActionInputError(f"others[{k}]: expected a finite array (k >= 1, 3) in m, got shape {arr.shape}")
+            other_paths.append(arr)
+        with single_blas_thread():
+            return self._plan(belief, pose, float(time_left_s), other_paths)
+
+    def _plan(self, belief, pose: np.ndarray, time_left_s: float, others: list[np.ndarray]) -> np.ndarray:
+        grid = belief.grid
+        lattice = _Lattice(grid)
+        if any(len(path) > 1 for path in others):
+            belief = belief.copy()
+            windows, altitudes = self._booked_images(grid, others)
+            if windows:
+                belief.expected_no_detection_update(
+                    windows, altitudes, self.model, self.camera, speeds_m_s=np.full(len(windows), self.speed_m_s))
+        radius = self.target_radius_m
+        if radius is None and hasattr(belief, "default_target_radius_m"):
+            radius = float(belief.default_target_radius_m())
+        if radius is None:
+            radius = self._target_radius(lattice.cell)
+        tables = self._value_tables(belief, lattice, float(radius))
+        # first legs
+        ends, layers = self._first_candidates(pose, lattice, tables, belief)
+        starts = np.broadcast_to(pose, ends.shape)
+        keep = self._feasible(starts, ends, lattice, others)
+        margin = OBSTACLE_MARGIN_M
+        if not np.any(keep):  # e.g. started within the margin of a building: only stay out of it
+            margin = 0.0
+            keep = self._feasible(starts, ends, lattice, others, margin)
+        if not np.any(keep):
+            return pose[None].copy()
+        ends, layers, starts = ends[keep], layers[keep], starts[keep]
+        value1, time1, ranges1, valid1, images1 = self._leg_values(tables, lattice, starts, ends, layers)
+        within = time1 <= max(time_left_s, 1.0 / self.image_rate_hz)
+        if np.any(within):
+            ends, layers, starts = ends[within], layers[within], starts[within]
+            value1, time1 = value1[within], time1[within]
+            ranges1, valid1, images1 = _take(ranges1, within), valid1[within], images1[within]
+        rate1 = value1 / time1
+        order = np.argsort(-rate1, kind="stable")[:EXPANDED_FIRST_LEGS]
+        # second legs from the best first legs
+        best_rate, best = (rate1[order[0]], (order[0], None)) if self.single_legs else (-np.inf, (order[0], None))
+        for parent in order:
+            ends2, layers2 = self._second_candidates(ends[parent], layers[parent], lattice)
+            starts2 = np.broadcast_to(ends[parent], ends2.shape)
+            ok = self._feasible(starts2, ends2, lattice, others, margin, float(time1[parent]))
+            if not np.any(ok):
+                continue
+            ends2, layers2, starts2 = ends2[ok], layers2[ok], starts2[ok]
+            value2, time2 = self._second_leg_values(
+                tables, lattice, starts2, ends2, layers2, _take(ranges1, parent), valid1[parent], images1[parent])
+            rate = (value1[parent] + value2) / (time1[parent] + time2)
+            j = int(np.argmax(rate))
+            if rate[j] > best_rate:
+                best_rate, best = rate[j], (parent, ends2[j])
+        parent, second = best
+        waypoints = _leg_waypoints(pose, ends[parent])
+        if second is not None and self.fly_second_leg:
+            waypoints += _leg_waypoints(ends[parent], second)
+        return np.array(waypoints, dtype=float)
+
+    def _value_tables(self, belief, lattice: _Lattice, radius_m: float) -> np.ndarray:
+        """Summed-area tables (L, ny + 1, nx + 1) of the value maps of ``belief``; the value maps
+        are kept between calls and recomputed only on the tiles (``VALUE_TILE_CELLS`` square)
+        whose cells changed, or that border such a tile (a disc mass reaches k < tile cells)."""
+        log_odds = np.asarray(belief.log_odds, dtype=float)
+        searchable = getattr(belief, "searchable", None)
+        k = int(round(radius_m / lattice.cell))
+        tile = max(VALUE_TILE_CELLS, 2 * k + 1)
+        cache = self._cache
+        fresh = (
+            cache is None or cache["grid"] != belief.grid or cache["radius"] != radius_m
+            or cache["searchable"] is not searchable or cache["log_odds"].shape != log_odds.shape
+        )
+        if not fresh:
+            changed = log_odds != cache["log_odds"]
+            if not changed.any():
+                return cache["tables"]
+            tiles = _changed_tiles(changed, tile)
+            fresh = len(tiles[0]) * tile * tile > 0.5 * log_odds.size
+        if fresh:
+            values = self.layer_values(_probability(log_odds, searchable), lattice.cell, radius_m)
+            n_layers, ny, nx = values.shape
+            cache = {"grid": belief.grid, "radius": radius_m, "searchable": searchable, "log_odds": log_odds.copy(),
+                     "values": values, "tables": np.zeros((n_layers, ny + 1, nx + 1))}
+            self._cache = cache
+        else:
+            ny, nx = log_odds.shape
+            values = cache["values"]
+            for ty, tx in zip(*tiles):
+                r0, r1, c0, c1 = ty * tile, min((ty + 1) * tile, ny), tx * tile, min((tx + 1) * tile, nx)
+                h0, h1, g0, g1 = max(r0 - k, 0), min(r1 + k, ny), max(c0 - k, 0), min(c1 + k, nx)
+                mask = None if searchable is None else searchable[h0:h1, g0:g1]
+                local = self.layer_values(_probability(log_odds[h0:h1, g0:g1], mask), lattice.cell, radius_m)
+                values[:, r0:r1, c0:c1] = local[:, r0 - h0:r1 - h0, c0 - g0:c1 - g0]
+            np.copyto(cache["log_odds"], log_odds)
+        tables = cache["tables"]
+        np.cumsum(cache["values"], axis=1, out=tables[:, 1:, 1:])
+        np.cumsum(tables[:, 1:, 1:], axis=2, out=tables[:, 1:, 1:])
+        return tables
+
+    def _booked_images(self, grid, others: list[np.ndarray]):
+        """Windows and altitudes of the images the other UAVs will take along their plans."""
+        windows, altitudes = [], []
+        for path in others:
+            for a, b in zip(path[:-1], path[1:]):
+                length = float(np.hypot(*(b[:2] - a[:2])))
+                n = max(1, int(round(length / self.image_spacing_m)))
+                for j in range(n):
+                    point = b + (a - b) * (j * self.image_spacing_m / length if length > 0 else 0.0)
+                    h = float(b[2])
+                    width_x, width_y = self.camera.footprint_m(h)
+                    windows.append(grid.window(float(point[0]), float(point[1]), float(width_x), float(width_y)))
+                    altitudes.append(h)
+        return windows, altitudes
+
+    def _first_candidates(self, pose, lattice: _Lattice, tables: np.ndarray, belief):
+        """First-leg end points (m, 3) and their layer indices (m,)."""
+        n_layers = len(self.altitude_layers_m)
+        smallest = 2 * float(self._half_widths[:, 0].min())
+        distances = np.geomspace(max(smallest / 2, lattice.cell), max(self.horizon_m, smallest), FIRST_DISTANCES)
+        headings = self.rng.uniform(0, 2 * np.pi) + np.arange(FIRST_HEADINGS) * (2 * np.pi / FIRST_HEADINGS)
+        dx = (distances[:, None] * np.cos(headings)[None]).ravel()
+        dy = (distances[:, None] * np.sin(headings)[None]).ravel()
+        xy = [np.column_stack([pose[0] + dx, pose[1] + dy]), pose[None, :2]]
+        # over the most probable cells within the horizon
+        r0, r1, c0, c1 = lattice.ranges(pose[0], pose[1], self.horizon_m, self.horizon_m)
+        searchable = getattr(belief, "searchable", None)
+        near = _probability(belief.log_odds[r0:r1, c0:c1], None if searchable is None else searchable[r0:r1, c0:c1])
+        if near.size:
+            count = min(PEAK_CELLS, near.size)
+            flat = np.argpartition(near.ravel(), near.size - count)[near.size - count:]
+            rows, cols = np.unravel_index(flat, near.shape)
+            cx, cy = lattice.cell_centre(rows + r0, cols + c0)
+            xy.append(np.column_stack([cx, cy]))
+        xy = np.vstack(xy)
+        ends = [np.column_stack([xy, np.full(len(xy), h)]) for h in self.altitude_layers_m]
+        layers = [np.full(len(xy), k) for k in range(n_layers)]
+        # straight to the best coarse blocks of the whole area
+        far = self._long_range_targets(pose, lattice, tables)
+        if len(far):
+            ends.append(far[:, :3])
+            layers.append(far[:, 3].astype(np.intp))
+        return np.vstack(ends), np.concatenate(layers)
+
+    def _long_range_targets(self, pose, lattice: _Lattice, tables: np.ndarray) -> np.ndarray:
+        """(k, 4) rows (x, y, h, layer): centres of the blocks (one footprint each, tiling the
+        map) with the largest value per second of flying there and imaging them, per layer."""
+        out = []
+        for layer, h in enumerate(self.altitude_layers_m):
+            bx = max(1, int(2 * self._half_widths[0, layer] / lattice.cell))
+            by = max(1, int(2 * self._half_widths[1, layer] / lattice.cell))
+            r0 = np.arange(0, lattice.ny, by)
+            c0 = np.arange(0, lattice.nx, bx)
+            r1, c1 = np.minimum(r0 + by, lattice.ny), np.minimum(c0 + bx, lattice.nx)
+            table = tables[layer]
+            block = (table[np.ix_(r1, c1)] - table[np.ix_(r0, c1)]) - (table[np.ix_(r1, c0)] - table[np.ix_(r0, c0)])
+            cx, _ = lattice.cell_centre(0, (c0 + c1 - 1) / 2)
+            _, cy = lattice.cell_centre((r0 + r1 - 1) / 2, 0)
+            distance = np.hypot(cx[None, :] - pose[0], cy[:, None] - pose[1])
+            seconds = distance / self.speed_m_s + abs(h - pose[2]) / self.climb_speed_m_s + 1.0 / self.image_rate_hz
+            score = block / seconds
+            count = min(LONG_RANGE_BLOCKS, score.size)
+            flat = np.argpartition(score.ravel(), score.size - count)[score.size - count:]
+            rows, cols = np.unravel_index(flat, score.shape)
+            for i, j in zip(rows, cols):
+                if block[i, j] > 0:
+                    out.append((cx[j], cy[i], h, layer))
+        return np.array(out, dtype=float).reshape(-1, 4)
+
+    def _second_candidates(self, start, layer: int, lattice: _Lattice):
+        """Second-leg end points (m, 3) from ``start`` at the start's layer and its neighbours, and their layers."""
+        n_layers = len(self.altitude_layers_m)
+        smallest = 2 * float(self._half_widths[:, 0].min())
+        distances = np.geomspace(max(smallest, lattice.cell), max(self.horizon_m / 2, smallest), SECOND_DISTANCES)
+        headings = np.arange(SECOND_HEADINGS) * (2 * np.pi / SECOND_HEADINGS)
+        dx = (distances[:, None] * np.cos(headings)[None]).ravel()
+        dy = (distances[:, None] * np.sin(headings)[None]).ravel()
+        xy = np.column_stack([start[0] + dx, start[1] + dy])
+        chosen = [k for k in (layer - 1, layer, layer + 1) if 0 <= k < n_layers]
+        ends = np.vstack([np.column_stack([xy, np.full(len(xy), self.altitude_layers_m[k])]) for k in chosen])
+        layers = np.concatenate([np.full(len(xy), k) for k in chosen])
+        return ends, layers
+
+    def _feasible(self, starts, ends, lattice: _Lattice, others: list[np.ndarray], margin_m: float = OBSTACLE_MARGIN_M,
+                  delay_s: float = 0.0):
+        """(m,) mask of legs inside the map and altitude limits, ``margin_m`` clear of buildings,
+        ending ``min_separation_m`` from the other UAVs' poses and waypoints and kept apart from
+        them in flight (:meth:`_kept_apart`; the leg starts ``delay_s`` [s] from now)."""
+        x0, x1, y0, y1 = lattice.extent
+        low, high = self.altitude_limits_m
+        ok = (ends[:, 0] >= x0) & (ends[:, 0] <= x1) & (ends[:, 1] >= y0) & (ends[:, 1] <= y1)
+        ok &= (ends[:, 2] >= low - 1e-9) & (ends[:, 2] <= high + 1e-9)
+        if self.buildings:
+            corner = np.column_stack([starts[:, :2], ends[:, 2]])
+            for box in self.buildings:
+                bounds = tuple(box.bounds)
+                ok &= ~segments_hit_box(starts, corner, bounds, margin_m)
+                ok &= ~segments_hit_box(corner, ends, bounds, margin_m)
+        if others and self.min_separation_m > 0:
+            points = np.vstack(others)
+            gap = np.sqrt(((ends[:, None, :] - points[None, :, :]) ** 2).sum(axis=2)).min(axis=1)
+            ok &= gap >= self.min_separation_m
+            ok &= self._kept_apart(starts, ends, others, delay_s)
+        return ok
+
+    def _kept_apart(self, starts, ends, others: list[np.ndarray], delay_s: float) -> np.ndarray:
+        """(m,) mask of legs along which the UAV stays ``min_separation_m`` from every other UAV
+        flying its plan (at v, then hovering at its end), or at least does not close in on one it
+        is already nearer than that; the leg starts ``delay_s`` from now, is flown altitude change
+        first at v, and both are compared at ``SEPARATION_SAMPLES`` times along it."""
+        fraction = np.linspace(0.0, 1.0, SEPARATION_SAMPLES)
+        vertical = np.abs(ends[:, 2] - starts[:, 2])
+        horizontal = np.hypot(ends[:, 0] - starts[:, 0], ends[:, 1] - starts[:, 1])
+        length = vertical + horizontal
+        walked = length[:, None] * fraction[None, :]  # (m, S) distance along the leg
+        up = np.clip(walked / np.maximum(vertical[:, None], _EPS), 0.0, 1.0)
+        level = np.clip((walked - vertical[:, None]) / np.maximum(horizontal[:, None], _EPS), 0.0, 1.0)
+        mine = np.empty(walked.shape + (3,))
+        mine[..., 2] = starts[:, None, 2] + up * (ends[:, None, 2] - starts[:, None, 2])
+        for axis in (0, 1):
+            mine[..., axis] = starts[:, None, axis] + level * (ends[:, None, axis] - starts[:, None, axis])
+        ok = np.ones(len(starts), dtype=bool)
+        for path in others:
+            theirs = _along_path(path, delay_s * self.speed_m_s + walked)  # (m, S, 3)
+            gap = np.linalg.norm(mine - theirs, axis=2)
+            closing = (gap < self.min_separation_m) & (gap < gap[:, :1] - 1e-9)
+            ok &= ~closing.any(axis=1)
+        return ok
+
+    def _image_points(self, starts, ends):
+        """Image positions (m, n, 2) along legs (last image at the end), validity (m, n), time (m,)."""
+        delta = ends[:, :2] - starts[:, :2]
+        length = np.hypot(delta[:, 0], delta[:, 1])
+        count = np.maximum(1, np.round(length / self.image_spacing_m)).astype(np.intp)
+        n = int(count.max())
+        back = np.arange(n)[None, :] * self.image_spacing_m  # distance back from the end
+        valid = np.arange(n)[None, :] < count[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            unit = np.where(length[:, None] > 0, delta / np.maximum(length[:, None], _EPS), 0.0)
+        along = np.clip(length[:, None] - back, 0.0, None)
+        points = starts[:, None, :2] + unit[:, None, :] * along[..., None]
+        seconds = length / self.speed_m_s + np.abs(ends[:, 2] - starts[:, 2]) / self.climb_speed_m_s
+        seconds = np.maximum(seconds, count / self.image_rate_hz)
+        return points, valid, seconds
+
+    def _footprint_ranges(self, lattice: _Lattice, points, layers):
+        half_x = self._half_widths[0, layers][:, None]
+        half_y = self._half_widths[1, layers][:, None]
+        return lattice.ranges(points[..., 0], points[..., 1], half_x, half_y)
+
+    def _leg_values(self, tables, lattice: _Lattice, starts, ends, layers):
+        """Value (m,) [nats] of the union of each leg's footprints, time (m,) [s], and the image
+        ranges, validity and positions (for the second leg's overlap)."""
+        points, valid, seconds = self._image_points(starts, ends)
+        ranges = self._footprint_ranges(lattice, points, layers)
+        lay = np.broadcast_to(layers[:, None], valid.shape)
+        own = _table_sums(tables, lay, ranges)
+        # images are ordered from the end backwards: image j overlaps image j + 1 (its predecessor in time)
+        previous = tuple(np.concatenate([r[:, 1:], r[:, -1:]], axis=1) for r in ranges)
+        overlap = _table_sums(tables, lay, _intersect(ranges, previous))
+        has_previous = np.concatenate([valid[:, 1:], np.zeros((len(valid), 1), dtype=bool)], axis=1)
+        net = np.where(valid, np.maximum(own - np.where(has_previous, overlap, 0.0), 0.0), 0.0)
+        return net.sum(axis=1), seconds, ranges, valid, points
+
+    def _second_leg_values(self, tables, lattice: _Lattice, starts, ends, layers, ranges1, valid1, points1):
+        """Value (m,) and time (m,) of second legs, each image net of its overlap with its
+        predecessor (the first leg's last image for the earliest) or with the nearest image of the
+        first leg, whichever is larger."""
+        points, valid, seconds = self._image_points(starts, ends)
+        ranges = self._footprint_ranges(lattice, points, layers)
+        lay = np.broadcast_to(layers[:, None], valid.shape)
+        own = _table_sums(tables, lay, ranges)
+        count = valid.sum(axis=1)
+        # predecessor in time: the next image in the (end-backwards) order, or the first leg's last image (index 0)
+        idx = np.arange(valid.shape[1])[None, :]
+        first_last = tuple(np.broadcast_to(r[0], valid.shape) for r in ranges1)
+        previous = tuple(
+            np.where(idx + 1 < count[:, None], np.concatenate([r[:, 1:], r[:, -1:]], axis=1), f)
+            for r, f in zip(ranges, first_last)
+        )
+        overlap = _table_sums(tables, lay, _intersect(ranges, previous))
+        # nearest image of the first leg
+        p1 = points1[valid1]
+        r1 = tuple(r[valid1] for r in ranges1)
+        d2 = ((points[:, :, None, :] - p1[None, None, :, :]) ** 2).sum(axis=3)
+        nearest = np.argmin(d2, axis=2)
+        near_ranges = tuple(r[nearest] for r in r1)
+        overlap = np.maximum(overlap, _table_sums(tables, lay, _intersect(ranges, near_ranges)))
+        net = np.where(valid, np.maximum(own - overlap, 0.0), 0.0)
+        return net.sum(axis=1), seconds
+
+
+def _probability(log_odds: np.ndarray, searchable: np.ndarray | None) -> np.ndarray:
+    """p = 1 / (1 + exp(-l)), 0 where not searchable."""
+    p = expit(np.asarray(log_odds, dtype=float))
+    return p if searchable is None else np.where(searchable, p, 0.0)
+
+
+def _changed_tiles(changed: np.ndarray, tile: int) -> tuple[np.ndarray, np.ndarray]:
+    """(tile rows, tile columns) of the tiles holding a changed cell, and of their 8 neighbours."""
+    ny, nx = changed.shape
+    per_row = np.logical_or.reduceat(changed, np.arange(0, ny, tile), axis=0)
+    marked = np.logical_or.reduceat(per_row, np.arange(0, nx, tile), axis=1)
+    grown = marked.copy()
+    grown[1:] |= marked[:-1]
+    grown[:-1] |= marked[1:]
+    wide = grown.copy()
+    wide[:, 1:] |= grown[:, :-1]
+    wide[:, :-1] |= grown[:, 1:]
+    return np.nonzero(wide)
+
+
+def _along_path(path: np.ndarray, distance_m: np.ndarray) -> np.ndarray:
+    """Points (..., 3) at ``distance_m`` along the polyline ``path`` (k, 3) from its first point
+    (its last point beyond its end)."""
+    steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    if len(steps) == 0 or steps.sum() <= 0:
+        return np.broadcast_to(path[0], np.shape(distance_m) + (3,))
+    cumulative = np.concatenate([[0.0], np.cumsum(steps)])
+    d = np.clip(distance_m, 0.0, cumulative[-1])
+    return np.stack([np.interp(d, cumulative, path[:, axis]) for axis in range(3)], axis=-1)
+
+
+def _table_sums(tables, layers, ranges):
+    r0, r1, c0, c1 = ranges
+    return tables[layers, r1, c1] - tables[layers, r0, c1] - tables[layers, r1, c0] + tables[layers, r0, c0]
+
+
+def _leg_waypoints(start, end) -> list[np.ndarray]:
+    """A leg flown as an altitude change at its start (when there is one), then level flight."""
+    out = []
+    if abs(end[2] - start[2]) > 1e-9 and np.hypot(end[0] - start[0], end[1] - start[1]) > 1e-9:
+        out.append(np.array([start[0], start[1], end[2]]))
+    out.append(np.asarray(end, dtype=float).copy())
+    return out
+
+
+def _is_number(value) -> bool:
+    return (
+        isinstance(value, (int, float, np.integer, np.floating))
+        and not isinstance(value, (bool, np.bool_))
+        and bool(np.isfinite(value))
+    )

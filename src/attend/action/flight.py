@@ -7,6 +7,21 @@ and the distance flown after time s into it is the trapezoid/triangle integral. 
 every ``image_period_s`` (1 / 0.15 Hz) on the mission clock, so the first image of a new plan comes
 ``time_to_next_image_s`` after the plan starts; when a segment ends before the next image the UAV
 hovers at the waypoint until it is taken (every waypoint yields at least one image).
+
+Routes clear of buildings (:func:`clear_route`), from start s to goal g among boxes B_b: every
+segment keeps a clearance c_b = min(m / 2, d(s, B_b) / 2, d(g, B_b) / 2) from box b (m the
+margin, d the Euclidean distance from a point to a box: an end already closer than m / 2 to a
+box may still leave it). In order:
+
+1. the straight segment s -> g if it clears every box;
+2. else the shortest path from s to g through the box corners inflated by m, at the goal's
+   altitude g_z (the visibility graph: an edge is a segment clearing every box; corners
+   outside the area are dropped), found by Dijkstra; the path bends only at corners, so it is
+   the shortest route of that form, not the shortest in free space;
+3. else over the top: climb at s to z_c = max(s_z, g_z, max over the boxes whose footprint,
+   widened by m, the ground trace s -> g crosses of (roof + m)), fly level to above g, descend
+   to g, when z_c <= the ceiling (the altitude limit) and these three segments clear every box;
+4. else no route: ActionInputError.
 """
 
 from __future__ import annotations
@@ -15,6 +30,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
+from scipy.sparse.csgraph import csgraph_from_dense, dijkstra
 
 from attend.action.camera import segments_hit_box
 from attend.action.errors import ActionInputError
@@ -199,3 +215,89 @@ def detour(start_m: np.ndarray, goal_m: np.ndarray, obstacles: Sequence[Obstacle
         if best is not None:
             route = list(best) + route
     return np.array(route)
+
+
+def box_distance(point_m: np.ndarray, bounds: Sequence[float]) -> float:
+    """Euclidean distance [m] from ``point_m`` (x, y, z) [m] to the box ``bounds`` (x_min, x_max,
+    y_min, y_max, z_min, z_max) [m]; 0 inside or on it."""
+    p = np.asarray(point_m, dtype=float)
+    low, high = np.asarray(bounds, dtype=float)[0::2], np.asarray(bounds, dtype=float)[1::2]
+    return float(np.linalg.norm(np.maximum(np.maximum(low - p, p - high), 0.0)))
+
+
+def _segments_clear(start: np.ndarray, end: np.ndarray, obstacles: Sequence[Obstacle], clearances: np.ndarray) -> np.ndarray:
+    """(k,) bools: segment start -> end (arrays (k, 3) [m]) keeps clearance c_b from every box b."""
+    clear = np.ones(len(start), dtype=bool)
+    for box, clearance in zip(obstacles, clearances):
+        clear &= ~segments_hit_box(start, end, box.bounds, float(clearance))
+    return clear
+
+
+def clear_route(
+    start_m: np.ndarray,
+    goal_m: np.ndarray,
+    obstacles: Sequence[Obstacle],
+    margin_m: float = 1.5,
+    ceiling_m: float = np.inf,
+    extent_m: Sequence[float] | None = None,
+) -> np.ndarray:
+    """Waypoints (j, 3) [m] from start to goal, ending at goal, every segment (the first from the
+    start) clear of every box: straight, else around the boxes by the shortest corner path,
+    else over them (module docstring for the rule).
+
+    start_m, goal_m: positions (x, y, z) [m], (3,); obstacles: the boxes; margin_m: m, how far
+    outside the boxes the corners lie [m] (>= 0; the clearance kept is m / 2); ceiling_m:
+    highest altitude a climb over the boxes may reach [m]; extent_m: (x0, x1, y0, y1) [m] of
+    the area the corners must lie in (None: anywhere). Raises ActionInputError when no route
+    of the three kinds exists (e.g. the goal inside a box)."""
+    start, goal = np.asarray(start_m, dtype=float), np.asarray(goal_m, dtype=float)
+    if start.shape != (3,) or goal.shape != (3,) or not (np.all(np.isfinite(start)) and np.all(np.isfinite(goal))):
+        raise ActionInputError(f"start_m, goal_m: expected finite (x, y, z) in m, got {start_m!r}, {goal_m!r}")
+    if not (np.isfinite(margin_m) and margin_m >= 0):
+        raise ActionInputError(f"margin_m: expected a distance >= 0 m, got {margin_m!r}")
+    boxes = tuple(obstacles)
+    if not boxes:
+        return goal[None].copy()
+    clearances = np.array(
+        [min(margin_m / 2, box_distance(start, b.bounds) / 2, box_distance(goal, b.bounds) / 2) for b in boxes]
+    )
+    if _segments_clear(start[None], goal[None], boxes, clearances)[0]:
+        return goal[None].copy()
+    # around: the visibility graph of the inflated corners at the goal's altitude
+    corners = np.array([
+        [x, y, goal[2]]
+        for box in boxes
+        for x in (box.bounds[0] - margin_m, box.bounds[1] + margin_m)
+        for y in (box.bounds[2] - margin_m, box.bounds[3] + margin_m)
+    ])
+    if extent_m is not None:
+        x0, x1, y0, y1 = extent_m
+        corners = corners[(corners[:, 0] >= x0) & (corners[:, 0] <= x1) & (corners[:, 1] >= y0) & (corners[:, 1] <= y1)]
+    nodes = np.vstack([start[None], goal[None], corners])
+    i, j = np.triu_indices(len(nodes), 1)
+    usable = _segments_clear(nodes[i], nodes[j], boxes, clearances)
+    lengths = np.full((len(nodes), len(nodes)), np.inf)
+    edge = np.maximum(np.linalg.norm(nodes[j] - nodes[i], axis=1), 1e-12)
+    lengths[i[usable], j[usable]] = lengths[j[usable], i[usable]] = edge[usable]
+    distance, previous = dijkstra(csgraph_from_dense(lengths, null_value=np.inf), indices=0, return_predecessors=True)
+    if np.isfinite(distance[1]):
+        path, node = [], 1
+        while node != 0:
+            path.append(nodes[node])
+            node = previous[node]
+        return np.array(path[::-1])
+    # over: climb above the roofs under the ground trace
+    ground_start, ground_goal = np.r_[start[:2], 0.0][None], np.r_[goal[:2], 0.0][None]
+    under = [b for b in boxes if segments_hit_box(ground_start, ground_goal, b.bounds, margin_m)[0]]
+    cruise = max([start[2], goal[2]] + [b.bounds[5] + margin_m for b in under])
+    if cruise <= ceiling_m:
+        route = np.array([[start[0], start[1], cruise], [goal[0], goal[1], cruise], goal])
+        points = np.vstack([start[None], route])
+        keep = np.r_[True, np.linalg.norm(np.diff(points, axis=0), axis=1) > 1e-9]
+        points = points[keep]
+        if _segments_clear(points[:-1], points[1:], boxes, clearances).all():
+            return points[1:] if len(points) > 1 else goal[None].copy()
+    raise ActionInputError(
+        f"goal_m: no route clear of the buildings from {tuple(np.round(start, 3))} to {tuple(np.round(goal, 3))} m "
+        f"around them or over them below the ceiling {ceiling_m:g} m"
+    )

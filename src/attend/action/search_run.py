@@ -150,7 +150,7 @@ def make_search_planner(name: str, world: SearchWorld, settings: SearchSettings,
         low, high = world.altitude_limits_m
         altitude = float(np.clip(settings.model.best_altitude_m, low, high))
         return FieldLawnmowerPlanner(altitude_m=altitude, camera=settings.camera, n_uavs=settings.n_uavs,
-                                     buildings=world.buildings)
+                                     buildings=world.buildings, max_altitude_m=high)
     raise ActionInputError(f"planner: expected one of {sorted(SEARCH_PLANNERS)} on the probability map, got {name!r}")
 
 

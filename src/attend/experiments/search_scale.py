@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from attend.action.flight import detour
+from attend.action.flight import clear_route
 from attend.action.planners.search_base import SearchPlanner
 from attend.action.search_mission import fly_search
 from attend.action.search_run import make_search_planner, mission_setup
@@ -49,16 +49,22 @@ FOUND_FRACTION = 0.9
 
 class TruthOraclePlanner(SearchPlanner):
     """Knows where the people are: flies to the nearest person not yet found, at ``altitude_m``
-    (around the buildings in the way), and hovers there for an image; then the next one (the best a planner could do with the same
-    camera and detector)."""
+    (by :func:`attend.action.flight.clear_route`: around the buildings in the way, else over them
+    below ``max_altitude_m``), and hovers there for an image; then the next one (the best a
+    planner could do with the same camera and detector). A person closer to a building taller
+    than ``altitude_m`` than ``building_margin_m`` / 2 is looked at from the nearest point
+    ``building_margin_m`` outside its wall."""
 
     name = "oracle"
 
-    def __init__(self, people_m: np.ndarray, altitude_m: float, found_radius_m: float = 3.0, buildings=()) -> None:
+    def __init__(self, people_m: np.ndarray, altitude_m: float, found_radius_m: float = 3.0, buildings=(),
+                 building_margin_m: float = 1.5, max_altitude_m: float = 120.0) -> None:
         self.people_m = np.asarray(people_m, dtype=float)
         self.buildings = tuple(buildings)
         self.altitude_m = float(altitude_m)
         self.found_radius_m = float(found_radius_m)
+        self.building_margin_m = float(building_margin_m)
+        self.max_altitude_m = float(max_altitude_m)
 
     def plan(self, belief, uav, pose_m, time_left_s, others=()):
         pose = np.asarray(pose_m, dtype=float)
@@ -71,7 +77,22 @@ class TruthOraclePlanner(SearchPlanner):
         if not unfound:
             return np.array([[pose[0], pose[1], self.altitude_m]])
         goal = min(unfound, key=lambda p: np.linalg.norm(p - pose[:2]))
-        return detour(pose, np.array([goal[0], goal[1], self.altitude_m]), self.buildings)
+        hover = self._outside_buildings(np.array([goal[0], goal[1], self.altitude_m]))
+        return clear_route(pose, hover, self.buildings, self.building_margin_m, self.max_altitude_m, belief.grid.extent_m)
+
+    def _outside_buildings(self, point: np.ndarray) -> np.ndarray:
+        """``point`` moved out of every building it lies within half the margin of, to the
+        nearest side ``building_margin_m`` outside the wall."""
+        m = self.building_margin_m
+        for box in self.buildings:
+            x0, x1, y0, y1, _, top = box.bounds
+            if point[2] <= top + m / 2 and x0 - m / 2 <= point[0] <= x1 + m / 2 and y0 - m / 2 <= point[1] <= y1 + m / 2:
+                moves = [(point[0] - (x0 - m), 0, x0 - m), (x1 + m - point[0], 0, x1 + m),
+                         (point[1] - (y0 - m), 1, y0 - m), (y1 + m - point[1], 1, y1 + m)]
+                _, axis, value = min(moves)
+                point = point.copy()
+                point[axis] = value
+        return point
 
 
 def mission(task: dict) -> dict:
@@ -83,7 +104,7 @@ def mission(task: dict) -> dict:
                                     budget_s=task["budget_s"])
     if task["planner"] == "oracle":
         planner = TruthOraclePlanner(world.people_m, settings.model.best_altitude_m, settings.found_radius_m,
-                                     world.buildings)
+                                     world.buildings, max_altitude_m=world.altitude_limits_m[1])
     else:
         planner = make_search_planner(task["planner"], world, settings, int(task["seed"]))
     log = fly_search(world, planner, settings, int(task["seed"]))

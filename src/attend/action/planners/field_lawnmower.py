@@ -7,8 +7,11 @@ n = ceil(W / d) tracks, the first and last half a spacing inside the strip's edg
 others evenly between them (spacing (W - d) / (n - 1) <= d: when W / d is not whole, the
 overlap is spread over all tracks rather than put in one near-duplicate track), joined end to
 end (serpentine). When the
-pattern ends the UAV flies it again backwards. Segments that would pass through a building are
-routed around it (:func:`attend.action.flight.detour`).
+pattern ends the UAV flies it again backwards. Every leg is flown by
+:func:`attend.action.flight.clear_route`: straight when it clears every building by half the
+building margin, else around the buildings by the shortest path through their corners (widened
+by the margin, inside the area), else over them below the altitude ceiling. A pattern waypoint
+inside a building widened by half the margin (a roof above h near the area's edge) is skipped.
 
 :func:`best_lawnmower` tunes h and d / w_x(h) on given worlds by the median time to find a
 fraction (90 %) of the people.
@@ -24,7 +27,7 @@ import numpy as np
 from attend.action.camera import Camera
 from attend.action.errors import ActionInputError
 from attend.action.field import Obstacle
-from attend.action.flight import detour, path_collides
+from attend.action.flight import clear_route, path_collides
 from attend.action.planners.search_base import SearchPlanner
 from attend.action.probability_map import MapGrid
 
@@ -36,7 +39,9 @@ class FieldLawnmowerPlanner(SearchPlanner):
     footprint; n_uavs: strips the area is cut into (UAV k flies strip k mod n_uavs);
     buildings: boxes to fly around; waypoints_per_plan: pattern waypoints returned per plan
     (>= 1); end_inset_m: how far inside the area's south and north edges the tracks turn [m]
-    (0: at the edges); building_margin_m: clearance kept from buildings on detours [m].
+    (0: at the edges); building_margin_m: how far outside the buildings detours turn [m] (half
+    of it is the clearance kept); max_altitude_m: the ceiling of climbs over buildings [m] (the
+    world's upper altitude limit).
     """
 
     name = "lawnmower"
@@ -51,6 +56,7 @@ class FieldLawnmowerPlanner(SearchPlanner):
         waypoints_per_plan: int = 4,
         end_inset_m: float = 0.0,
         building_margin_m: float = 1.5,
+        max_altitude_m: float = 120.0,
     ) -> None:
         if not (np.isfinite(altitude_m) and altitude_m > 0):
             raise ActionInputError(f"altitude_m: expected an altitude > 0 m, got {altitude_m!r}")
@@ -64,7 +70,10 @@ class FieldLawnmowerPlanner(SearchPlanner):
             raise ActionInputError(f"end_inset_m: expected a distance >= 0 m, got {end_inset_m!r}")
         if not (np.isfinite(building_margin_m) and building_margin_m >= 0):
             raise ActionInputError(f"building_margin_m: expected a distance >= 0 m, got {building_margin_m!r}")
+        if not (np.isfinite(max_altitude_m) and max_altitude_m > 0):
+            raise ActionInputError(f"max_altitude_m: expected an altitude > 0 m, got {max_altitude_m!r}")
         self.altitude_m = float(altitude_m)
+        self.max_altitude_m = float(max_altitude_m)
         self.camera = camera
         self.track_spacing_m = float(track_spacing_m) if track_spacing_m is not None else float(camera.footprint_m(altitude_m)[0])
         self.n_uavs = int(n_uavs)
@@ -117,7 +126,10 @@ class FieldLawnmowerPlanner(SearchPlanner):
                 self._next[uav] = 1 if len(pattern) > 1 else 0
             chosen.append(pattern[self._next[uav]])
             self._next[uav] += 1
-        return self._around_buildings(pose, np.array(chosen))
+        reachable = [w for w in chosen if not self._in_building(w)]
+        if not reachable:
+            return pose[None].copy()
+        return self._around_buildings(pose, np.array(reachable), belief.grid.extent_m)
 
     def _oriented(self, pattern: np.ndarray, pose: np.ndarray) -> np.ndarray:
         """Of the pattern's four mirror images (west/east first, north/south first), the one
@@ -135,15 +147,18 @@ class FieldLawnmowerPlanner(SearchPlanner):
                 variants.append(v)
         return min(variants, key=lambda v: float(np.linalg.norm(v[0, :2] - pose[:2])))
 
-    def _around_buildings(self, pose: np.ndarray, waypoints: np.ndarray) -> np.ndarray:
+    def _in_building(self, waypoint: np.ndarray) -> bool:
+        """Whether the waypoint lies inside a building widened by half the building margin."""
+        return bool(path_collides(np.array([[waypoint, waypoint]]), self.buildings, self.building_margin_m / 2)[0])
+
+    def _around_buildings(self, pose: np.ndarray, waypoints: np.ndarray, extent_m) -> np.ndarray:
+        """The waypoints with every leg (from ``pose`` [m]) flown by :func:`clear_route` inside
+        the area ``extent_m`` (x0, x1, y0, y1) [m]."""
         if not self.buildings:
             return waypoints
         route, current = [], pose
         for goal in waypoints:
-            if path_collides(np.array([[current, goal]]), self.buildings, margin_m=0.5)[0]:
-                route.extend(detour(current, goal, self.buildings, self.building_margin_m))
-            else:
-                route.append(goal)
+            route.extend(clear_route(current, goal, self.buildings, self.building_margin_m, self.max_altitude_m, extent_m))
             current = goal
         return np.array(route)
 
@@ -159,10 +174,13 @@ class LawnmowerTuning:
     median_time_s: float
     times_s: dict[tuple[float, float], list[float]] = field(default_factory=dict)
 
-    def planner(self, camera: Camera, n_uavs: int, buildings: Sequence[Obstacle] = ()) -> FieldLawnmowerPlanner:
-        """The tuned planner for a world with these ``buildings``; camera: the footprint; n_uavs: strips."""
+    def planner(
+        self, camera: Camera, n_uavs: int, buildings: Sequence[Obstacle] = (), max_altitude_m: float = 120.0
+    ) -> FieldLawnmowerPlanner:
+        """The tuned planner for a world with these ``buildings``; camera: the footprint; n_uavs:
+        strips; max_altitude_m: the ceiling of climbs over buildings [m]."""
         spacing = self.spacing_factor * float(camera.footprint_m(self.altitude_m)[0])
-        return FieldLawnmowerPlanner(self.altitude_m, spacing, camera, n_uavs, buildings)
+        return FieldLawnmowerPlanner(self.altitude_m, spacing, camera, n_uavs, buildings, max_altitude_m=max_altitude_m)
 
 
 def best_lawnmower(
@@ -197,7 +215,8 @@ def best_lawnmower(
             for seed in seeds:
                 world = worlds[seed]
                 spacing = factor * float(settings.camera.footprint_m(h)[0])
-                planner = FieldLawnmowerPlanner(h, spacing, settings.camera, settings.n_uavs, world.buildings)
+                planner = FieldLawnmowerPlanner(h, spacing, settings.camera, settings.n_uavs, world.buildings,
+                                                max_altitude_m=world.altitude_limits_m[1])
                 log = fly_search(world, planner, settings, seed)
                 times.append(log.time_to_fraction_s(fraction))
                 found.append(len(log.found_times_s) / max(log.people_total, 1))

@@ -71,7 +71,7 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
-from scipy.special import expit
+from scipy.special import expit, gammaln
 from attend._threads import single_blas_thread
 
 from attend.action.camera import Camera, segments_hit_box
@@ -100,6 +100,8 @@ SEPARATION_SAMPLES = 24
 VALUE_TILE_CELLS = 64
 #: Default number of altitude layers.
 DEFAULT_LAYERS = 5
+#: Most looks of one cell along a path whose value is counted (later looks count 0: a lower bound).
+MAX_LOOKS = 8
 
 _EPS = 1e-12
 
@@ -124,6 +126,47 @@ def mutual_information(p: np.ndarray | float, pd: float, pf: float) -> np.ndarra
     p = np.clip(np.asarray(p, dtype=float), 0.0, 1.0)
     h_pd, h_pf = binary_entropy(pd), binary_entropy(pf)
     return np.maximum(binary_entropy(p * pd + (1 - p) * pf) - p * h_pd - (1 - p) * h_pf, 0.0)
+
+
+def _binomial_pmf(k: int, q: float) -> np.ndarray:
+    """P(j of k independent looks report, each with probability q), j = 0 .. k."""
+    j = np.arange(k + 1)
+    log_choose = gammaln(k + 1) - gammaln(j + 1) - gammaln(k - j + 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        log_pmf = log_choose + np.where(j > 0, j * np.log(q), 0.0) + np.where(k - j > 0, (k - j) * np.log1p(-q), 0.0)
+    return np.exp(log_pmf)
+
+
+def multi_look_information(p: np.ndarray | float, pd: float, pf: float, looks: int) -> np.ndarray:
+    """I_k(p) [nats]: the information k independent looks give about a binary state that is 1
+    with probability p, each look reporting with probability pd when it is 1 and pf when it is 0
+    (the count of reports is a sufficient statistic: Binomial(k, pd) or Binomial(k, pf)).
+    I_1 = :func:`mutual_information`."""
+    p = np.clip(np.asarray(p, dtype=float), 0.0, 1.0)
+    one, zero = _binomial_pmf(looks, pd), _binomial_pmf(looks, pf)
+    mixture = p[..., None] * one + (1 - p[..., None]) * zero
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h_mix = -np.sum(np.where(mixture > 0, mixture * np.log(np.where(mixture > 0, mixture, 1.0)), 0.0), axis=-1)
+        h_one = -np.sum(np.where(one > 0, one * np.log(np.where(one > 0, one, 1.0)), 0.0))
+        h_zero = -np.sum(np.where(zero > 0, zero * np.log(np.where(zero > 0, zero, 1.0)), 0.0))
+    return np.maximum(h_mix - p * h_one - (1 - p) * h_zero, 0.0)
+
+
+def confirmation_probability(mass: np.ndarray | float, pd: float, pf: float, looks: int, threshold: float) -> np.ndarray:
+    """P(k looks confirm a person who is there): the probability, given a person in a disc of
+    mass m < theta, that the reports of k looks (j ~ Binomial(k, pd)) lift the disc's odds,
+    m / (1 - m) (pd / pf)^j ((1 - pd) / (1 - pf))^(k - j), to theta / (1 - theta) or above (the
+    mass after the k looks; 0 when m >= theta)."""
+    m = np.clip(np.asarray(mass, dtype=float), 0.0, 1.0)
+    j = np.arange(looks + 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        hit = np.log(pd) - np.log(pf) if pf > 0 else np.inf
+        miss = np.log1p(-pd) - np.log1p(-pf) if pd < 1 else -np.inf
+        lift = np.where(j > 0, j * hit, 0.0) + np.where(looks - j > 0, (looks - j) * miss, 0.0)
+        log_odds = np.log(m) - np.log1p(-m)
+        reached = (log_odds[..., None] + lift) >= np.log(threshold) - np.log1p(-threshold)
+    reached &= (m < threshold)[..., None]
+    return np.sum(np.where(reached, _binomial_pmf(looks, pd), 0.0), axis=-1)
 
 
 def summed_area_table(values: np.ndarray) -> np.ndarray:
@@ -315,6 +358,20 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         h = self.altitude_layers_m
         self._pd = np.asarray(model.detection_probability(h, self.speed_m_s), dtype=float)
         self._sigma = np.asarray(model.position_error_m(h), dtype=float)
+        # per layer: K_h, the most looks of one cell by consecutive images of a straight leg
+        # (floor(diagonal / s) + 1 at any heading), capped at MAX_LOOKS; tables T_1 .. T_{K_h + 1}
+        diagonal = np.hypot(widths[0], widths[1])
+        self._looks = np.minimum(np.floor(diagonal / self.image_spacing_m + 1e-9).astype(int) + 1, MAX_LOOKS)
+        self._looks = np.maximum(self._looks, 1)
+        counts = self._looks + 1
+        self._table_offset = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.intp)
+        self._n_tables = int(counts.sum())
+        # _table_index[layer, i]: the table T_{i + 1} of the layer, or the zero table (last) beyond T_{K_h + 1}
+        width = int(counts.max())
+        index = np.full((len(h), width + 1), self._n_tables, dtype=np.intp)
+        for layer, count in enumerate(counts):
+            index[layer, :count] = self._table_offset[layer] + np.arange(count)
+        self._table_index = index
         self.reset(seed)
 
     def reset(self, seed: int = 0) -> None:
@@ -348,8 +405,10 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
     def layer_values(
         self, probability: np.ndarray, cell_size_m: float, target_radius_m: float | None = None
     ) -> np.ndarray:
-        """Value maps v_h (L, ny, nx) [nats per cell] of one look from each altitude layer
-        (module docstring: e_c + c_pref k_c).
+        """Difference maps T (n + 1, ny, nx) [nats per cell] of the looks from each altitude layer
+        (module docstring): for layer h, rows ``_table_index[h, :K_h + 1]`` hold T_1 = Delta_1,
+        T_k = Delta_k - Delta_{k-1} (2 <= k <= K_h) and T_{K_h + 1} = -Delta_{K_h}, Delta_k =
+        v_h^(k) - v_h^(k-1) the value of a cell's k-th look; the last row is zeros.
 
         probability: p (ny, nx), P(a person's centre is in the cell) (0 where not searchable);
         cell_size_m: side s of a cell [m]; target_radius_m: r_t [m] (None: the planner's, else
@@ -359,9 +418,9 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         mass = np.minimum(box_sums(p, int(round(radius / cell_size_m))), 1.0)
         with np.errstate(divide="ignore", invalid="ignore"):
             share = np.where(mass > _EPS, p / np.maximum(mass, _EPS), 0.0)
-        out = np.empty((len(self.altitude_layers_m),) + p.shape)
+        out = np.zeros((self._n_tables + 1,) + p.shape)
         for layer in range(len(self.altitude_layers_m)):
-            out[layer] = self._layer_value(p, mass, share, layer, cell_size_m)
+            self._layer_value(p, mass, share, layer, cell_size_m, out)
         return out
 
     def _target_radius(self, cell_size_m: float) -> float:
@@ -369,22 +428,39 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
             return self.target_radius_m
         return max(1.5, 2 * cell_size_m)
 
-    def _layer_value(self, p, mass, share, layer: int, cell_size_m: float) -> np.ndarray:
-        """v_h of one layer from p, the disc masses m (clipped to 1) and the shares p / m."""
+    def _layer_value(self, p, mass, share, layer: int, cell_size_m: float, out: np.ndarray) -> None:
+        """Write the difference maps T_1 .. T_{K+1} of one layer into ``out`` from p, the disc
+        masses m (clipped to 1) and the shares p / m (the channel's functions of m are evaluated
+        once per distinct m)."""
         h = self.altitude_layers_m[layer]
         pd = float(self._pd[layer])
         association = cell_size_m**2 + np.pi * (ASSOCIATION_SIGMAS * self._sigma[layer]) ** 2
         pf = float(self.model.false_alarm_probability_per_cell(h, self.camera, association))
-        if self.channel == "cell":
-            value = mutual_information(p, pd, pf)
-        else:
-            value = share * mutual_information(mass, pd, pf)
+        looks = int(self._looks[layer])
+        unit = p if self.channel == "cell" else mass
+        levels, inverse = np.unique(unit, return_inverse=True)
+        inverse = inverse.reshape(unit.shape)
+        information = np.stack([multi_look_information(levels, pd, pf, k) for k in range(1, looks + 1)])
+        weight = np.ones_like(p) if self.channel == "cell" else share
         if self.preference_nats_per_person > 0:
-            theta = self.target_threshold
-            after = mass * pd / np.maximum(mass * pd + (1 - mass) * pf, _EPS)
-            confirms = (mass < theta) & (after >= theta)
-            value += self.preference_nats_per_person * pd * np.where(confirms, p, 0.0)
-        return value
+            if self.channel == "cell":
+                m_levels, m_inverse = np.unique(mass, return_inverse=True)
+                m_inverse = m_inverse.reshape(mass.shape)
+            else:
+                m_levels, m_inverse = levels, inverse
+            confirms = np.stack([confirmation_probability(m_levels, pd, pf, k, self.target_threshold)
+                                 for k in range(1, looks + 1)])
+        previous_delta = np.zeros_like(p)
+        previous_value = np.zeros_like(p)
+        base = int(self._table_offset[layer])
+        for k in range(looks):
+            value = weight * information[k][inverse]
+            if self.preference_nats_per_person > 0:
+                value += self.preference_nats_per_person * p * confirms[k][m_inverse]
+            delta = value - previous_value
+            out[base + k] = delta - previous_delta
+            previous_value, previous_delta = value, delta
+        out[base + looks] = -previous_delta
 
     # ----------------------------------------------------------------------------------------
     # planning
@@ -565,7 +641,7 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
             r0 = np.arange(0, lattice.ny, by)
             c0 = np.arange(0, lattice.nx, bx)
             r1, c1 = np.minimum(r0 + by, lattice.ny), np.minimum(c0 + bx, lattice.nx)
-            table = tables[layer]
+            table = tables[self._table_offset[layer]]  # T_1: the value of a first look
             block = (table[np.ix_(r1, c1)] - table[np.ix_(r0, c1)]) - (table[np.ix_(r1, c0)] - table[np.ix_(r0, c0)])
             cx, _ = lattice.cell_centre(0, (c0 + c1 - 1) / 2)
             _, cy = lattice.cell_centre((r0 + r1 - 1) / 2, 0)
@@ -661,45 +737,65 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         half_y = self._half_widths[1, layers][:, None]
         return lattice.ranges(points[..., 0], points[..., 1], half_x, half_y)
 
+    def _chain_values(self, tables, lay, ranges, predecessors):
+        """Per image (m, n): T_1(F_j) + sum_i T_{i+1}(F_j ∩ F_{j-i}) over the images' i-th
+        predecessors in time (``predecessors[i - 1]``: (ranges, valid)), i = 1 .. the most."""
+        value = _table_sums(tables, self._table_index[lay, 0], ranges)
+        for i, (previous, has) in enumerate(predecessors, start=1):
+            if i >= self._table_index.shape[1]:
+                break
+            term = _table_sums(tables, self._table_index[lay, i], _intersect(ranges, previous))
+            value = value + np.where(has, term, 0.0)
+        return value
+
     def _leg_values(self, tables, lattice: _Lattice, starts, ends, layers):
-        """Value (m,) [nats] of the union of each leg's footprints, time (m,) [s], and the image
-        ranges, validity and positions (for the second leg's overlap)."""
+        """Value (m,) [nats] of each leg's images (a cell's k-th look along the leg worth
+        Delta_k), time (m,) [s], and the image ranges, validity and positions (for the second
+        leg)."""
         points, valid, seconds = self._image_points(starts, ends)
         ranges = self._footprint_ranges(lattice, points, layers)
         lay = np.broadcast_to(layers[:, None], valid.shape)
-        own = _table_sums(tables, lay, ranges)
-        # images are ordered from the end backwards: image j overlaps image j + 1 (its predecessor in time)
-        previous = tuple(np.concatenate([r[:, 1:], r[:, -1:]], axis=1) for r in ranges)
-        overlap = _table_sums(tables, lay, _intersect(ranges, previous))
-        has_previous = np.concatenate([valid[:, 1:], np.zeros((len(valid), 1), dtype=bool)], axis=1)
-        net = np.where(valid, np.maximum(own - np.where(has_previous, overlap, 0.0), 0.0), 0.0)
+        n = valid.shape[1]
+        # images are ordered from the end backwards: image j's i-th predecessor in time is j + i
+        predecessors = []
+        for i in range(1, min(n, int(self._looks.max()) + 1)):
+            shifted = tuple(np.concatenate([r[:, i:], np.repeat(r[:, -1:], i, axis=1)], axis=1) for r in ranges)
+            has = np.concatenate([valid[:, i:], np.zeros((len(valid), i), dtype=bool)], axis=1)
+            predecessors.append((shifted, has))
+        per_image = self._chain_values(tables, lay, ranges, predecessors)
+        net = np.where(valid, np.maximum(per_image, 0.0), 0.0)
         return net.sum(axis=1), seconds, ranges, valid, points
 
     def _second_leg_values(self, tables, lattice: _Lattice, starts, ends, layers, ranges1, valid1, points1):
-        """Value (m,) and time (m,) of second legs, each image net of its overlap with its
-        predecessor (the first leg's last image for the earliest) or with the nearest image of the
-        first leg, whichever is larger."""
+        """Value (m,) and time (m,) of second legs: the chain of looks continues through the
+        first leg's images (its last image the earliest image's predecessor); each image loses
+        at least what it would lose if the nearest image of the first leg had seen its cells
+        once before (-T_2 over their intersection: the larger loss is taken)."""
         points, valid, seconds = self._image_points(starts, ends)
         ranges = self._footprint_ranges(lattice, points, layers)
         lay = np.broadcast_to(layers[:, None], valid.shape)
-        own = _table_sums(tables, lay, ranges)
         count = valid.sum(axis=1)
-        # predecessor in time: the next image in the (end-backwards) order, or the first leg's last image (index 0)
+        count1 = int(valid1.sum())
         idx = np.arange(valid.shape[1])[None, :]
-        first_last = tuple(np.broadcast_to(r[0], valid.shape) for r in ranges1)
-        previous = tuple(
-            np.where(idx + 1 < count[:, None], np.concatenate([r[:, 1:], r[:, -1:]], axis=1), f)
-            for r, f in zip(ranges, first_last)
-        )
-        overlap = _table_sums(tables, lay, _intersect(ranges, previous))
+        predecessors = []
+        for i in range(1, int(self._looks.max()) + 1):
+            own = idx + i < count[:, None]
+            own_index = np.minimum(idx + i, valid.shape[1] - 1)
+            first_index = np.clip(idx + i - count[:, None], 0, max(count1 - 1, 0))
+            previous = tuple(np.where(own, np.take_along_axis(r, own_index, axis=1), r1[first_index])
+                             for r, r1 in zip(ranges, ranges1))
+            has = own | (idx + i - count[:, None] < count1)
+            predecessors.append((previous, has))
+        own_value = _table_sums(tables, self._table_index[lay, 0], ranges)
+        chain = self._chain_values(tables, lay, ranges, predecessors)
         # nearest image of the first leg
         p1 = points1[valid1]
         r1 = tuple(r[valid1] for r in ranges1)
         d2 = ((points[:, :, None, :] - p1[None, None, :, :]) ** 2).sum(axis=3)
         nearest = np.argmin(d2, axis=2)
         near_ranges = tuple(r[nearest] for r in r1)
-        overlap = np.maximum(overlap, _table_sums(tables, lay, _intersect(ranges, near_ranges)))
-        net = np.where(valid, np.maximum(own - overlap, 0.0), 0.0)
+        near_loss = -_table_sums(tables, self._table_index[lay, 1], _intersect(ranges, near_ranges))
+        net = np.where(valid, np.maximum(np.minimum(chain, own_value - near_loss), 0.0), 0.0)
         return net.sum(axis=1), seconds
 
 

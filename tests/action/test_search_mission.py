@@ -1,10 +1,13 @@
-"""fly_search: time-ordered fusion of several UAVs, budget, metrics against the map, planner errors."""
+"""fly_search: time-ordered fusion of several UAVs, budget, metrics against the map (exact tile sums), planner
+errors, map-update timing."""
 
+import gc
 import math
 
 import numpy as np
 import pytest
 
+from attend.action import search_mission
 from attend.action.detection import DetectionModel
 from attend.action.errors import ActionInputError
 from attend.action.planners.field_lawnmower import FieldLawnmowerPlanner
@@ -146,3 +149,36 @@ def test_time_to_fraction():
     assert log.time_to_fraction_s(0.8) == math.inf
     with pytest.raises(ActionInputError, match="fraction"):
         log.time_to_fraction_s(0.0)
+
+
+def test_map_sums_are_exact_after_every_image_without_a_whole_map_pass():
+    """sum p and P(all found) of the log equal the whole-map sums after every image to rounding,
+    on a 150 x 150-cell map (its last tiles partial) over more than 256 images, while the update
+    reads no more than the tiles the footprint touches."""
+    world = make_world(150.0, 1.0, 4, seed=4, n_buildings=2)
+    settings = SearchSettings(budget_s=150.0, n_uavs=2, model=DetectionModel(false_detections_at_best=0.5))
+    planner = FieldLawnmowerPlanner(30.0, camera=settings.camera, n_uavs=2, buildings=world.buildings)
+
+    def check(image, belief, log):
+        assert log.expected_people[-1] == pytest.approx(belief.expected_people(), rel=1e-12)
+        assert log.p_all_found[-1] == pytest.approx(belief.p_all_found(settings.target_threshold), rel=1e-10, abs=1e-300)
+
+    log = fly_search(world, planner, settings, seed=5, on_image=check)
+    assert log.images > 256
+
+
+def test_map_update_is_timed_with_the_garbage_collector_paused(monkeypatch):
+    world = make_world(100.0, 1.0, 3, seed=1)
+    settings = SearchSettings(budget_s=10.0)
+    during = []
+    fuse = search_mission._MapTracker.fuse
+
+    def recording(self, image):
+        during.append(gc.isenabled())
+        fuse(self, image)
+
+    monkeypatch.setattr(search_mission._MapTracker, "fuse", recording)
+    assert gc.isenabled()
+    log = fly_search(world, HoverPlanner(), settings, seed=0)
+    assert during and not any(during) and len(log.map_update_ms) == len(during)
+    assert gc.isenabled()

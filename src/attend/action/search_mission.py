@@ -19,12 +19,19 @@ Metrics after every image: the expected number of people sum p, the people found
 person is found the first time a reported target lies within ``found_radius_m`` of them),
 P(all found) (:meth:`ProbabilityMap.p_all_found`), the false targets (reported targets with no
 person within ``found_radius_m``) and the area seen (searchable cells in view at least once).
-sum p and P(all found) are kept as running sums over the changed footprint (recomputed over the
-whole map every 256 images), so a metric costs O(footprint + targets), not O(map).
+sum p and P(all found) come from sums of p_c and of softplus(l_c) = -log(1 - p_c) kept per tile
+of SUM_TILE_CELLS x SUM_TILE_CELLS cells: after an image the tiles its footprint window touches
+are summed afresh and the map's sums are the sums over the tiles,
+
+    sum_c p_c = sum_t S_t,    S_t = sum_{c in t} p_c,
+
+so they are exact up to rounding (no drift to correct) and a metric costs
+O(footprint + tiles + targets), not O(map).
 """
 
 from __future__ import annotations
 
+import gc
 import math
 import time
 from dataclasses import dataclass, field
@@ -40,8 +47,8 @@ from attend.action.planners.search_base import SearchPlanner
 from attend.action.probability_map import ImageObservation, ProbabilityMap
 from attend.action.world import SearchWorld, simulate_image
 
-#: Images between exact recomputations of the running map sums.
-RESYNC_IMAGES = 256
+#: Side [cells] of the tiles over which the map's sums of p and softplus(l) are kept.
+SUM_TILE_CELLS = 16
 
 
 @dataclass(frozen=True)
@@ -107,7 +114,7 @@ class SearchLog:
     found); person_found_times_s: (people_total,) per person (inf: never); false_targets: false
     targets at the end; area_covered_m2: searchable area seen [m^2]; distance_flown_m: per UAV
     [m]; planner_times_s: wall time of every plan call [s]; map_update_ms: wall time of every
-    map update [ms]; paths_m: per UAV the points flown (w, 3) [m] (start, waypoints reached,
+    map update [ms] (Python's garbage collector paused during it); paths_m: per UAV the points flown (w, 3) [m] (start, waypoints reached,
     the position at the end); images: images taken; closest_approach_m: least distance between
     two UAVs at image times [m] (inf for one UAV); separation_violations: images at which two
     UAVs were closer than min_separation_m; final_map: the map at the end.
@@ -234,9 +241,7 @@ def fly_search(
             image = simulate_image(
                 world, pose, t, uav.speed(settings.speed_m_s), settings.model, settings.camera, rng, uav.index
             )
-            start = time.perf_counter()
-            tracker.fuse(image)
-            log.map_update_ms.append((time.perf_counter() - start) * 1e3)
+            log.map_update_ms.append(_timed_fuse(tracker, image))
             rows, cols = image.window
             seen = image.visible & world.searchable[rows, cols]
             before = int(np.count_nonzero(covered[rows, cols]))
@@ -355,28 +360,45 @@ def _checked_plan(waypoints, pose: np.ndarray, planner: SearchPlanner, world: Se
 
 
 class _MapTracker:
-    """The map with running sums of p and of log(1 + exp(l)) = -log(1 - p) over all cells."""
+    """The map with the sums of p and of log(1 + exp(l)) = -log(1 - p) over all cells, kept per
+    tile of SUM_TILE_CELLS cells a side (module docstring)."""
 
     def __init__(self, belief: ProbabilityMap, settings: SearchSettings) -> None:
         self.belief = belief
         self.settings = settings
         self.images = 0
-        self._resync()
+        ny, nx = belief.grid.shape
+        self._tile_p, self._tile_softplus = self._tile_sums(slice(0, ny), slice(0, nx))
+        self._total()
 
-    def _resync(self) -> None:
-        self.sum_p = float(expit(self.belief.log_odds).sum())
-        self.sum_softplus = float(np.logaddexp(0.0, self.belief.log_odds).sum())
+    def _tile_sums(self, rows: slice, cols: slice) -> tuple[np.ndarray, np.ndarray]:
+        """Sums of p and softplus(l) per tile over the block (rows, cols), which starts on tile
+        edges and ends on tile edges or the map's."""
+        log_odds = self.belief.log_odds[rows, cols]
+        row_starts = np.arange(0, log_odds.shape[0], SUM_TILE_CELLS)
+        col_starts = np.arange(0, log_odds.shape[1], SUM_TILE_CELLS)
+        p_sums = np.add.reduceat(np.add.reduceat(expit(log_odds), row_starts, axis=0), col_starts, axis=1)
+        softplus = np.logaddexp(0.0, log_odds)
+        return p_sums, np.add.reduceat(np.add.reduceat(softplus, row_starts, axis=0), col_starts, axis=1)
+
+    def _total(self) -> None:
+        self.sum_p = float(self._tile_p.sum())
+        self.sum_softplus = float(self._tile_softplus.sum())
 
     def fuse(self, image: ImageObservation) -> None:
-        rows, cols = image.window
-        view = self.belief.log_odds[rows, cols]
-        before_p, before_s = float(expit(view).sum()), float(np.logaddexp(0.0, view).sum())
+        """Fuse the image into the map and sum the tiles its window touches afresh."""
         self.belief.update(image, self.settings.model, self.settings.camera)
-        self.sum_p += float(expit(view).sum()) - before_p
-        self.sum_softplus += float(np.logaddexp(0.0, view).sum()) - before_s
         self.images += 1
-        if self.images % RESYNC_IMAGES == 0:
-            self._resync()
+        rows, cols = image.window
+        if rows.stop <= rows.start or cols.stop <= cols.start:
+            return
+        ny, nx = self.belief.grid.shape
+        t = SUM_TILE_CELLS
+        r0, r1 = rows.start // t, (rows.stop - 1) // t + 1
+        c0, c1 = cols.start // t, (cols.stop - 1) // t + 1
+        block = (slice(r0 * t, min(r1 * t, ny)), slice(c0 * t, min(c1 * t, nx)))
+        self._tile_p[r0:r1, c0:c1], self._tile_softplus[r0:r1, c0:c1] = self._tile_sums(*block)
+        self._total()
 
     def targets(self) -> tuple[np.ndarray, np.ndarray, float]:
         """Target positions (k, 2) [m], masses (k,) and P(all found)."""
@@ -385,6 +407,21 @@ class _MapTracker:
         if cells:
             log_none += float(np.logaddexp(0.0, self.belief.log_odds.ravel()[np.concatenate(cells)]).sum())
         return positions, masses, float(np.exp(min(log_none, 0.0)))
+
+
+def _timed_fuse(tracker: _MapTracker, image: ImageObservation) -> float:
+    """Fuse the image; returns the wall time of the update [ms], with Python's cyclic garbage
+    collector paused during it (a collection falling due then runs at the next allocation after
+    it: its pause, tens of ms over a large process, is not the update's work)."""
+    paused = gc.isenabled()
+    gc.disable()
+    try:
+        start = time.perf_counter()
+        tracker.fuse(image)
+        return (time.perf_counter() - start) * 1e3
+    finally:
+        if paused:
+            gc.enable()
 
 
 def _log_image(

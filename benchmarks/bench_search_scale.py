@@ -16,8 +16,9 @@ Parts:
 3. Against the best lawnmower: worlds of side 200 m .. 1 km (cells of max(1 m, side / 400)),
    1-20 people, 0-6 buildings, uniform or informative prior; budget 1.2 x the time to cover the
    area once at 45 m (at least 600 s); the lawnmower's altitude (45-70 m, above every roof:
-   its detours around buildings can fail lower down) and track spacing tuned (``best_lawnmower``,
-   600 s missions) on seeds 1000+, the comparison on seeds 0+. Median over
+   its detours around buildings can fail lower down) and track spacing tuned (``tune_lawnmower``:
+   least median time to 90 %, under the evaluation's own budget rule) on seeds 1000+, the
+   comparison on seeds 0+. Median over
    the missions of the time-to-90 % ratio EFE / lawnmower (targets <= 0.8 uniform, <= 0.5
    informative; a planner that never reaches 90 % counts as twice the budget) and P(all found
    by the end) of both.
@@ -46,7 +47,7 @@ import numpy as np  # noqa: E402
 
 from attend.action.detection import DetectionModel  # noqa: E402
 from attend.action.field import make_field  # noqa: E402
-from attend.action.planners.field_lawnmower import FieldLawnmowerPlanner, best_lawnmower  # noqa: E402
+from attend.action.planners.field_lawnmower import FieldLawnmowerPlanner  # noqa: E402
 from attend.action.planners.salience import ExpectedFreeEnergySearchPlanner  # noqa: E402
 from attend.action.planners.search_base import SearchPlanner  # noqa: E402
 from attend.action.search_mission import SearchSettings, fly_search  # noqa: E402
@@ -189,13 +190,25 @@ def comparison_mission(seed: int, prior: str, planner_name: str, altitude_m: flo
     return log.time_to_fraction_s(0.9), len(log.found_times_s) == world.n_people, settings.budget_s, log.false_targets
 
 
-def _tuning(prior: str, seeds, altitudes, factors):
-    """best_lawnmower on the part-3 worlds of ``seeds`` (600 s missions: the tuning favours the
-    pattern that finds people early)."""
-    return best_lawnmower(lambda s: scenario(s, prior), seeds, altitudes, factors, SearchSettings())
+def tune_lawnmower(prior: str, seeds, altitudes, factors):
+    """(altitude [m], spacing factor) of the lawnmower with the least median time to 90 % over the
+    part-3 worlds of ``seeds`` (kept apart from the evaluation seeds), each mission flown under the
+    evaluation's own budget rule (``scenario_budget_s``) and a miss counted as twice the budget,
+    as in the evaluation; ties broken by the larger share of missions finding everybody, then
+    the lower altitude."""
+    configs = [(h, f) for h in altitudes for f in factors]
+    jobs = [(seed, prior, "lawnmower", h, f) for h, f in configs for seed in seeds]
+    rows = run_parallel(comparison_mission, jobs)
+    scores = []
+    for k, (h, f) in enumerate(configs):
+        chunk = rows[k * len(seeds):(k + 1) * len(seeds)]
+        times = [r[0] if np.isfinite(r[0]) else 2 * r[2] for r in chunk]
+        scores.append((float(np.median(times)), -float(np.mean([r[1] for r in chunk])), float(h), float(f)))
+    _, _, h, f = min(scores)
+    return h, f
 
 
-def part3(missions: int, tuning_seeds: int, quick: bool) -> None:
+def part3(missions: int, tuning_seeds: int, quick: bool, priors=("uniform", "informative")) -> None:
     # above the tallest building (40 m): FieldLawnmowerPlanner's detours can fail below roof height
     altitudes = (45.0, 60.0) if quick else (45.0, 52.0, 60.0, 70.0)
     factors = (1.0,) if quick else (0.8, 1.0, 1.2)
@@ -203,10 +216,10 @@ def part3(missions: int, tuning_seeds: int, quick: bool) -> None:
     print(f"3. EFE against the best lawnmower (tuned on seeds {TUNING_SEED_OFFSET}..{last} "
           f"over h {altitudes} m, spacing {factors} x w_x), {missions} missions per prior, 10 m/s, 1 Hz")
     seeds = list(range(TUNING_SEED_OFFSET, TUNING_SEED_OFFSET + tuning_seeds))
-    tunings = run_parallel(_tuning, [(prior, seeds, altitudes, factors) for prior in ("uniform", "informative")])
-    for prior, tuning, target in zip(("uniform", "informative"), tunings, ("<= 0.8", "<= 0.5")):
+    for prior in priors:
+        target = {"uniform": "<= 0.8", "informative": "<= 0.5"}[prior]
         start = time.perf_counter()
-        h, factor = tuning.altitude_m, tuning.spacing_factor
+        h, factor = tune_lawnmower(prior, seeds, altitudes, factors)
         jobs = [(seed, prior, name, h, factor) for seed in range(missions) for name in ("efe", "lawnmower")]
         rows = run_parallel(comparison_mission, jobs)
         efe, mower = rows[0::2], rows[1::2]
@@ -260,6 +273,8 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="small runs of every part (a few minutes)")
     parser.add_argument("--parts", type=int, nargs="+", default=[1, 2, 3, 4], choices=[1, 2, 3, 4])
     parser.add_argument("--missions", type=int, default=None, help="missions per configuration (parts 1, 3, 4)")
+    parser.add_argument("--priors", nargs="+", default=["uniform", "informative"], choices=["uniform", "informative"],
+                        help="priors of part 3")
     args = parser.parse_args()
     quick = args.quick
     start = time.perf_counter()
@@ -268,7 +283,7 @@ def main() -> None:
     if 2 in args.parts:
         part2(60.0 if quick else 300.0)
     if 3 in args.parts:
-        part3(args.missions or (3 if quick else 30), 2 if quick else 6, quick)
+        part3(args.missions or (3 if quick else 30), 2 if quick else 6, quick, tuple(args.priors))
     if 4 in args.parts:
         part4(args.missions or (2 if quick else 20))
     print(f"total {time.perf_counter() - start:.0f} s")

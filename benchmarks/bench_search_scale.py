@@ -49,8 +49,8 @@ from attend.action.detection import DetectionModel  # noqa: E402
 from attend.action.field import make_field  # noqa: E402
 from attend.action.planners.field_lawnmower import FieldLawnmowerPlanner  # noqa: E402
 from attend.action.planners.salience import ExpectedFreeEnergySearchPlanner  # noqa: E402
-from attend.action.planners.search_base import SearchPlanner  # noqa: E402
 from attend.action.search_mission import SearchSettings, fly_search  # noqa: E402
+from attend.experiments.search_scale import TruthOraclePlanner  # noqa: E402
 from attend.action.world import make_world, world_from_field  # noqa: E402
 
 TUNING_SEED_OFFSET = 1000
@@ -71,29 +71,6 @@ def run_parallel(function, jobs, workers=WORKERS):
 # part 1: the paper's field
 
 
-class TruthOracle(SearchPlanner):
-    """Knows the people: flies to the nearest person not yet found (no reported target within
-    ``found_radius_m``) at ``altitude_m`` and hovers over them until the map reports a target."""
-
-    name = "truth_oracle"
-
-    def __init__(self, people_m: np.ndarray, altitude_m: float, settings: SearchSettings) -> None:
-        self.people_m = np.asarray(people_m, dtype=float)
-        self.altitude_m = float(altitude_m)
-        self.settings = settings
-        self.reset(0)
-
-    def plan(self, belief, uav, pose_m, time_left_s, others=()):
-        positions, _ = belief.targets(self.settings.target_threshold, self.settings.target_radius_m)
-        missing = [p for p in self.people_m
-                   if len(positions) == 0 or np.min(np.hypot(*(positions - p).T)) > self.settings.found_radius_m]
-        if not missing:
-            return np.asarray(pose_m, dtype=float)[None]
-        missing = np.array(missing)
-        nearest = missing[np.argmin(np.hypot(*(missing - np.asarray(pose_m)[:2]).T))]
-        return np.array([[nearest[0], nearest[1], self.altitude_m]])
-
-
 def paper_settings() -> SearchSettings:
     return SearchSettings(budget_s=150.0, speed_m_s=5.0, image_rate_hz=0.15, model=DetectionModel.paper())
 
@@ -103,7 +80,8 @@ def paper_mission(seed: int, planner_name: str):
     settings = paper_settings()
     world = world_from_field(make_field(seed))
     if planner_name == "oracle":
-        planner = TruthOracle(world.people_m, settings.model.best_altitude_m, settings)
+        planner = TruthOraclePlanner(world.people_m, settings.model.best_altitude_m, settings.found_radius_m,
+                                     world.buildings, max_altitude_m=world.altitude_limits_m[1])
     else:
         planner = ExpectedFreeEnergySearchPlanner.for_world(world, settings)
     log = fly_search(world, planner, settings, seed)

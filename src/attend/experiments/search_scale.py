@@ -111,6 +111,7 @@ def mission(task: dict) -> dict:
     return dict(planner=task["planner"], uavs=int(task["uavs"]), seed=int(task["seed"]), people=world.n_people,
                 budget_s=settings.budget_s, found_times_s=list(log.found_times_s), times_s=list(log.times_s),
                 p_all_found=list(log.p_all_found), false_targets=int(log.false_targets),
+                time_to_90_percent_s=log.time_to_fraction_s(FOUND_FRACTION),
                 median_planner_time_s=float(np.median(log.planner_times_s)) if log.planner_times_s else 0.0)
 
 
@@ -146,7 +147,7 @@ def run(quick: bool = True, progress: bool = True, cluster=None, missions: int |
         fraction = np.mean([[np.sum(np.asarray(r["found_times_s"]) <= t) / r["people"] for t in grid] for r in records], axis=0)
         all_found = np.mean([[len(r["found_times_s"]) == r["people"] and r["found_times_s"][-1] <= t for t in grid]
                              for r in records], axis=0)
-        times90[key] = [_time_to_fraction(r, FOUND_FRACTION) for r in records]
+        times90[key] = [r["time_to_90_percent_s"] for r in records]
         curves[key] = dict(fraction_found=fraction.tolist(), p_all_found_by_t=all_found.astype(float).tolist())
         out.add(f"{key}_median_time_to_90_percent", np.median(times90[key]), "s")
         out.add(f"{key}_all_found_by_end", np.mean([len(r["found_times_s"]) == r["people"] for r in records]), "")
@@ -159,12 +160,6 @@ def run(quick: bool = True, progress: bool = True, cluster=None, missions: int |
     out.tables = dict(grid_t=grid.tolist(), curves=curves, missions=[
         {k: r[k] for k in ("planner", "uavs", "seed", "people", "found_times_s", "false_targets")} for r in done])
     return out
-
-
-def _time_to_fraction(record: dict, fraction: float) -> float:
-    needed = max(1, math.ceil(fraction * record["people"] - 1e-9))
-    found = sorted(record["found_times_s"])
-    return float(found[needed - 1]) if len(found) >= needed else math.inf
 
 
 def _paired_median_ratio(numerator: list[float], denominator: list[float]) -> float:

@@ -67,7 +67,7 @@ MODULES = [
     "attend.action.field",
     "attend.action.flight",
     "attend.action.metrics",
-    "attend.action.mission",
+    "attend.action.paper_search",
     "attend.experiments.quadrotor",
     "attend.experiments.ipp",
     "attend.experiments.rhythm_ipp",

@@ -68,6 +68,7 @@ def _build_parser() -> argparse.ArgumentParser:
             "  attend identify model.toml log.csv       learn its parameters and noise precisions\n"
             "  attend search --out run1                 a UAV searching the paper's field for people\n"
             "  attend search --area-size 500 --uavs 2   two UAVs on a 500 m x 500 m area\n"
+            "  attend plan mission.toml --out plan1     the next flight plan on your own ground\n"
             "Units: seconds, metres, radians; precisions are inverse variances.\n"
             "'attend COMMAND --help' explains each option."
         ),
@@ -84,6 +85,9 @@ def _build_parser() -> argparse.ArgumentParser:
     _add_report(add_command)
     _add_identify(add_command)
     _add_search(add_command)
+    from attend.cli_plan import add_plan
+
+    add_plan(add_command)
     return parser
 
 
@@ -347,7 +351,7 @@ def _command_search(args) -> int:
 def _fly_search_command(args) -> int:
     started = time.perf_counter()
     if args.map == "gp":
-        from attend.action.mission import run_search
+        from attend.action.paper_search import run_search
 
         paths = run_search(
             planner=args.planner, seed=args.seed, obstacles=args.obstacles, people_region=args.people_region,
@@ -652,12 +656,18 @@ def main(argv=None) -> int:
         parser.print_help()
         return 0
     handlers = {"estimate": _command_estimate, "reproduce": _command_reproduce, "search": _command_search,
-                "identify": command_identify, "report": _command_report}
+                "identify": command_identify, "report": _command_report, "plan": _command_plan}
     args.debug = debug
     with warnings.catch_warnings():  # the command's warning style, restored when it returns
         warnings.simplefilter("default")
         warnings.showwarning = _show_warning
         return _run_handler(handlers[args.command], args, debug)
+
+
+def _command_plan(args) -> int:
+    from attend.cli_plan import command_plan
+
+    return command_plan(args)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:

@@ -9,7 +9,7 @@ from attend.action.episode import fly
 from attend.action.errors import ActionInputError
 from attend.action.field import make_field
 from attend.action.flight import path_collides
-from attend.action.mission import run_search
+from attend.action.paper_search import run_search
 from attend.action.planners import PLANNERS, PlanningSetup, make_planner
 from attend.action.belief import OccupancyMap
 

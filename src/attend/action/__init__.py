@@ -34,7 +34,7 @@ from attend.action.errors import ActionInputError
 from attend.action.field import Grid, Obstacle, Person, SearchField, make_field
 from attend.action.flight import FlightModel
 from attend.action.metrics import FOUND_THRESHOLD, map_metrics, root_squared_error
-from attend.action.mission import run_search
+from attend.action.paper_search import run_search
 from attend.action.planners.field_lawnmower import FieldLawnmowerPlanner
 from attend.action.planners.salience import ExpectedFreeEnergySearchPlanner
 from attend.action.planners.search_base import SearchPlanner

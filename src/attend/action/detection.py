@@ -144,3 +144,76 @@ class DetectionModel:
             position_error_at_best_m=0.4,
             motion_blur_per_speed=0.0,
         )
+
+
+@dataclass(frozen=True)
+class DetectionTable(DetectionModel):
+    """A team's own detector calibration, tabulated by altitude (the ``[detector]`` table of a
+    mission file): pd(h) and lambda(h) linear in h between the tabulated altitudes and held at
+    the end values beyond them; sigma(h) = ``position_std_m`` at every altitude; no motion blur.
+
+    altitudes_m: h_1 < ... < h_k [m] (k >= 1, > 0); detection_probabilities: pd(h_i) in [0, 1];
+    false_detections_per_image_at: lambda(h_i) >= 0, clutter detections per image;
+    position_std_m: sigma > 0 [m], the error of a detection's ground position (each axis).
+    The parametric fields of :class:`DetectionModel` are unused, except ``best_altitude_m``
+    (set to the tabulated altitude of the largest pd) and ``useless_altitude_m`` (twice the
+    highest tabulated altitude), which only bound a planner's default altitude layers."""
+
+    altitudes_m: tuple = ()
+    detection_probabilities: tuple = ()
+    false_detections_per_image_at: tuple = ()
+    position_std_m: float = 1.0
+
+    def __post_init__(self) -> None:
+        try:
+            h = np.asarray(self.altitudes_m, dtype=float).reshape(-1)
+            pd = np.asarray(self.detection_probabilities, dtype=float).reshape(-1)
+            lam = np.asarray(self.false_detections_per_image_at, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise ActionInputError("altitudes_m, detection_probabilities, false_detections_per_image_at: expected "
+                                   "lists of numbers") from None
+        if h.size == 0:
+            raise ActionInputError("altitudes_m: expected at least one altitude in m")
+        for name, values in (("detection_probabilities", pd), ("false_detections_per_image_at", lam)):
+            if values.size != h.size:
+                raise ActionInputError(f"{name}: expected one value per altitude ({h.size}), got {values.size}")
+        for name, values in (("altitudes_m", h), ("detection_probabilities", pd), ("false_detections_per_image_at", lam)):
+            if not np.all(np.isfinite(values)):
+                raise ActionInputError(f"{name}: expected finite numbers, got {values.tolist()}")
+        if np.any(h <= 0) or np.any(np.diff(h) <= 0):
+            raise ActionInputError(f"altitudes_m: expected increasing altitudes > 0 m, got {h.tolist()}")
+        if np.any((pd < 0) | (pd > 1)):
+            raise ActionInputError(f"detection_probabilities: expected probabilities in [0, 1], got {pd.tolist()}")
+        if not np.any(pd > 0):
+            raise ActionInputError("detection_probabilities: expected pd > 0 at one altitude at least (a detector that "
+                                   "never detects cannot search)")
+        if np.any(lam < 0):
+            raise ActionInputError(f"false_detections_per_image_at: expected rates >= 0 per image, got {lam.tolist()}")
+        sigma = self.position_std_m
+        if isinstance(sigma, (bool, np.bool_)) or not isinstance(sigma, (int, float, np.integer, np.floating)) \
+                or not np.isfinite(sigma) or sigma <= 0:
+            raise ActionInputError(f"position_std_m: expected a standard deviation > 0 m, got {sigma!r}")
+        object.__setattr__(self, "altitudes_m", tuple(float(v) for v in h))
+        object.__setattr__(self, "detection_probabilities", tuple(float(v) for v in pd))
+        object.__setattr__(self, "false_detections_per_image_at", tuple(float(v) for v in lam))
+        object.__setattr__(self, "position_std_m", float(sigma))
+        object.__setattr__(self, "best_altitude_m", float(h[int(np.argmax(pd))]))
+        object.__setattr__(self, "useless_altitude_m", float(2 * h[-1]))
+        object.__setattr__(self, "motion_blur_per_speed", 0.0)
+
+    def altitude_quality(self, altitude_m) -> np.ndarray:
+        """pd(h) / max_i pd(h_i); altitude_m: h [m]."""
+        return self.detection_probability(altitude_m) / max(self.detection_probabilities)
+
+    def detection_probability(self, altitude_m, speed_m_s=0.0) -> np.ndarray:
+        """pd(h), interpolated in the table (speed_m_s: unused, the calibration includes blur)."""
+        h = np.asarray(altitude_m, dtype=float)
+        return np.interp(h, self.altitudes_m, self.detection_probabilities) + 0.0 * np.asarray(speed_m_s, dtype=float)
+
+    def false_detections_per_image(self, altitude_m) -> np.ndarray:
+        """lambda(h), interpolated in the table; altitude_m: h [m]."""
+        return np.interp(np.asarray(altitude_m, dtype=float), self.altitudes_m, self.false_detections_per_image_at)
+
+    def position_error_m(self, altitude_m) -> np.ndarray:
+        """sigma [m] at every altitude; altitude_m: h [m]."""
+        return np.full(np.shape(altitude_m), self.position_std_m)

@@ -24,7 +24,7 @@ def plot_search_map(world: SearchWorld, log: SearchLog, path: Path) -> Path:
     fig, ax = figure((7.2, 7.0))
     x0, x1, y0, y1 = world.grid.extent_m
     probability = log.final_map.probability if log.final_map is not None else np.zeros(world.grid.shape)
-    shown = _block_max(np.where(world.searchable, probability, np.nan))
+    shown = block_max(np.where(world.searchable, probability, np.nan))
     floor = max(1e-6, float(np.nanmin(shown[shown > 0])) if np.any(shown > 0) else 1e-6)
     image = ax.imshow(np.clip(shown, floor, 1.0), origin="lower", extent=(x0, x1, y0, y1), cmap="viridis",
                       norm=LogNorm(vmin=floor, vmax=1.0), interpolation="nearest")
@@ -83,7 +83,7 @@ def plot_found_over_time(log: SearchLog, path: Path) -> Path:
     return Path(path)
 
 
-def _block_max(values: np.ndarray) -> np.ndarray:
+def block_max(values: np.ndarray) -> np.ndarray:
     """The map reduced by block maxima to at most DRAWN_CELLS per side (NaN blocks stay NaN)."""
     ny, nx = values.shape
     block = max(1, int(np.ceil(max(ny, nx) / DRAWN_CELLS)))

@@ -263,7 +263,13 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
     single_legs: let a first leg alone compete with the two-leg paths (False: every path has
     two legs when a second leg is feasible); fly_second_leg: return the second leg too (False:
     only the first leg is flown and the mission replans at its end, a receding horizon of one
-    leg); seed: seeds the random rotation of the heading lattice.
+    leg); seed: seeds the random rotation of the heading lattice; allowed_legs: None, or a
+    function (starts (m, 3), ends (m, 3)) [m] -> (m,) bool of the straight legs the UAV may fly
+    (an area that is not the map's rectangle, no-fly zones); route_toward: None, or a function
+    (start (3,), goal (3,)) [m] -> (x, y) [m], the first waypoint of an allowed route from start
+    to goal (the long-range legs go there when the straight leg is not allowed);
+    book_other_plans: book the images the other UAVs will take along their plans (False: the
+    caller has booked them on the map it passes).
     """
 
     name = "efe"
@@ -287,6 +293,9 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         single_legs: bool = False,
         fly_second_leg: bool = False,
         seed: int = 0,
+        allowed_legs=None,
+        route_toward=None,
+        book_other_plans: bool = True,
     ) -> None:
         if not isinstance(model, DetectionModel):
             raise ActionInputError(f"model: expected a DetectionModel, got {type(model).__name__}")
@@ -348,6 +357,13 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         self.channel = channel
         self.single_legs = bool(single_legs)
         self.fly_second_leg = bool(fly_second_leg)
+        if allowed_legs is not None and not callable(allowed_legs):
+            raise ActionInputError(f"allowed_legs: expected None or a function (starts, ends) -> mask, got {allowed_legs!r}")
+        if route_toward is not None and not callable(route_toward):
+            raise ActionInputError(f"route_toward: expected None or a function (start, goal) -> (x, y), got {route_toward!r}")
+        self.allowed_legs = allowed_legs
+        self.route_toward = route_toward
+        self.book_other_plans = bool(book_other_plans)
         self.target_radius_m = float(target_radius_m) if target_radius_m is not None else None
         self.climb_speed_m_s = float(climb_speed_m_s) if climb_speed_m_s is not None else self.speed_m_s
         self.image_spacing_m = self.speed_m_s / self.image_rate_hz
@@ -495,7 +511,7 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
     def _plan(self, belief, pose: np.ndarray, time_left_s: float, others: list[np.ndarray]) -> np.ndarray:
         grid = belief.grid
         lattice = _Lattice(grid)
-        if any(len(path) > 1 for path in others):
+        if self.book_other_plans and any(len(path) > 1 for path in others):
             belief = belief.copy()
             windows, altitudes = self._booked_images(grid, others)
             if windows:
@@ -626,6 +642,10 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         layers = [np.full(len(xy), k) for k in range(n_layers)]
         # straight to the best coarse blocks of the whole area
         far = self._long_range_targets(pose, lattice, tables)
+        if len(far) and self.route_toward is not None and self.allowed_legs is not None:
+            blocked = ~np.asarray(self.allowed_legs(np.broadcast_to(pose, (len(far), 3)), far[:, :3]), dtype=bool)
+            for i in np.flatnonzero(blocked):
+                far[i, :2] = self.route_toward(pose.copy(), far[i, :3].copy())
         if len(far):
             ends.append(far[:, :3])
             layers.append(far[:, 3].astype(np.intp))
@@ -685,6 +705,8 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
                 bounds = tuple(box.bounds)
                 ok &= ~segments_hit_box(starts, corner, bounds, margin_m)
                 ok &= ~segments_hit_box(corner, ends, bounds, margin_m)
+        if self.allowed_legs is not None and ok.any():
+            ok[ok] &= np.asarray(self.allowed_legs(starts[ok], ends[ok]), dtype=bool)
         if others and self.min_separation_m > 0:
             points = np.vstack(others)
             gap = np.sqrt(((ends[:, None, :] - points[None, :, :]) ** 2).sum(axis=2)).min(axis=1)

@@ -45,8 +45,10 @@ backend = "jax" compiles the D-step (f, g written with jax.numpy; pip install "a
 DEMO_UNITS = {"phi": "rad", "phi_dot": "rad/s", **{f"motor_{m}": "command - mean" for m in range(1, 5)}}
 
 
-def _build_parser() -> argparse.ArgumentParser:
-    """The ``attend`` parser: global options and one sub-parser per command."""
+def _build_parser(argv=None) -> argparse.ArgumentParser:
+    """The ``attend`` parser: global options and one sub-parser per command. argv: the arguments
+    it will parse (None: build every command in full); a command other than ``search`` skips
+    the search options, whose help lists the planners (importing them costs about a second)."""
     # --debug is accepted after the command too; SUPPRESS keeps a subcommand from resetting it
     debug_anywhere = argparse.ArgumentParser(add_help=False)
     debug_anywhere.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
@@ -84,7 +86,11 @@ def _build_parser() -> argparse.ArgumentParser:
     _add_reproduce(add_command)
     _add_report(add_command)
     _add_identify(add_command)
-    _add_search(add_command)
+    words = [a for a in (argv or []) if not a.startswith("-")]
+    if argv is None or not words or words[0] == "search":
+        _add_search(add_command)
+    else:
+        add_command("search", help=SEARCH_HELP)
     from attend.cli_plan import add_plan
 
     add_plan(add_command)
@@ -224,13 +230,16 @@ people) lies within 3 m of them; a target with nobody within 3 m is a false targ
 """
 
 
+SEARCH_HELP = "fly a UAV search-and-rescue mission: probability map, expected-free-energy planner"
+
+
 def _add_search(add_command) -> None:
     from attend.action.planners import PLANNERS
     from attend.action.search_run import SEARCH_PLANNERS
 
     search = add_command(
         "search",
-        help="fly a UAV search-and-rescue mission: probability map, expected-free-energy planner",
+        help=SEARCH_HELP,
         description="A search for people lying on the ground: plan, fly, fuse every image into a map of "
         "P(person) per cell (Bayes' rule with the detector's detection probability, clutter and "
         "position error by altitude), replan, until the flight time is spent. Without --area-size, the "
@@ -649,7 +658,8 @@ def _one_line(text: str) -> str:
 def main(argv=None) -> int:
     """Run the command line with the arguments ``argv`` (default: sys.argv[1:]); returns the exit
     status (0 done, 1 internal error, 2 bad input)."""
-    parser = _build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = _build_parser(argv)
     args = parser.parse_args(argv)
     debug = getattr(args, "debug", False)
     if args.command is None:

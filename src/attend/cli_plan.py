@@ -53,7 +53,7 @@ def add_plan(add_command) -> None:
                       help="efe: expected free energy per second (default, or the mission's [planner] name); "
                       "lawnmower: a boustrophedon over the area at one altitude (the baseline)")
     plan.add_argument("--horizon", type=float, metavar="S",
-                      help="how far ahead each plan reaches [s] (default: the mission's, 240 s)")
+                      help="how far ahead each plan reaches [s] (default: the mission's [planner] horizon_s, 120 s)")
     plan.add_argument("--simulate", action="store_true",
                       help="dry run: fly the whole mission with the built-in simulator and the mission's detector, "
                       "write the logs (images.csv, detections.csv, people.csv) and the outputs")

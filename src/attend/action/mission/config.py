@@ -67,7 +67,7 @@ class MissionConfig:
     uavs: tuple[UavConfig, ...]
     detector: DetectionTable
     planner: str = "efe"
-    horizon_s: float = 240.0
+    horizon_s: float = 120.0
     min_separation_m: float = 10.0
     seed: int = 0
     path: Path | None = None
@@ -159,7 +159,7 @@ def mission_from_dict(raw: dict, path: str | Path) -> MissionConfig:
     planner = planner_table.get("name", "efe")
     if planner not in ("efe", "lawnmower"):
         raise MissionInputError(f"expected 'efe' or 'lawnmower', got {planner!r}", file=path, column="planner.name")
-    horizon = _number(planner_table.get("horizon_s", 240.0), path, "planner.horizon_s", low=1.0)
+    horizon = _number(planner_table.get("horizon_s", 120.0), path, "planner.horizon_s", low=1.0)
     separation = _number(planner_table.get("min_separation_m", 10.0), path, "planner.min_separation_m", low=0.0)
     return MissionConfig(boundary=boundary, exclude=exclude, cell_size_m=cell, people=people, flight_time_s=flight,
                          prior_map=prior_path, uavs=uavs, detector=detector, planner=planner, horizon_s=horizon,

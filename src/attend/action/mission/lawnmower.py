@@ -120,9 +120,13 @@ def plan_lawnmower(mission, horizon_s: float) -> list[UavPlan]:
         here = pose.copy()
         if len(rest) and not mission.ground.inside(*here[:2]):
             entry = mission.ground.entry_point(*here[:2])
-            clock += float(np.hypot(*(entry - here[:2]))) / uav.speed_m_s
-            here = np.r_[entry, here[2]]
-            rows.append(np.r_[here, clock])
+            arrive = clock + float(np.hypot(*(entry - here[:2]))) / uav.speed_m_s
+            if arrive + mission.home_time_s(k, entry) <= mission.config.flight_time_s:
+                clock = arrive
+                here = np.r_[entry, here[2]]
+                rows.append(np.r_[here, clock])
+            else:
+                rest = rest[:0]  # not even the way in and back fits the flight time
         for point in rest:
             legs = mission.ground.route(here[:2], point[:2]) if mission.ground.inside(*here[:2]) else point[None, :2]
             ok = True

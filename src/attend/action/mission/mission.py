@@ -268,7 +268,7 @@ class Mission:
             image_rate_hz=1.0 / uav.image_interval_s, altitude_layers_m=layers,
             altitude_limits_m=(low, high + 1e-9), min_separation_m=self.config.min_separation_m,
             target_threshold=TARGET_THRESHOLD, seed=self.config.seed, allowed_legs=ground.legs_allowed,
-            route_toward=toward, book_other_plans=False)
+            route_toward=toward, book_other_plans=False, fly_second_leg=True)
 
     def _plan_efe(self, horizon: float) -> list[UavPlan]:
         uavs = self.config.uavs
@@ -284,7 +284,11 @@ class Mission:
             pose = self._clamped_altitude(k, pose)
             if not self.ground.inside(pose[0], pose[1]):  # a home outside the area: fly to its entry first
                 entry = self.ground.entry_point(pose[0], pose[1])
-                clocks[k] += float(np.hypot(*(entry - pose[:2]))) / uavs[k].speed_m_s
+                arrive = clocks[k] + float(np.hypot(*(entry - pose[:2]))) / uavs[k].speed_m_s
+                if arrive + self.home_time_s(k, entry) > self.config.flight_time_s:
+                    open_[k] = False  # not even the way in and back fits the flight time
+                    continue
+                clocks[k] = arrive
                 pose = np.r_[entry, pose[2]]
                 waypoints[k].append(np.r_[pose, clocks[k]])
             paths[k] = [pose]

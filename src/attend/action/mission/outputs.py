@@ -79,6 +79,9 @@ def _write_all(mission, plans, folder: Path, plot: bool) -> list[str]:
         uav = config.uavs[k]
         lon, lat = frame.to_lon_lat(plan.waypoints[:, 0], plan.waypoints[:, 1])
         points = np.column_stack([lon, lat, plan.waypoints[:, 2]]).reshape(-1, 3)
+        if len(points) == 0:  # nothing left to fly: hold where the UAV is, then return home
+            lon, lat = frame.to_lon_lat(plan.start[0], plan.start[1])
+            points = np.array([[float(lon), float(lat), plan.start[2]]])
         home = (uav.home[0], uav.home[1], 0.0)
         stem = f"plan_{uav.name}" if several else "plan"
         write_qgc_plan(folder / f"{stem}.plan", home, points, uav.speed_m_s, inclusion, exclusion)

@@ -68,6 +68,7 @@ _EXPORTS = {
     "PrecisionDrivenSchedule": "attend.rhythm",
     "PrecisionOscillator": "attend.rhythm",
     "ProbabilityMap": "attend.action",
+    "Mission": "attend.action.mission",
     "progress_bars": "attend._progress",
     "quadrotor_roll": "attend.problems",
     "RhythmicSchedule": "attend.rhythm",

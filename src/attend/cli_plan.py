@@ -11,6 +11,9 @@ from pathlib import Path
 from attend._validation import AttendInputError
 
 EPILOG_PLAN = """\
+try it:
+  attend plan --example ex && attend plan ex/mission.toml --simulate --seed 1 --out ex/dry
+
 the loop a team runs in the field:
   attend plan mission.toml --out plan1                       first plan, from the homes
   (fly plan1/plan.plan, collect images.csv and detections.csv)
@@ -44,8 +47,11 @@ def add_plan(add_command) -> None:
         epilog=EPILOG_PLAN,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    plan.add_argument("mission", help="mission file (TOML)")
-    plan.add_argument("--out", required=True, help="output folder (created if missing; replaced files are written "
+    plan.add_argument("mission", nargs="?", help="mission file (TOML); 'attend plan --example FOLDER' writes one")
+    plan.add_argument("--example", metavar="FOLDER",
+                      help="write an example mission (a 400 m concave area near Delft with a pond and a no-fly "
+                      "zone, one UAV, the detector calibration of docs/mission.md) into FOLDER and stop")
+    plan.add_argument("--out", help="output folder (created if missing; replaced files are written "
                       "atomically: on an error nothing in it changes)")
     plan.add_argument("--images", help="images.csv: t_s,uav,lon,lat,alt_m,yaw_deg (default: nothing flown yet)")
     plan.add_argument("--detections", help="detections.csv: t_s,uav,lon,lat,score (needs --images)")
@@ -68,6 +74,16 @@ def command_plan(args) -> int:
     from attend.action.mission import Mission, write_outputs
 
     started = time.perf_counter()
+    if args.example:
+        from attend.action.mission.examples import write_example_mission
+
+        path = write_example_mission(args.example, seed=1, size_m=400.0, lon_lat=(4.3752, 51.9850))
+        print(f"wrote {path} with area.geojson and no_fly.geojson; next: attend plan {path} --out plan1")
+        return 0
+    if not args.mission:
+        raise AttendInputError("mission: expected a mission file (TOML); 'attend plan --example FOLDER' writes one")
+    if not args.out:
+        raise AttendInputError("--out: expected the output folder")
     if args.detections and not args.images:
         raise AttendInputError("--detections: expected --images too (each detection belongs to an image)")
     if args.horizon is not None and not (math.isfinite(args.horizon) and args.horizon > 0):

@@ -171,3 +171,30 @@ def test_targets_sit_on_the_people_the_simulator_placed(tmp_path):
     assert np.all((masses >= 0.5) & (masses <= 1.0))
     assert np.all(np.diff(masses) <= 0)
     assert np.all(counts >= 1)
+
+
+def test_prior_map_from_csv_and_geotiff_puts_the_mass_where_the_weights_are(tmp_path):
+    """A prior of weight 1 on the east half of the area and 0 on the west half, as CSV points
+    and as the GeoTIFF attend writes: the prior's mass lies in the east half, and both files
+    give the same map (the GeoTIFF is read back through its own CRS)."""
+    from attend.action.mission.plan_files import write_geotiff
+    from attend.action.mission.prior_files import read_prior_weights
+
+    path = write_example_mission(tmp_path, seed=8, size_m=200.0, cell_size_m=2.0)
+    mission = Mission.from_file(path)
+    ground = mission.ground
+    xx, yy = np.meshgrid(ground.grid.centres_x, ground.grid.centres_y)
+    east = (xx > 0).astype(float)
+    lon, lat = ground.frame.to_lon_lat(xx.ravel(), yy.ravel())
+    rows = ["lon,lat,weight"] + [f"{a:.9f},{b:.9f},{w:g}" for a, b, w in zip(lon, lat, east.ravel())]
+    (tmp_path / "prior.csv").write_text("\n".join(rows) + "\n")
+    from_csv = read_prior_weights(tmp_path / "prior.csv", ground)
+    np.testing.assert_array_equal(from_csv, east)
+    write_geotiff(tmp_path / "prior.tif", east, ground.grid.origin_m, ground.grid.cell_size_m, ground.frame.crs.to_wkt())
+    from_tif = read_prior_weights(tmp_path / "prior.tif", ground)
+    np.testing.assert_array_equal(from_tif, east)
+    text = path.read_text().replace("[search]", '[search]\nprior_map = "prior.csv"')
+    path.write_text(text)
+    prior = Mission.from_file(path).prior.probability
+    assert prior[xx < 0].sum() < 1e-9 * prior.sum()
+    assert prior.sum() == pytest.approx(5.0, rel=1e-9)

@@ -24,7 +24,8 @@ EXAMPLE_DETECTOR = {"altitude_m": [15, 30, 45, 60], "detection_probability": [0.
 
 
 def random_area_m(rng: np.random.Generator, size_m: float, vertices: int = 14):
-    """(area, no-fly) shapely polygons [m] around (0, 0) (module docstring)."""
+    """(area, no-fly) shapely polygons [m] around (0, 0) (module docstring); rng: the random
+    generator; size_m: the area's size [m]; vertices: corners of its outline."""
     for _ in range(100):
         angles = np.sort(rng.uniform(0, 2 * np.pi, vertices))
         radii = size_m / 2 * rng.uniform(0.55, 1.0, vertices)

@@ -175,7 +175,7 @@ def _uav(row: dict, index: dict, path, number: int) -> int:
 
 def write_flight_logs(logs: FlightLogs, uav_names, images_path, detections_path) -> None:
     """Write ``logs`` as images.csv and detections.csv (module docstring); uav_names: the
-    mission's UAV names by index."""
+    mission's UAV names by index; images_path, detections_path: the files to write."""
     with open(images_path, "w", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(IMAGE_COLUMNS)

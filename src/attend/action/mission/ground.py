@@ -168,8 +168,8 @@ class SearchGround:
         return np.array(points + list(path))
 
     def route_length_m(self, start_xy, goal_xy, leave_area: bool = False) -> float:
-        """Length [m] of the route from start to goal; leave_area: the goal may lie outside
-        the area (a home): route to its entry point, then straight to it."""
+        """Length [m] of the route from start_xy to goal_xy ((x, y) [m]); leave_area: the goal
+        may lie outside the area (a home): route to its entry point, then straight to it."""
         start, goal = np.asarray(start_xy, float)[:2], np.asarray(goal_xy, float)[:2]
         end = self.entry_point(*goal) if leave_area else goal
         path = np.vstack([start[None], self.route(start, end), goal[None]])
@@ -220,7 +220,10 @@ def _vertices(geometry) -> np.ndarray:
 
 
 def check_home_distance(ground: SearchGround, home_xy, name: str, file) -> None:
-    """MissionInputError when a home lies more than ``MAX_HOME_DISTANCE_M`` from the area."""
+    """MissionInputError when a home lies more than ``MAX_HOME_DISTANCE_M`` from the area.
+
+    ground: the SearchGround; home_xy: the home (x, y) [m]; name: the UAV's name; file: the
+    mission file (named in the error)."""
     distance = float(ground.area_m.distance(shapely.Point(*home_xy)))
     if distance > MAX_HOME_DISTANCE_M:
         raise MissionInputError(f"the home lies {distance / 1000:.1f} km from the area; expected at most "

@@ -43,6 +43,8 @@ from attend.action.probability_map import ImageObservation, ProbabilityMap
 TARGET_THRESHOLD = 0.5
 #: Altitude layers the expected-free-energy planner chooses from, per UAV.
 PLANNER_LAYERS = 4
+#: Levels at which the planner tabulates its value functions (interpolated between them).
+VALUE_LEVELS = 2048
 #: Legs per UAV and call at most (a guard; the horizon ends a plan first).
 MAX_LEGS = 200
 
@@ -91,13 +93,15 @@ class Mission:
     # logs and the map
 
     def read_logs(self, images_path=None, detections_path=None) -> None:
-        """Read images.csv and detections.csv (None: nothing flown) and rebuild the map from them."""
+        """Read the logs and rebuild the map from them; images_path: images.csv (None: nothing
+        flown yet); detections_path: detections.csv (None: no detections)."""
         logs = read_flight_logs(images_path, detections_path, [u.name for u in self.config.uavs],
                                 [u.altitude_m for u in self.config.uavs])
         self.set_logs(logs, images_path)
 
     def set_logs(self, logs: FlightLogs, images_path=None) -> None:
-        """Rebuild the map from the prior and every image of ``logs`` (module docstring)."""
+        """Rebuild the map from the prior and every image of ``logs`` (module docstring);
+        images_path: the file the logs came from (named in errors; None: not from a file)."""
         start = time.perf_counter()
         self.logs = logs
         self.belief = self.prior.copy()
@@ -113,8 +117,10 @@ class Mission:
         self.fusion_time_s = time.perf_counter() - start
 
     def append_images(self, new: FlightLogs) -> None:
-        """Add images (and their detections) taken after every image already fused, fusing
-        only them: the same map as :meth:`set_logs` with all of them."""
+        """Add the images of ``new`` (and their detections), taken after every image already
+        fused, fusing only them: the same map as :meth:`set_logs` with all of them.
+
+        new: FlightLogs of the new images, detection_image indexing into them."""
         old = self.logs
         if old.n_images and new.n_images and new.image_time_s.min() < old.image_time_s.max():
             raise MissionInputError("append_images: expected images after the last one fused; use set_logs")
@@ -197,7 +203,7 @@ class Mission:
         return out
 
     def home_time_s(self, k: int, xy) -> float:
-        """Flight time [s] of UAV k from (x, y) [m] back home (routed inside the area)."""
+        """Flight time [s] of UAV k from xy = (x, y) [m] back home (routed inside the area)."""
         return self.ground.route_length_m(xy, self.homes_m[k], leave_area=True) / self.config.uavs[k].speed_m_s
 
     # ------------------------------------------------------------------------------------
@@ -268,12 +274,19 @@ class Mission:
             image_rate_hz=1.0 / uav.image_interval_s, altitude_layers_m=layers,
             altitude_limits_m=(low, high + 1e-9), min_separation_m=self.config.min_separation_m,
             target_threshold=TARGET_THRESHOLD, seed=self.config.seed, allowed_legs=ground.legs_allowed,
-            route_toward=toward, book_other_plans=False, fly_second_leg=True)
+            route_toward=toward, book_other_plans=False, fly_second_leg=True,
+            value_levels=VALUE_LEVELS)
 
     def _plan_efe(self, horizon: float) -> list[UavPlan]:
         uavs = self.config.uavs
         work = self.belief.copy()
-        planners = [self.efe_planner(k) for k in range(len(uavs))]
+        shared: dict = {}  # UAVs of the same kind share one planner (and its value maps)
+        planners = []
+        for k, uav in enumerate(uavs):
+            kind = (uav.speed_m_s, uav.image_interval_s, uav.altitude_m, uav.camera_fov_deg)
+            if kind not in shared:
+                shared[kind] = self.efe_planner(k)
+            planners.append(shared[kind])
         states = [self.uav_state(k) for k in range(len(uavs))]
         paths = [[pose.copy()] for pose, _ in states]
         clocks = [elapsed for _, elapsed in states]
@@ -367,7 +380,8 @@ class Mission:
     # ------------------------------------------------------------------------------------
     def summary(self, plans: list[UavPlan] | None = None) -> dict:
         """Elapsed and remaining time per UAV, expected people found, P(all found), area seen,
-        the planner's time (the figures of summary.json)."""
+        the planner's time (the figures of summary.json); plans: the plans just made (their
+        lengths are added per UAV), or None."""
         positions, masses, counts, cells = self.targets()
         grid = self.ground.grid
         searchable = self.ground.searchable
@@ -408,8 +422,11 @@ class Mission:
 
 def footprint_cells(grid, x: float, y: float, altitude_m: float, yaw_deg: float, fov_deg) -> tuple[tuple[slice, slice], np.ndarray]:
     """The window (rows, cols) and the bool mask of its cells whose centres lie in the ground
-    rectangle of a nadir image at (x, y) [m], altitude h [m] and heading psi [deg] (module
-    docstring); fov_deg: (across-track, along-track) full fields of view [deg]."""
+    rectangle of a nadir image (module docstring).
+
+    grid: the MapGrid; x, y: the camera's position [m]; altitude_m: h above the ground [m];
+    yaw_deg: heading psi from north, clockwise [deg]; fov_deg: (across-track, along-track) full
+    fields of view [deg]."""
     h = max(float(altitude_m), 0.0)
     half_across = h * np.tan(np.radians(fov_deg[0]) / 2)
     half_along = h * np.tan(np.radians(fov_deg[1]) / 2)

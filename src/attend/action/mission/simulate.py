@@ -46,7 +46,8 @@ class SimulationResult:
 
 
 def place_people(mission: Mission, rng: np.random.Generator) -> np.ndarray:
-    """(n, 2) [m] positions of round(people) people (module docstring)."""
+    """(n, 2) [m] positions of round(people) people (module docstring); mission: their area
+    and prior; rng: the random generator."""
     grid = mission.ground.grid
     weights = np.where(mission.ground.searchable, expit(mission.prior.log_odds), 0.0).ravel()
     n = max(1, int(round(mission.config.people)))
@@ -60,8 +61,10 @@ def place_people(mission: Mission, rng: np.random.Generator) -> np.ndarray:
 def simulate_mission(mission: Mission, seed: int, planner: str | None = None, replan_s: float = 30.0,
                      found_radius_m: float | None = None, on_replan=None) -> SimulationResult:
     """Fly ``mission`` to the end of its flight time (module docstring); its logs end up holding
-    the simulated images and detections. planner: "efe" or "lawnmower" (None: the mission's);
-    replan_s: time between replans [s]; on_replan(mission, plans, t): called after each plan."""
+    the simulated images and detections. seed: places the people and draws the detections;
+    planner: "efe" or "lawnmower" (None: the mission's); replan_s: time between replans [s];
+    found_radius_m: a person is found when a target lies this close [m] (None: module
+    docstring); on_replan(mission, plans, t): called after each plan."""
     config = mission.config
     rng = np.random.default_rng(seed)
     people = place_people(mission, rng)

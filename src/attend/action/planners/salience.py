@@ -100,6 +100,8 @@ SEPARATION_SAMPLES = 24
 VALUE_TILE_CELLS = 64
 #: Default number of altitude layers.
 DEFAULT_LAYERS = 5
+#: Logit range [-L, L] of the tabulated levels of the value functions (``value_levels``).
+LEVEL_LOGIT_LIMIT = 30.0
 #: Most looks of one cell along a path whose value is counted (later looks count 0: a lower bound).
 MAX_LOOKS = 8
 
@@ -269,7 +271,9 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
     (start (3,), goal (3,)) [m] -> (x, y) [m], the first waypoint of an allowed route from start
     to goal (the long-range legs go there when the straight leg is not allowed);
     book_other_plans: book the images the other UAVs will take along their plans (False: the
-    caller has booked them on the map it passes).
+    caller has booked them on the map it passes); value_levels: None (the channel's functions
+    at every distinct value of the map, exact) or a number of levels evenly spaced in logit at
+    which they are tabulated and interpolated (faster on detailed maps; :meth:`_levels`).
     """
 
     name = "efe"
@@ -296,6 +300,7 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         allowed_legs=None,
         route_toward=None,
         book_other_plans: bool = True,
+        value_levels: int | None = None,
     ) -> None:
         if not isinstance(model, DetectionModel):
             raise ActionInputError(f"model: expected a DetectionModel, got {type(model).__name__}")
@@ -364,6 +369,10 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         self.allowed_legs = allowed_legs
         self.route_toward = route_toward
         self.book_other_plans = bool(book_other_plans)
+        if value_levels is not None and not (isinstance(value_levels, (int, np.integer)) and value_levels >= 16):
+            raise ActionInputError(f"value_levels: expected None or a whole number >= 16, got {value_levels!r}")
+        self.value_levels = None if value_levels is None else int(value_levels)
+        self._level_functions: dict = {}
         self.target_radius_m = float(target_radius_m) if target_radius_m is not None else None
         self.climb_speed_m_s = float(climb_speed_m_s) if climb_speed_m_s is not None else self.speed_m_s
         self.image_spacing_m = self.speed_m_s / self.image_rate_hz
@@ -435,44 +444,72 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         with np.errstate(divide="ignore", invalid="ignore"):
             share = np.where(mass > _EPS, p / np.maximum(mass, _EPS), 0.0)
         out = np.zeros((self._n_tables + 1,) + p.shape)
+        unit = p if self.channel == "cell" else mass
+        unit_levels = self._levels(unit)
+        mass_levels = unit_levels if self.channel == "disc" else self._levels(mass)
         for layer in range(len(self.altitude_layers_m)):
-            self._layer_value(p, mass, share, layer, cell_size_m, out)
+            self._layer_value(p, share, layer, cell_size_m, out, unit_levels, mass_levels)
         return out
+
+    def _levels(self, values: np.ndarray):
+        """(levels, gather): the values at which the channel's functions are evaluated, and a
+        function taking those functions' values at the levels to the cells. Exact (value_levels
+        None): the distinct values; else ``value_levels`` levels evenly spaced in logit on
+        [-30, 30], linearly interpolated in logit (a sort of the map avoided)."""
+        if self.value_levels is None:
+            levels, inverse = np.unique(values, return_inverse=True)
+            inverse = inverse.reshape(values.shape)
+            return levels, lambda table: table[inverse]
+        n = self.value_levels
+        grid = np.linspace(-LEVEL_LOGIT_LIMIT, LEVEL_LOGIT_LIMIT, n)
+        clipped = np.clip(values, 1e-300, 1.0)
+        with np.errstate(divide="ignore"):
+            z = np.log(clipped) - np.log1p(-np.minimum(clipped, 1.0 - 1e-16))
+        position = np.clip((z + LEVEL_LOGIT_LIMIT) / (grid[1] - grid[0]), 0.0, n - 1.000001)
+        low = position.astype(np.intp)
+        weight = position - low
+        levels = expit(grid)
+        levels[0], levels[-1] = 0.0, 1.0
+        return levels, lambda table: table[low] * (1.0 - weight) + table[low + 1] * weight
 
     def _target_radius(self, cell_size_m: float) -> float:
         if self.target_radius_m is not None:
             return self.target_radius_m
         return max(1.5, 2 * cell_size_m)
 
-    def _layer_value(self, p, mass, share, layer: int, cell_size_m: float, out: np.ndarray) -> None:
-        """Write the difference maps T_1 .. T_{K+1} of one layer into ``out`` from p, the disc
-        masses m (clipped to 1) and the shares p / m (the channel's functions of m are evaluated
-        once per distinct m)."""
+    def _layer_value(self, p, share, layer: int, cell_size_m: float, out: np.ndarray, unit_levels,
+                     mass_levels) -> None:
+        """Write the difference maps T_1 .. T_{K+1} of one layer into ``out`` from p and the shares
+        p / m (m the disc masses, clipped to 1); the channel's functions of the unit (m, or p)
+        and of m are evaluated at their levels (:meth:`_levels`) and gathered to the cells."""
         h = self.altitude_layers_m[layer]
         pd = float(self._pd[layer])
         association = cell_size_m**2 + np.pi * (ASSOCIATION_SIGMAS * self._sigma[layer]) ** 2
         pf = float(self.model.false_alarm_probability_per_cell(h, self.camera, association))
         looks = int(self._looks[layer])
-        unit = p if self.channel == "cell" else mass
-        levels, inverse = np.unique(unit, return_inverse=True)
-        inverse = inverse.reshape(unit.shape)
-        information = np.stack([multi_look_information(levels, pd, pf, k) for k in range(1, looks + 1)])
+        levels, gather = unit_levels
+        tabulated = self.value_levels is not None  # the same levels every time: keep the functions
+        key = (layer, cell_size_m)
+        if tabulated and key in self._level_functions:
+            information, confirms = self._level_functions[key]
+        else:
+            information = np.stack([multi_look_information(levels, pd, pf, k) for k in range(1, looks + 1)])
+            confirms = None
+            if self.preference_nats_per_person > 0:
+                confirms = np.stack([confirmation_probability(mass_levels[0], pd, pf, k, self.target_threshold)
+                                     for k in range(1, looks + 1)])
+            if tabulated:
+                self._level_functions[key] = (information, confirms)
         weight = np.ones_like(p) if self.channel == "cell" else share
         if self.preference_nats_per_person > 0:
-            if self.channel == "cell":
-                m_levels, m_inverse = np.unique(mass, return_inverse=True)
-                m_inverse = m_inverse.reshape(mass.shape)
-            else:
-                m_levels, m_inverse = levels, inverse
-            confirms = np.stack([confirmation_probability(m_levels, pd, pf, k, self.target_threshold)
-                                 for k in range(1, looks + 1)])
+            m_gather = mass_levels[1]
         previous_delta = np.zeros_like(p)
         previous_value = np.zeros_like(p)
         base = int(self._table_offset[layer])
         for k in range(looks):
-            value = weight * information[k][inverse]
+            value = weight * gather(information[k])
             if self.preference_nats_per_person > 0:
-                value += self.preference_nats_per_person * p * confirms[k][m_inverse]
+                value += self.preference_nats_per_person * p * m_gather(confirms[k])
             delta = value - previous_value
             out[base + k] = delta - previous_delta
             previous_value, previous_delta = value, delta

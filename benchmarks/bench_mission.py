@@ -1,0 +1,128 @@
+"""The mission on your own ground (`attend plan`): closed-loop search on random areas against the
+lawnmower, and the wall time of one `attend plan` call at 250 000 cells.
+
+Bank: random concave areas with a hole and a no-fly zone (attend.action.mission.examples), sizes
+log-uniform in 200 m - 1 km, 1-3 UAVs, 3-6 expected people (that many placed), the mission
+issue's detector, 2 m cells, flight time per UAV 1.25 x (searchable area / (n v w(30 m))), one
+pass at 30 m shared among the UAVs. Each mission is flown twice with the same people and
+detector seed: `efe` and `lawnmower`, replanning every 30 s (`attend plan --simulate`).
+
+Targets (the mission issue): every person found in >= 95 % of missions; median time to find
+90 %, efe / lawnmower <= 0.8 (a miss counts as twice the flight time); <= 0.5 false targets per
+mission; one `attend plan` call <= 2 s wall at 250 000 cells including reading the logs.
+
+    python benchmarks/bench_mission.py            # 16 missions (about 20 min on 2 cores)
+    python benchmarks/bench_mission.py --quick    # 4 missions
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from attend.action.mission import Mission
+from attend.action.mission.examples import write_example_mission
+from attend.action.mission.flight_logs import write_flight_logs
+from attend.action.mission.simulate import simulate_mission
+
+
+def flight_time_s(mission: Mission) -> float:
+    area = float(mission.ground.searchable.sum()) * mission.ground.grid.cell_area_m2
+    uavs = mission.config.uavs
+    width = float(mission.cameras[0].footprint_m(30.0)[0])
+    return 1.25 * area / (len(uavs) * uavs[0].speed_m_s * width)
+
+
+def closed_loop(n_missions: int, seed: int) -> list[dict]:
+    rng = np.random.default_rng(seed)
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        for case in range(n_missions):
+            size = float(np.exp(rng.uniform(np.log(200), np.log(1000))))
+            uavs = int(rng.integers(1, 4))
+            people = int(rng.integers(3, 7))
+            path = write_example_mission(Path(folder) / f"m{case}", seed=seed + case, size_m=size, n_uavs=uavs,
+                                         people=people, flight_time_s=600.0)
+            budget = flight_time_s(Mission.from_file(path))
+            path = write_example_mission(Path(folder) / f"m{case}", seed=seed + case, size_m=size, n_uavs=uavs,
+                                         people=people, flight_time_s=round(budget, 1))
+            row = {"case": case, "size_m": size, "uavs": uavs, "people": people, "budget_s": budget}
+            for planner in ("efe", "lawnmower"):
+                mission = Mission.from_file(path)
+                started = time.perf_counter()
+                result = simulate_mission(mission, seed=seed + case, planner=planner)
+                t90 = result.time_to_fraction_s(0.9)
+                row[planner] = {"found_all": bool(np.all(np.isfinite(result.found_times_s))),
+                                "found": int(np.isfinite(result.found_times_s).sum()),
+                                "t90_s": t90 if math.isfinite(t90) else 2 * budget,
+                                "false_targets": result.false_targets, "p_all_found": result.p_all_found,
+                                "wall_s": time.perf_counter() - started,
+                                "plan_median_s": float(np.median(result.planner_times_s))}
+            rows.append(row)
+            e, l = row["efe"], row["lawnmower"]
+            print(f"  {case:2d}: {size:5.0f} m, {uavs} UAV(s), {people} people, {budget:5.0f} s | efe found "
+                  f"{e['found']}/{people}, t90 {e['t90_s']:5.0f} s, false {e['false_targets']} | lawnmower found "
+                  f"{l['found']}/{people}, t90 {l['t90_s']:5.0f} s, false {l['false_targets']}", flush=True)
+    return rows
+
+
+def call_time(seed: int) -> tuple[float, int, int]:
+    """Wall time [s] of `attend plan` with logs, on an area of about 250 000 cells, after half
+    of a simulated mission (median of 3 calls)."""
+    with tempfile.TemporaryDirectory() as folder:
+        folder = Path(folder)
+        path = write_example_mission(folder, seed=seed, size_m=1150.0, n_uavs=2, people=5, flight_time_s=600.0)
+        mission = Mission.from_file(path)
+        simulate_mission(mission, seed=seed, replan_s=60.0)
+        logs = mission.logs
+        keep = logs.image_time_s <= 300.0
+        index = np.flatnonzero(keep)
+        renumber = -np.ones(len(keep), dtype=int)
+        renumber[index] = np.arange(len(index))
+        dkeep = keep[logs.detection_image]
+        from attend.action.mission.flight_logs import FlightLogs
+
+        part = FlightLogs(logs.image_time_s[keep], logs.image_uav[keep], logs.image_lon[keep], logs.image_lat[keep],
+                          logs.image_alt_m[keep], logs.image_yaw_deg[keep], renumber[logs.detection_image[dkeep]],
+                          logs.detection_lon[dkeep], logs.detection_lat[dkeep], logs.detection_score[dkeep])
+        write_flight_logs(part, [u.name for u in mission.config.uavs], folder / "images.csv", folder / "detections.csv")
+        walls = []
+        for _ in range(3):
+            started = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "attend", "plan", str(path), "--out", str(folder / "out"), "--images",
+                            str(folder / "images.csv"), "--detections", str(folder / "detections.csv")], check=True,
+                           capture_output=True)
+            walls.append(time.perf_counter() - started)
+        return float(np.median(walls)), mission.ground.grid.n_cells, int(keep.sum())
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="4 missions instead of 16")
+    parser.add_argument("--missions", type=int, default=None)
+    parser.add_argument("--seed", type=int, default=100)
+    args = parser.parse_args()
+    n = args.missions or (4 if args.quick else 16)
+    wall, cells, images = call_time(args.seed)
+    print(f"one `attend plan` call: {wall:.2f} s wall at {cells} cells with {images} images   (target <= 2 s)")
+    print(f"closed loop, {n} random missions:")
+    rows = closed_loop(n, args.seed)
+    for planner in ("efe", "lawnmower"):
+        found = np.mean([r[planner]["found_all"] for r in rows])
+        false = np.mean([r[planner]["false_targets"] for r in rows])
+        print(f"{planner:10s} every person found in {100 * found:5.1f} % of missions (target >= 95 %), "
+              f"false targets {false:.2f} per mission (target <= 0.5), median plan call "
+              f"{np.median([r[planner]['plan_median_s'] for r in rows]):.2f} s")
+    ratio = np.median([r["efe"]["t90_s"] / r["lawnmower"]["t90_s"] for r in rows])
+    print(f"time to find 90 %, efe / lawnmower (median over missions): {ratio:.2f}   (target <= 0.8)")
+
+
+if __name__ == "__main__":
+    main()

@@ -31,7 +31,7 @@ _AREA_KEYS = {"boundary", "exclude", "cell_size_m"}
 _SEARCH_KEYS = {"people", "flight_time_s", "prior_map", "seed"}
 _UAV_KEYS = {"name", "home", "speed_m_s", "altitude_m", "camera_fov_deg", "image_interval_s"}
 _DETECTOR_KEYS = {"altitude_m", "detection_probability", "false_detections_per_image", "position_std_m"}
-_PLANNER_KEYS = {"name", "horizon_s", "min_separation_m"}
+_PLANNER_KEYS = {"name", "horizon_s", "min_separation_m", "lawnmower_altitude_m"}
 
 
 @dataclass(frozen=True)
@@ -55,7 +55,8 @@ class MissionConfig:
     prior_map: optional path of relative likelihoods (GeoTIFF, or CSV lon,lat,weight); uavs;
     detector: the team's :class:`DetectionTable`; planner: "efe" or "lawnmower"; horizon_s:
     how far ahead [s] a plan reaches (the autopilot returns home after it unless replanned);
-    min_separation_m: distance [m] UAVs keep apart; seed: seeds the planner's random lattice
+    min_separation_m: distance [m] UAVs keep apart; lawnmower_altitude_m: the lawnmower's
+    altitude [m] (None: chosen, :mod:`attend.action.mission.lawnmower`); seed: seeds the planner's random lattice
     rotation (a plan is a function of the mission file and the logs); path: the mission file."""
 
     boundary: Path
@@ -71,6 +72,7 @@ class MissionConfig:
     min_separation_m: float = 10.0
     seed: int = 0
     path: Path | None = None
+    lawnmower_altitude_m: float | None = None
 
     def uav_index(self, name: str) -> int:
         """Index of the UAV called ``name`` (KeyError if none)."""
@@ -161,9 +163,17 @@ def mission_from_dict(raw: dict, path: str | Path) -> MissionConfig:
         raise MissionInputError(f"expected 'efe' or 'lawnmower', got {planner!r}", file=path, column="planner.name")
     horizon = _number(planner_table.get("horizon_s", 120.0), path, "planner.horizon_s", low=1.0)
     separation = _number(planner_table.get("min_separation_m", 10.0), path, "planner.min_separation_m", low=0.0)
+    sweep = planner_table.get("lawnmower_altitude_m")
+    if sweep is not None:
+        sweep = _number(sweep, path, "planner.lawnmower_altitude_m", low=0.0, open_low=True)
+        for k, uav in enumerate(uavs):
+            if not uav.altitude_m[0] <= sweep <= uav.altitude_m[1]:
+                raise MissionInputError(f"expected an altitude within every UAV's limits, {uav.name!r} flies "
+                                        f"{uav.altitude_m[0]:g}-{uav.altitude_m[1]:g} m, got {sweep:g}", file=path,
+                                        column="planner.lawnmower_altitude_m")
     return MissionConfig(boundary=boundary, exclude=exclude, cell_size_m=cell, people=people, flight_time_s=flight,
                          prior_map=prior_path, uavs=uavs, detector=detector, planner=planner, horizon_s=horizon,
-                         min_separation_m=separation, seed=int(seed), path=path)
+                         min_separation_m=separation, seed=int(seed), path=path, lawnmower_altitude_m=sweep)
 
 
 def _uav(table, k: int, path: Path) -> UavConfig:

@@ -25,7 +25,6 @@ import numpy as np
 import shapely
 import shapely.ops
 from pyproj import CRS, Transformer
-from scipy.sparse.csgraph import csgraph_from_dense, dijkstra
 
 from attend.action.mission.errors import MissionInputError
 from attend.action.probability_map import MapGrid
@@ -176,6 +175,8 @@ class SearchGround:
         return float(np.sum(np.hypot(*np.diff(path, axis=0).T)))
 
     def _graph_path(self, start: np.ndarray, goal: np.ndarray):
+        from scipy.sparse.csgraph import csgraph_from_dense, dijkstra  # only when a leg is not straight
+
         nodes = self._nodes
         k = len(nodes)
         if k == 0:

@@ -9,9 +9,12 @@ Pattern: parallel strips w(h*) apart along the long axis of the area's minimum r
 rectangle, each strip cut to the flyable region F (:mod:`attend.action.mission.ground`) and
 flown in alternating directions; consecutive strip pieces are joined by routes inside F. With n
 UAVs the strips are shared out in n contiguous blocks of about equal length; each UAV flies its
-block from the end nearer its home. The pattern is a fixed function of the mission file, so the
+block from the end nearer its home, then again backwards, until its flight time is spent. The
+pattern is a fixed function of the mission file, so the
 plan of a call is the rest of the pattern from the UAV's progress along it: the point of the
-pattern nearest the UAV among those within its flown distance (elapsed time x speed, plus 10 %).
+pattern nearest the UAV among those within its flown distance (elapsed time x speed, plus 10 %);
+where the pattern passes the same place twice (within 2 m), the pass whose distance along the
+pattern is nearest the flown distance.
 """
 
 from __future__ import annotations
@@ -23,11 +26,16 @@ from attend.action.mission.mission import UavPlan
 
 #: Slack on the flown distance when locating a UAV on its pattern.
 PROGRESS_SLACK = 0.1
+#: Projections within this distance [m] of the nearest count as the same place.
+PROGRESS_TIE_M = 2.0
 
 
 def lawnmower_altitude_m(mission) -> float:
-    """h* of the module docstring (the first UAV's limits and camera set the candidates)."""
+    """h* of the module docstring (the first UAV's limits and camera set the candidates), or
+    the mission file's ``[planner] lawnmower_altitude_m``."""
     config = mission.config
+    if config.lawnmower_altitude_m is not None:
+        return float(config.lawnmower_altitude_m)
     uav = config.uavs[0]
     low, high = uav.altitude_m
     table = np.asarray(config.detector.altitudes_m)
@@ -85,11 +93,16 @@ def lawnmower_patterns(mission) -> list[np.ndarray]:
             pieces = [p[::-1] for p in pieces[::-1]]
         points = [np.r_[home, h]]
         here = home
-        for piece in pieces:
-            for xy in ground.route(here, piece[0]):
-                points.append(np.r_[xy, h])
-            points.append(np.r_[piece[1], h])
-            here = piece[1]
+        flown, reach = 0.0, mission.config.flight_time_s * mission.config.uavs[k].speed_m_s
+        while pieces and flown < reach:  # sweep the block again, backwards, until the flight time is spent
+            for piece in pieces:
+                for xy in ground.route(here, piece[0]):
+                    flown += float(np.hypot(*(xy - points[-1][:2])))
+                    points.append(np.r_[xy, h])
+                flown += float(np.hypot(*(piece[1] - points[-1][:2])))
+                points.append(np.r_[piece[1], h])
+                here = piece[1]
+            pieces = [p[::-1] for p in pieces[::-1]]
         patterns.append(np.array(points))
     return patterns
 
@@ -102,8 +115,9 @@ def plan_lawnmower(mission, horizon_s: float) -> list[UavPlan]:
         pose, elapsed = mission.uav_state(k)
         start = np.r_[pose, elapsed]
         length = np.r_[0.0, np.cumsum(np.hypot(*np.diff(pattern[:, :2], axis=0).T) + np.abs(np.diff(pattern[:, 2])))]
-        flown = elapsed * uav.speed_m_s * (1 + PROGRESS_SLACK) + 1.0
-        best, best_s, best_d = 1, 0.0, np.inf
+        expected = elapsed * uav.speed_m_s
+        flown = expected * (1 + PROGRESS_SLACK) + 1.0
+        candidates = []  # (segment, arc length, distance) of the UAV's projection on each segment
         for j in range(1, len(pattern)):
             a, b = pattern[j - 1, :2], pattern[j, :2]
             seg = b - a
@@ -111,9 +125,10 @@ def plan_lawnmower(mission, horizon_s: float) -> list[UavPlan]:
             s = length[j - 1] + t * (length[j] - length[j - 1])
             if s > flown and j > 1:
                 break
-            d = float(np.hypot(*(a + t * seg - pose[:2])))
-            if d < best_d - 1e-9:
-                best, best_s, best_d = j, s, d
+            candidates.append((j, s, float(np.hypot(*(a + t * seg - pose[:2])))))
+        nearest = min(c[2] for c in candidates)
+        # on a path that passes the same place twice (the sweep back), the pass the flown distance points to
+        best = min((c for c in candidates if c[2] <= nearest + PROGRESS_TIE_M), key=lambda c: abs(c[1] - expected))[0]
         rest = pattern[best:]
         rows = []
         clock = elapsed

@@ -15,8 +15,9 @@ from attend.plotting import figure
 _COLOURS = ["tab:orange", "tab:red", "tab:pink", "tab:brown", "white", "tab:cyan", "tab:olive", "tab:gray"]
 
 
-def plot_mission_map(mission, plans, path) -> Path:
-    """Draw the mission's map with ``plans`` to ``path`` (PNG). Returns ``path``."""
+def plot_mission_map(mission, plans, path, summary: dict | None = None) -> Path:
+    """Draw the mission's map with ``plans`` to ``path`` (PNG); summary: the mission's
+    :meth:`Mission.summary` (None: computed). Returns ``path``."""
     from matplotlib.colors import LogNorm
 
     ground = mission.ground
@@ -57,10 +58,10 @@ def plot_mission_map(mission, plans, path) -> Path:
     ax.set_aspect("equal")
     ax.set_xlabel("east of the area's centre [m]")
     ax.set_ylabel("north of the area's centre [m]")
-    summary = mission.summary(plans)
+    summary = summary if summary is not None else mission.summary(plans)
     ax.set_title(f"{summary['targets']} likely people, P(all found) = {summary['p_all_found']:.2f}, "
                  f"{100 * summary['area_covered_fraction']:.0f} % of the area seen", fontsize=9)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=7, framealpha=0.7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=100)
     return Path(path)

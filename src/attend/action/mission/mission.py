@@ -103,6 +103,7 @@ class Mission:
         """Rebuild the map from the prior and every image of ``logs`` (module docstring);
         images_path: the file the logs came from (named in errors; None: not from a file)."""
         start = time.perf_counter()
+        self._targets = None
         self.logs = logs
         self.belief = self.prior.copy()
         self.seen = np.zeros(self.ground.grid.shape, dtype=bool)
@@ -125,6 +126,7 @@ class Mission:
         if old.n_images and new.n_images and new.image_time_s.min() < old.image_time_s.max():
             raise MissionInputError("append_images: expected images after the last one fused; use set_logs")
         start = time.perf_counter()
+        self._targets = None
         offset = old.n_images
         merged = FlightLogs(*(np.concatenate([getattr(old, name), getattr(new, name) + (offset if name == "detection_image" else 0)])
                               for name in FlightLogs.__dataclass_fields__))
@@ -212,7 +214,9 @@ class Mission:
     def targets(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray]]:
         """Likely people, most probable first: positions (k, 2) [m], probabilities (k,) (the
         mass of the target disc, at most 1), detections within the disc radius plus 2 sigma of
-        each (k,), and the flat indices of each target's cells."""
+        each (k,), and the flat indices of each target's cells (kept until the map changes)."""
+        if self._targets is not None:
+            return self._targets
         positions, masses, cells = self.belief.target_discs(TARGET_THRESHOLD)
         order = np.argsort(-np.asarray(masses), kind="stable")
         positions = np.asarray(positions, dtype=float).reshape(-1, 2)[order]
@@ -223,7 +227,8 @@ class Mission:
         if len(positions) and len(self._detection_x):
             d = np.hypot(positions[:, 0, None] - self._detection_x[None], positions[:, 1, None] - self._detection_y[None])
             counts = (d <= reach).sum(axis=1)
-        return positions, masses, counts, cells
+        self._targets = (positions, masses, counts, cells)
+        return self._targets
 
     def p_all_found(self, cells: list[np.ndarray] | None = None) -> float:
         """P(nobody outside the targets) = prod over searchable cells outside every target of (1 - p_c)."""

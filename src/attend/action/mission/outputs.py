@@ -125,7 +125,7 @@ def _write_all(mission, plans, folder: Path, plot: bool) -> list[str]:
     if plot:
         from attend.action.mission.map_plot import plot_mission_map
 
-        plot_mission_map(mission, plans, folder / "map.png")
+        plot_mission_map(mission, plans, folder / "map.png", summary)
         names.append("map.png")
     (folder / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     names.append("summary.json")

@@ -636,8 +636,13 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
                 values[:, r0:r1, c0:c1] = local[:, r0 - h0:r1 - h0, c0 - g0:c1 - g0]
             np.copyto(cache["log_odds"], log_odds)
         tables = cache["tables"]
-        np.cumsum(cache["values"], axis=1, out=tables[:, 1:, 1:])
-        np.cumsum(tables[:, 1:, 1:], axis=2, out=tables[:, 1:, 1:])
+        first = 0 if fresh else int(min(tiles[0])) * tile  # rows above the first changed tile keep their sums
+        # T[i, j] = sum over rows < i, columns < j: rows i > first are T[first] plus the sums from row first on
+        block = tables[:, first + 1:, 1:]
+        np.cumsum(cache["values"][:, first:, :], axis=1, out=block)
+        np.cumsum(block, axis=2, out=block)
+        if first > 0:
+            block += tables[:, first:first + 1, 1:]
         return tables
 
     def _booked_images(self, grid, others: list[np.ndarray]):

@@ -136,6 +136,17 @@ def main() -> None:
         print(f"{label:34s} every person found in {100 * found:5.1f} % of missions (target >= 95 %), "
               f"false targets {false:.2f} per mission (target <= 0.5), median plan call "
               f"{np.median([r[key]['plan_median_s'] for r in rows]):.2f} s")
+    # P(all found) at the end of every flight (efe and every lawnmower altitude) against whether all were found
+    runs = [r[k] for r in rows for k in ["efe"] + [f"lawnmower@{h:g}" for h in SWEEP_ALTITUDES_M]]
+    predicted = np.array([run["p_all_found"] for run in runs])
+    observed = np.array([run["found_all"] for run in runs], dtype=float)
+    print(f"P(all found) at the end, {len(runs)} flights: Brier score {np.mean((predicted - observed) ** 2):.3f} "
+          f"(always saying the base rate {observed.mean():.2f}: {np.mean((observed.mean() - observed) ** 2):.3f})")
+    for low, high in ((0.0, 0.5), (0.5, 0.9), (0.9, 1.0001)):
+        inside = (predicted >= low) & (predicted < high)
+        if inside.any():
+            print(f"  P(all found) in [{low:.1f}, {min(high, 1):.1f}): {inside.sum():3d} flights, mean "
+                  f"{predicted[inside].mean():.2f}, all found in {observed[inside].mean():.2f}")
     for label, key in ((f"tuned lawnmower ({tuned} m)", tuned), ("best lawnmower per mission", "lawnmower_oracle")):
         ratio = np.median([r["efe"]["t90_s"] / r[key]["t90_s"] for r in rows])
         print(f"time to find 90 %, efe / {label} (median over missions): {ratio:.2f}   (target <= 0.8)")

@@ -185,3 +185,18 @@ def test_bad_mission_files(flown, tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and fragment in err[0] and other in err[0], (path, err)
         assert not out.exists()
+
+
+def test_an_image_over_nothing_of_the_area_is_refused(flown, tmp_path, capsys):
+    """An image 5 km east of the area (a row in another mission's frame, or lon/lat swapped) sees
+    nothing of it: one line naming images.csv, the row and the column, exit 2."""
+    rows = list(csv.reader(open(flown / "images.csv")))
+    header = rows[0]
+    rows[3][header.index("lon")] = f"{float(rows[3][header.index('lon')]) + 0.08:.9f}"
+    moved = tmp_path / "images.csv"
+    with open(moved, "w", newline="") as handle:
+        csv.writer(handle).writerows(rows)
+    assert main(["plan", str(flown / "mission.toml"), "--out", str(tmp_path / "o"), "--images", str(moved)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "images.csv" in err[0] and "row 4" in err[0] and "sees nothing of the area" in err[0]
+    assert not (tmp_path / "o").exists()

@@ -44,7 +44,7 @@ from attend._progress import steps
 from attend._threads import single_blas_thread
 from attend._validation import AttendInputError
 from attend.noise import coloured_noise
-from attend.perception import block_tridiagonal
+import attend.perception.block_tridiagonal as block_tridiagonal
 from attend.perception.dem import DEMEstimate
 from attend.perception.nonlinear.misfit import check_excursion, warn_if_misfit
 from attend.perception.nonlinear.model import evaluate_many

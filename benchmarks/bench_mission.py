@@ -69,13 +69,16 @@ def closed_loop(n_missions: int, seed: int) -> list[dict]:
                 started = time.perf_counter()
                 result = simulate_mission(mission, seed=seed + case, planner=planner)
                 t90 = result.time_to_fraction_s(0.9)
+                positions, masses, _, _ = mission.targets()
+                real = [bool(np.min(np.hypot(*(result.people_m - q).T)) <= result.found_radius_m) for q in positions]
                 key = planner if altitude is None else f"lawnmower@{altitude:g}"
                 row[key] = {"found_all": bool(np.all(np.isfinite(result.found_times_s))),
                             "found": int(np.isfinite(result.found_times_s).sum()),
                             "t90_s": t90 if math.isfinite(t90) else 2 * budget,
                             "false_targets": result.false_targets, "p_all_found": result.p_all_found,
                             "wall_s": time.perf_counter() - started,
-                            "plan_median_s": float(np.median(result.planner_times_s))}
+                            "plan_median_s": float(np.median(result.planner_times_s)),
+                            "targets": list(zip(masses.tolist(), real))}
             best = min((f"lawnmower@{h:g}" for h in SWEEP_ALTITUDES_M), key=lambda k: row[k]["t90_s"])
             row["lawnmower_oracle"] = row[best]
             rows.append(row)
@@ -147,6 +150,10 @@ def main() -> None:
         if inside.any():
             print(f"  P(all found) in [{low:.1f}, {min(high, 1):.1f}): {inside.sum():3d} flights, mean "
                   f"{predicted[inside].mean():.2f}, all found in {observed[inside].mean():.2f}")
+    targets = np.array([t for run in runs for t in run["targets"]], dtype=float).reshape(-1, 2)
+    if len(targets):
+        print(f"targets.csv probability, {len(targets)} targets at the end: mean {targets[:, 0].mean():.3f}, "
+              f"a person within the found radius for {targets[:, 1].mean():.3f} of them")
     for label, key in ((f"tuned lawnmower ({tuned} m)", tuned), ("best lawnmower per mission", "lawnmower_oracle")):
         ratio = np.median([r["efe"]["t90_s"] / r[key]["t90_s"] for r in rows])
         print(f"time to find 90 %, efe / {label} (median over missions): {ratio:.2f}   (target <= 0.8)")

@@ -61,7 +61,7 @@ def plot_mission_map(mission, plans, path, summary: dict | None = None) -> Path:
     summary = summary if summary is not None else mission.summary(plans)
     ax.set_title(f"{summary['targets']} likely people, P(all found) = {summary['p_all_found']:.2f}, "
                  f"{100 * summary['area_covered_fraction']:.0f} % of the area seen", fontsize=9)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=7, framealpha=0.7)
-    fig.tight_layout()
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=3, fontsize=7, framealpha=0.7)
+    fig.subplots_adjust(left=0.1, right=0.95, bottom=0.16, top=0.94)  # fixed: a tight layout costs 0.3 s
     fig.savefig(path, dpi=100)
     return Path(path)

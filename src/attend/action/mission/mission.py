@@ -45,6 +45,8 @@ TARGET_THRESHOLD = 0.5
 PLANNER_LAYERS = 4
 #: Levels at which the planner tabulates its value functions (interpolated between them).
 VALUE_LEVELS = 2048
+#: Looks of one cell along a planned path whose value counts (the rest count 0).
+MAX_LOOKS = 4
 #: Legs per UAV and call at most (a guard; the horizon ends a plan first).
 MAX_LEGS = 200
 
@@ -280,7 +282,7 @@ class Mission:
             altitude_limits_m=(low, high + 1e-9), min_separation_m=self.config.min_separation_m,
             target_threshold=TARGET_THRESHOLD, seed=self.config.seed, allowed_legs=ground.legs_allowed,
             route_toward=toward, book_other_plans=False, fly_second_leg=True,
-            value_levels=VALUE_LEVELS)
+            value_levels=VALUE_LEVELS, max_looks=MAX_LOOKS)
 
     def _plan_efe(self, horizon: float) -> list[UavPlan]:
         uavs = self.config.uavs

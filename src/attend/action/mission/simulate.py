@@ -107,8 +107,8 @@ def simulate_mission(mission: Mission, seed: int, planner: str | None = None, re
                 _detect(mission, k, point, headings[k], people, rng, index, detections)
                 next_image[k] = t + uav.image_interval_s
                 flew = True
-            if next_image[k] <= stop and end < stop:  # the plan ended early: wait for the next call
-                next_image[k] = max(next_image[k], stop + 1e-6)
+        for k in range(len(plans)):  # a plan that ended early (or was empty): the UAV waits for the next call
+            next_image[k] = max(next_image[k], stop)
         if len(columns["t"]) > first_new:
             mission.append_images(_as_logs(mission, columns, detections, first_new))
         positions = mission.targets()[0]

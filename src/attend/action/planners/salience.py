@@ -273,7 +273,9 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
     book_other_plans: book the images the other UAVs will take along their plans (False: the
     caller has booked them on the map it passes); value_levels: None (the channel's functions
     at every distinct value of the map, exact) or a number of levels evenly spaced in logit at
-    which they are tabulated and interpolated (faster on detailed maps; :meth:`_levels`).
+    which they are tabulated and interpolated (faster on detailed maps; :meth:`_levels`);
+    max_looks: the most looks of one cell along a path whose value is counted (later looks count
+    0: a lower bound of the path's value; fewer looks, fewer tables to sum).
     """
 
     name = "efe"
@@ -301,6 +303,7 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         route_toward=None,
         book_other_plans: bool = True,
         value_levels: int | None = None,
+        max_looks: int = MAX_LOOKS,
     ) -> None:
         if not isinstance(model, DetectionModel):
             raise ActionInputError(f"model: expected a DetectionModel, got {type(model).__name__}")
@@ -384,9 +387,11 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         self._pd = np.asarray(model.detection_probability(h, self.speed_m_s), dtype=float)
         self._sigma = np.asarray(model.position_error_m(h), dtype=float)
         # per layer: K_h, the most looks of one cell by consecutive images of a straight leg
-        # (floor(diagonal / s) + 1 at any heading), capped at MAX_LOOKS; tables T_1 .. T_{K_h + 1}
+        # (floor(diagonal / s) + 1 at any heading), capped at max_looks; tables T_1 .. T_{K_h + 1}
         diagonal = np.hypot(widths[0], widths[1])
-        self._looks = np.minimum(np.floor(diagonal / self.image_spacing_m + 1e-9).astype(int) + 1, MAX_LOOKS)
+        if not (isinstance(max_looks, (int, np.integer)) and max_looks >= 1):
+            raise ActionInputError(f"max_looks: expected a whole number >= 1, got {max_looks!r}")
+        self._looks = np.minimum(np.floor(diagonal / self.image_spacing_m + 1e-9).astype(int) + 1, int(max_looks))
         self._looks = np.maximum(self._looks, 1)
         counts = self._looks + 1
         self._table_offset = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.intp)

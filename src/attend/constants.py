@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-#: P_theta of the model entries that are known, not learned: exp(15) ~ 3.3e6 (seed §4.2.3; the
+#: P_theta of the model entries that are known, not learned: exp(15) ~ 3.3e6 (paper Sec. 4.2.3; the
 #: prior precision of the known entries in :func:`attend.perception.learning.identify` and the
 #: paper reproductions fig3, fig4, fig5 and rhythm-learning)
 KNOWN_PRIOR_PRECISION = math.exp(15.0)

@@ -3,7 +3,7 @@
 A variable in generalised coordinates stacks its value and derivatives order-major,
 x~ = [x; x'; ...; x^(p)] (p + 1 orders, all variables of order 0 first).
 
-Smoothness (spec §3): for noise with autocorrelation rho(tau) = exp(-tau^2/(4 s^2)),
+Smoothness: for noise with autocorrelation rho(tau) = exp(-tau^2/(4 s^2)),
 Cov(e^(i), e^(j)) = V_ij = (-1)^i rho^(i+j)(0), with
 rho^(2k)(0) = (-1)^k (2k-1)!! / (2 s^2)^k and odd derivatives zero. The temporal precision is
 S = inv(V). Writing V = L V0 L with L = diag((2 s^2)^(-k/2)), V0 is an integer matrix, so

@@ -54,7 +54,7 @@ def mass_spring_damper(mass: float = 1.4, stiffness: float = 0.8, damping: float
 
 
 def convolution_model() -> LinearSystem:
-    """The ACC 2020 observer benchmark: 2 states, 1 input, 4 outputs (spec §7)."""
+    """The ACC 2020 observer benchmark: 2 states, 1 input, 4 outputs."""
     return LinearSystem(
         A=[[-0.25, 1.0], [-0.5, -0.25]],
         B=[[1.0], [0.0]],
@@ -63,7 +63,7 @@ def convolution_model() -> LinearSystem:
 
 
 def identification_system() -> LinearSystem:
-    """The Entropy 2021 identification benchmark: 2 states, 1 input, 4 outputs (spec §7)."""
+    """The Entropy 2021 identification benchmark: 2 states, 1 input, 4 outputs."""
     return LinearSystem(
         A=[[0.0484, 0.7535], [-0.7617, -0.2187]],
         B=[[0.3604], [0.0776]],

@@ -187,7 +187,7 @@ def simulate(
     process_kernel_width: float | None = None,
     sensor_kernel_width: float | None = None,
 ) -> Trajectory:
-    """Simulate the generative process with coloured noise (spec §1).
+    """Simulate the generative process with coloured noise.
 
     x[k] = Ad x[k-1] + Bd u[k-1] + dt w[k-1],  y[k] = C x[k] + z[k], with Ad, Bd the zero-order
     hold of (A, B) over dt [s] and w, z white noise convolved with a Gaussian kernel of width

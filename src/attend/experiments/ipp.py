@@ -1,4 +1,4 @@
-"""Experiment "ipp": informative path planning for UAV search and rescue (seed §4.3, Figs. 6-9).
+"""Experiment "ipp": informative path planning for UAV search and rescue (paper Sec. 4.3, Figs. 6-9).
 
 Seeded trials per planner (25 in full mode, as in ICRA'19) with a 150 s budget (planners: precision
 gain, adaptive, expected free energy, expected free energy in two phases - search at 14 m, then

@@ -1,4 +1,4 @@
-"""Experiment "rhythm-ipp": when to stop flying and replan in UAV search (seed §4.4, Fig. 10).
+"""Experiment "rhythm-ipp": when to stop flying and replan in UAV search (paper Sec. 4.4, Fig. 10).
 
 The search-and-rescue mission of :mod:`attend.action` (40 x 40 map, 7 people, 150 s of flight,
 ``precision_gain`` planner with a 5-waypoint look-ahead) is flown under replan schedules
@@ -291,7 +291,7 @@ def _verdict(mean: float, sem: float) -> str:
 
 
 def claims(result: ExperimentResult) -> list[Claim]:
-    """The seed's claim (§4.4, Fig. 10, use 2): letting the rhythm, or precision dynamics with the
+    """The paper's claim (§4.4, Fig. 10, use 2): letting the rhythm, or precision dynamics with the
     rhythm as a prior, decide when to replan beats a flight-time budget per plan. result: the
     ExperimentResult of :func:`run`."""
     best = next((n[len("best fixed budget by mean final RSE: "):] for n in result.notes

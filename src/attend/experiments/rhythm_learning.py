@@ -1,4 +1,4 @@
-"""Rhythmic prior precision in system identification vs every fixed P_theta (seed §4.4, spec/rhythm.md use 1).
+"""Rhythmic prior precision in system identification vs every fixed P_theta (paper Sec. 4.4).
 
 The mass-spring-damper's theta3 = -k/m, theta4 = -b/m, theta6 = 1/m are learned (D/E/M steps of
 attend.perception.learning, noise precisions learned from lambda = 0, P_lambda = 1) from logs
@@ -252,7 +252,7 @@ def plot(result: ExperimentResult, out_dir) -> list[str]:
 
 
 def claims(result: ExperimentResult) -> list[Claim]:
-    """The seed's claim (§4.4, use 1): a rhythmic P_theta has a lower worst-case regret across
+    """The paper's claim (§4.4, use 1): a rhythmic P_theta has a lower worst-case regret across
     sensor noise than every fixed P_theta, without knowing the noise level. result: the
     ExperimentResult of :func:`run`."""
     value = lambda name: result.metric(name).value  # noqa: E731

@@ -1,6 +1,6 @@
 """Experiment "rhythm-tradeoff": where does a rhythm help when action and perception compete?
 
-The seed (§4.4, Fig. 10) proposes that a rhythm, or precision dynamics with a rhythm as prior,
+The paper (§4.4, Fig. 10) proposes that a rhythm, or precision dynamics with a rhythm as prior,
 should decide when to stop acting and perceive, instead of a fixed budget. In today's settings
 switching is free, so there is nothing for a schedule to trade off (docs/experiments/rhythm-ipp.md).
 Here switching costs, with a knob for how much, and every schedule is tuned the same way.
@@ -502,7 +502,7 @@ def _plot_differences(ax, rows: list[dict], unit: str, title: str) -> None:
 
 
 def claims(result: ExperimentResult) -> list[Claim]:
-    """The seed's claim (§4.4, Fig. 10) where switching costs: a rhythm (the oscillator, or the
+    """The paper's claim (§4.4, Fig. 10) where switching costs: a rhythm (the oscillator, or the
     precision-driven rule with the rhythm as prior) beats a fixed budget tuned alike. One claim
     per domain; reproduced if some rhythmic family's 95 % interval lies below 0 at some setting,
     does not hold otherwise. result: the ExperimentResult of :func:`run`."""

@@ -1,4 +1,4 @@
-"""Active vision on a rhythm (seed §2-3, Fig. 1; spec/rhythm.md use 3).
+"""Active vision on a rhythm (paper Sec. 2-3, Fig. 1).
 
 A foveated eye (acuity exp(-d^2 / (2 w^2)), w = 0.6 grid units, foveal precision rate
 rho = 12 / (intensity^2 s)) views a 5 x 5 grid of hidden letters (E F T L O C, 5 x 5 glyphs).
@@ -364,7 +364,7 @@ def _plot_when(axes, result: ExperimentResult) -> None:
 
 
 def claims(result: ExperimentResult) -> list[Claim]:
-    """The seed's claims on active vision (§2-3, Fig. 1; spec/rhythm.md use 3): epistemic
+    """The paper's claims on active vision (§2-3, Fig. 1): epistemic
     salience finds the letters in fewer saccades than static saliency and random saccades;
     inhibition of return emerges without being coded; and timing saccades on the rhythm helps
     (against fixed fixations and the precision-driven rule at the same precision budget).

@@ -1,4 +1,4 @@
-"""DEM observer: state and input estimation in generalised coordinates (D-step, spec §5).
+"""DEM observer: state and input estimation in generalised coordinates (the D-step).
 
 Unknowns X = [x~; v~] (states with p + 1 orders, inputs with d + 1 orders). Prediction errors::
 

@@ -1,6 +1,6 @@
 """Kalman smoother and filter under the coloured-noise model: the estimator that keeps the past.
 
-The generative model is the one :func:`attend.systems.simulate` samples (spec §1)::
+The generative model is the one :func:`attend.systems.simulate` samples::
 
     x[k] = Ad x[k-1] + Bd u[k-1] + dt w[k-1]        y[k] = C x[k] + z[k]
     w = Lw e_w,  z = Lz e_z                          Lw Lw' = inv(Pi_w),  Lz Lz' = inv(Pi_z)

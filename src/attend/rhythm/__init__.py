@@ -1,4 +1,4 @@
-"""Rhythm: precision-modulated scheduling of perception and action (seed §2.3, §3, §4.4).
+"""Rhythm: precision-modulated scheduling of perception and action (paper Sec. 2.3, 3, 4.4).
 
 - :class:`PrecisionOscillator`: the precision multiplier pi(t) = pi_0 exp(a sin(2 pi f t + phi)).
 - schedules (:mod:`attend.rhythm.schedule`), when to stop perceiving and act, one kind each:

@@ -1,6 +1,6 @@
-"""A schedule in learning: the prior parameter precision P_theta per iteration (seed §4.4).
+"""A schedule in learning: the prior parameter precision P_theta per iteration (paper Sec. 4.4).
 
-The seed (§4.4, with Figs. 4-5; spec/rhythm.md, use 1) proposes that during system
+The paper (§4.4, with Figs. 4-5, use 1) proposes that during system
 identification the prior parameter precision P^theta alternate between exploration (low: attend
 to the data) and exploitation (high: attend to the prior), so that the learner is neither
 over-exposed to noisy data nor biased by its prior, without knowing the noise level. Here the

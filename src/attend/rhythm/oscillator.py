@@ -1,4 +1,4 @@
-"""The precision oscillator: a rhythm on sensory precision (seed §2.3, Fig. 1).
+"""The precision oscillator: a rhythm on sensory precision (paper Sec. 2.3, Fig. 1).
 
     pi(t) = pi_0 * exp(a * sin(2 pi f t + phi))
 

@@ -1,5 +1,5 @@
 """Replanning policies: a :mod:`schedule <attend.rhythm.schedule>` deciding when the UAV replans
-in informative path planning (seed §4.4, Fig. 10).
+in informative path planning (paper Sec. 4.4, Fig. 10).
 
 The search-and-rescue UAV of :mod:`attend.action` plans a look-ahead path (w waypoints), flies
 it taking images (each image is fused into the map at once), and at some point stops following

@@ -1,4 +1,4 @@
-"""Schedules: when to stop perceiving and act (seed §2.3, §4.4; spec/rhythm.md).
+"""Schedules: when to stop perceiving and act (paper Sec. 2.3, 4.4).
 
 A schedule alternates perception (assimilate data at high precision) and action (move the
 sensor, or replan, with data taken meanwhile suppressed). Three kinds, each defined once here:

@@ -1,4 +1,4 @@
-"""Active vision: a foveated eye infers hidden letters on a grid (seed §2-3, Fig. 1).
+"""Active vision: a foveated eye infers hidden letters on a grid (paper Sec. 2-3, Fig. 1).
 
 Generative model. A scene is a grid of L = rows x cols locations x_l (grid units); location l
 holds letter c_l in {1..K}, drawn uniformly, with pattern mu_k in R^D (a 5x5 glyph, D = 25,

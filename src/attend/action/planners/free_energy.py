@@ -1,4 +1,4 @@
-"""Expected free energy planners (seed §4.3.2): epistemic value plus a prior preference for
+"""Expected free energy planners (paper Sec. 4.3.2): epistemic value plus a prior preference for
 seeing people, so search gives way to confirming targets once the map is certain.
 
 :class:`ExpectedFreeEnergyPlanner` ("efe") scores a path by -G = epistemic + pragmatic per

@@ -1,7 +1,7 @@
 """Learning: system identification, prior-precision modelling and noise-precision estimation.
 
 Alternating D (states), E (parameters) and M (noise precisions) steps that maximise the free
-energy of the paper's eq. 8 (spec §6) for an LTI model with **measured inputs** u::
+energy of the paper's eq. 8 for an LTI model with **measured inputs** u::
 
     dx/dt = A x + B u + w,   y = C x + z,   Pi_z = exp(lambda_z) I_m,  Pi_w = exp(lambda_w) I_n.
 
@@ -58,69 +58,32 @@ samples whose embedding window reaches past the log are left out of the sums
 (``trim_edges``); entries with infinite prior precision are held fixed at their prior mean;
 the noise log-precisions start at their prior mean (default 0, P_lambda = 1).
 
-Numerics and convergence (issue 13). (1) Scaled generalised coordinates: order k is held as
-sigma^k d^k/dt^k, sigma = sqrt(2) s, so the temporal precision is S's O(1) core (cond 7e4 instead
-of 1.6e29 at s = 0.006 s, p = 6); an exact reparameterisation (see ``_prepare``). (2) Sample mode
-marginalises the top-order motion error (x^(p+1) is not modelled, instead of being set to 0): W
-keeps the precision inv(V[:p, :p]) of orders 0..p-1 and counts p n dimensions. Why: with free
-per-sample states the only motion constraint on x^(0) comes from the truncation 0 = A x^(p) + B u^(p),
-whose weight scales like (sigma |A|)^(2p); at 120 Hz with s = 0.006 s that leaves n directions per
-sample essentially free, and eq. 8's F then rises by ~0.5 nat per sample and direction for every
-unit of lambda_w (measured on the roll flight: +3460 nats per unit, 3475 samples), so lambda_w ran
-to ~44 until the numerics broke ("E-step diverged"). Marginalised, F is bounded in lambda_w. Path
-mode ties the states to one trajectory and keeps the top order (marginalising it there biased
-lambda_z upwards by ~1.3 on the mass-spring-damper). (3) Over-relaxation: after each D-E-M sweep its
-total move in (theta, lambda) is extended beta times (beta doubling on success, reset on failure),
-with the exact D-step at the extended point, accepted only if F rises. (4) ``newton=True`` (the
-default of :func:`identify`, off in :func:`learn_batch`): once sweeps creep (gain < NEWTON_CREEP |F|,
-1e-4 |F|; 1e-5 left 25 creeping sweeps on a whole flight), a Levenberg-Marquardt step on the collapsed F*(theta, lambda) = max_q F, gradient by the envelope
-theorem, Hessian by differences of it in units of the posterior std; accepted only if F rises.
+Numerics (the measurements behind each choice: docs/design.md, "Learning: design notes").
+(1) Scaled generalised coordinates: order k is held as sigma^k d^k/dt^k, sigma = sqrt(2) s, so the
+temporal precision is S's O(1) core (an exact reparameterisation, ``_prepare``). (2) Sample mode
+marginalises the top-order motion error (x^(p+1) is not modelled): W keeps the precision
+inv(V[:p, :p]) of orders 0..p-1 and counts p n dimensions, which keeps F bounded in lambda_w at
+high sampling rates. (3) Over-relaxation: after each D-E-M sweep its total move in (theta, lambda)
+is extended beta times (beta doubling on success, reset on failure), accepted only if F rises.
+(4) ``newton=True`` (the default of :func:`identify`, off in :func:`learn_batch`): once sweeps creep
+(gain < NEWTON_CREEP |F|), a Levenberg-Marquardt step on the collapsed F*(theta, lambda) = max_q F,
+gradient by the envelope theorem, Hessian by differences; accepted only if F rises.
 
-Options and the published learner. ``top_order`` ("marginal" | "truncate"): how the top-order
-motion error is treated. "truncate" is the paper's eq. 8 (x^(p+1) set to 0, all p + 1 orders of the
-motion error carry precision); "marginal" integrates x^(p+1) out as in (2). ``overrelax``,
-``newton`` and ``scaled`` (the scaled generalised coordinates of (1); False: plain d^k/dt^k) switch
-(3), (4) and (1). Defaults: :func:`identify` (and ``attend identify``) use top_order="marginal" in
-sample mode ("truncate" in path mode), overrelax, newton and scaled coordinates; :func:`learn_batch`
-the same except newton=False. ``PAPER_LEARNER`` = dict(top_order="truncate", overrelax=False,
-newton=False, scaled=False) is the learner as published and as it was before (1)-(4); the paper
-reproductions (experiments fig3, fig4, fig5, rhythm_learning and benchmarks/bench_learning.py) pass
-it explicitly, so their numbers are bit-identical to those before the changes (on fig5, "marginal"
-moved the over-exposed learner's error at the highest noise from 0.069 to 7.4 and the crossing from
-sensor variance 0.019 to 0.023: the figure experiments run at dt = 0.1 s, s = 0.5 s, where the
-truncation's constraint is strong and eq. 8 is bounded, and the published figures are eq. 8's).
+Options. ``top_order`` ("marginal" | "truncate"): "truncate" is the paper's eq. 8 (x^(p+1) set to
+0, all p + 1 orders of the motion error carry precision); "marginal" is (2). ``overrelax``,
+``newton`` and ``scaled`` switch (3), (4) and (1). Defaults: :func:`identify` (and
+``attend identify``) use top_order="marginal" in sample mode ("truncate" in path mode),
+overrelax, newton and scaled coordinates; :func:`learn_batch` the same except newton=False.
+``PAPER_LEARNER`` = dict(top_order="truncate", overrelax=False, newton=False, scaled=False) is the
+learner as published; the paper reproductions pass it explicitly. :func:`identify` warns
+(IdentifiabilityWarning) when an entry given a large ("known") prior precision ends more than
+KNOWN_DISPLACED_STD prior std from its mean: the data then outweigh that prior, and freeing an
+unobservable direction lets F grow without bound.
 
-Whole real flights (benchmarks/bench_identify_flights.py: 10 quadrotor roll flights, 1801 to 6841
-samples at 120 Hz). With the paper's "known" precision exp(15) on the entries that are not learned,
-the whole bundled flight hit the iteration cap with A[2,2] -> -39, A[2,1] -> 10 and F still rising.
-Diagnosis: not a numerical artefact but a real supremum at infinity of F. The known entries moved
-(C[1,2] 0 -> 0.023, 43 prior std; A[1,2] 1 -> 0.94; C[1,1] 1 -> 0.993: the data, ~3e7 precision per
-sample and order over 3475 samples, outweigh exp(15)), until C v = 0 for A's fast eigenvector v
-(eigenvalue -39 1/s): an unobservable mode. Along that mode the motion error and the sensory
-error are both zero, so Pi_X's smallest eigenvalue goes to 0 (15.9 at iteration 20, 4e-8 at 120,
-negative at 125) and the state entropy n_t/2 ln|Sigma_X| (1740 nats per unit of ln|Sigma_X|) grows
-without bound, for a finite prior cost. Holding the known entries (P = inf: C = [1 0] and the
-kinematic row phi' = phi_dot fixed, so (C, A) stays observable) removes that direction: all 10
-flights converge in both state models. :func:`identify` warns (IdentifiabilityWarning) when a
-known entry ends more than KNOWN_DISPLACED_STD prior std from its mean and adds the advice to
-the message of an unconverged run. The README's example also frees the whole input row of B
-(B[2,1..4]): with only B[2,1] free the prior's roll gain 0.375 (about 6x what these flights
-support) could only be corrected through A, and the learned models predicted the roll rate one
-step ahead on the other flights worse than the prior for 1 (sample) and 8 (path) of the 9 good
-flights (even the least-squares one-step fit of those three entries does not transfer); with the
-row free every learned model predicts the other flights better, one step and 0.1 s ahead
-(benchmark; states and inputs relative to each flight's mean: taking absolute states changes the
-ratios by < 0.01). Learned A: the flights are flown under
-feedback, and the sample-mode optima have a lightly damped pair with a slightly positive real
-part (0.002 ... 0.6 1/s); stability is reported (``attend identify`` prints the eigenvalues), not
-enforced, since eq. 8 has no such constraint.
-
-Path mode (``states="path"``, an option; the default "sample" is the above). In eq. 8 every
-sample has its own generalised states X_t, free of their neighbours', and each window's error is
-counted at every sample its window covers (p + 1 times). The free per-sample states absorb part
-of the process noise, and the M-step then drives lambda_w far above the truth (~16 for a true 8
-on the mass-spring-damper), leaving theta4 = -b/m with ~12 % median error. Path mode ties the
-states to one trajectory x (T samples, n each) and counts the data once::
+Path mode (``states="path"``; the default is "sample"). In eq. 8 every sample has its own
+generalised states X_t and each window's error is counted at every sample its window covers
+(p + 1 times). Path mode ties the states to one trajectory x (T samples, n each) and counts the
+data once::
 
     X_t = G x_window(t),  G = kron(E, I_n)   (E: the embedding weights that also embed y)
     F = -1/(p+1) * 1/2 sum_t E_q[e_y' Vy e_y + e_x' W e_x] + 1/(p+1) * noise normalisation
@@ -129,18 +92,7 @@ states to one trajectory x (T samples, n each) and counts the data once::
 i.e. every precision exp(lambda) S is weighted by 1/(p+1). q(x) is Gaussian with precision
 Pi_path = 1/(p+1) sum_t G' Pi_X G, block tridiagonal in blocks of p + 1 samples, so the D-step is
 a batched block Cholesky solve and the state moments come from its selected inverse (O(T)).
-Measured (benchmarks/bench_learning.py, 20 seeds): mass-spring-damper median relative error of
-theta3, theta4, theta6 2.3 / 3.7 / 2.3 % (sample mode 2.8 / 11.9 / 4.5 %), lambda_z 8.3; but with
-the data counted once, the Entropy 2021 setting's prior (P_theta = exp(6) around means drawn in
-[-2, 2]) outweighs the data and path mode misses that benchmark, which sample mode meets; and
-lambda_w comes out below the truth (~6.6 for 8). Why lambda_w: the simulator (as in the papers)
-holds the process noise constant over each sample (zero-order hold), which puts more energy in
-the high orders of the embedded motion error than S expects: at the TRUE states, exp(8) times the
-S-weighted motion error is 2.4x its expected value for p = 6 (4.4x for p = 8, 1.5x for p = 4),
-while the sensory error is 1.0x; so a lambda_w below 8 is what these data support.
-Numerics: Pi_path's condition number grows like dt^-2p (mass-spring-damper, dt = 0.1 s: 5e8 at
-p = 4, 7e11 at p = 6, 4e14 at p = 8), so path mode warns above p = 6 (at p = 8 its theta4 error
-rises to ~10 %).
+Pi_path's condition number grows like dt^-2p, so path mode warns above p = 6.
 
 All numerics are batched over a leading axis of independent runs (seeds, prior precisions,
 noise levels) sharing one model structure: see :func:`learn_batch`.

@@ -221,7 +221,7 @@ def _flow_step(J: np.ndarray, start: np.ndarray, target: np.ndarray, time: np.nd
 
 
 def _m_gradient(ev: _Evaluation, state: _State, priors: _Priors, st: _Structure) -> np.ndarray:
-    """dF/dlambda (R, 2), exact for fixed q(X) and theta (spec §6, with the N Sigma_theta N' term)."""
+    """dF/dlambda (R, 2), exact for fixed q(X) and theta (with the N Sigma_theta N' term)."""
     lam = state.lam
     tr_z = np.einsum("rab,rba->r", ev.Sigma_theta, ev.H_z)
     tr_w = np.einsum("rab,rba->r", ev.Sigma_theta, ev.H_w)

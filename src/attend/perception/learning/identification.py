@@ -123,7 +123,7 @@ def identify(
     top_order: str | None = None,
     scaled: bool = True,
 ) -> IdentificationResult:
-    """Learn the free entries of (A, B, C) and the noise precisions from a log (spec §6).
+    """Learn the free entries of (A, B, C) and the noise precisions from a log.
 
     system_prior: the model whose entries are the prior means eta_theta (the learning starts
     there unless ``initial`` is given); outputs (N, m) and measured inputs (N, r) sampled at dt [s];

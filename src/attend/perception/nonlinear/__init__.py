@@ -1,6 +1,6 @@
 """Nonlinear DEM: state and input estimation for dx/dt = f(x, v, theta) + w, y = g(x, v, theta) + z.
 
-The generative model is the linear core's (spec perception.md §1) with f and g in place of
+The generative model is the linear core's with f and g in place of
 (A, B, C): w and z are coloured (white noise convolved with a Gaussian kernel of width s), with
 spatial precisions Pi_w (``process_precision``) and Pi_z (``sensor_precision``); unknown inputs v
 have a prior mean eta (the ``inputs`` argument of :meth:`NonlinearDEM.estimate`) and precision

@@ -15,8 +15,7 @@ three sinusoidal-sensor systems of the random nonlinear bank theta ends 1.6, 0.3
 from the truth, against 4.9, 15.7 and 26.6 from the D-step's start alone):
 J_z as in path mode, J_theta by central differences over theta, and the joint curvature
 [[H_zz, H_zt], [H_tz, H_tt]] solved through the Schur complement of the block-tridiagonal H_zz
-(O(N k^2)). (An EM variant that also weighs q(z)'s covariance into the theta step,
-E_q[e' Pi~ e], moved Lorenz rho by less than 0.1 std on 4 seeds, at ~3x the time: not kept.)
+(O(N k^2)).
 
 Error bars (``parameter_std``): the estimator's spread under the generative model, linearised at
 the estimate (the sandwich of path mode's states, over (z, theta) jointly): [z; theta]_hat -

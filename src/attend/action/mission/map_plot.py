@@ -29,7 +29,12 @@ def plot_mission_map(mission, plans, path, summary: dict | None = None) -> Path:
     floor = max(1e-6, float(positive.min())) if positive.size else 1e-6
     image = ax.imshow(np.clip(shown, floor, 1.0), origin="lower", extent=(x0, x1, y0, y1), cmap="viridis",
                       norm=LogNorm(vmin=floor, vmax=1.0), interpolation="nearest")
-    fig.colorbar(image, ax=ax, label="P(a person in the cell)", shrink=0.8)
+    from matplotlib.ticker import FuncFormatter, LogLocator
+
+    bar = fig.colorbar(image, ax=ax, label="P(a person in the cell)", shrink=0.8)
+    bar.ax.yaxis.set_major_locator(LogLocator(base=10.0))
+    bar.ax.yaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:.0e}".replace("e-0", "e-").replace("e+00", "")))
+    bar.ax.yaxis.set_minor_formatter(FuncFormatter(lambda value, _: ""))  # plain text: no mathtext parser to load
     for polygon in getattr(ground.area_m, "geoms", [ground.area_m]):
         ax.plot(*np.asarray(polygon.exterior.coords).T, color="black", lw=1.0)
         for hole in polygon.interiors:

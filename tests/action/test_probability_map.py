@@ -440,28 +440,3 @@ def test_whole_missions_are_calibrated():
     mean, n = p_all[sure].mean(), sure.sum()
     assert n >= 80 and abs(all_found[sure].mean() - mean) <= 3 * np.sqrt(mean * (1 - mean) / n) + 1e-3
 
-
-def test_coarsened_map_keeps_the_expected_number_of_people_per_block():
-    """Summing D over f x f blocks: every block's p is the sum of its cells' (an expected count
-    adds), the total is unchanged, and a block is searchable when one of its cells is; the
-    grid's last partial blocks included."""
-    from attend.action.probability_map import MapGrid, ProbabilityMap
-
-    rng = np.random.default_rng(3)
-    grid = MapGrid(7, 5, 2.0, (10.0, -4.0))
-    searchable = rng.random(grid.shape) < 0.7
-    searchable[0, 0] = True
-    p = rng.uniform(0.0, 0.05, grid.shape)
-    fine = ProbabilityMap(grid, np.log(p) - np.log1p(-p), searchable)
-    coarse = fine.coarsened(3)
-    assert coarse.grid == MapGrid(3, 2, 6.0, (10.0, -4.0))
-    expected = np.zeros((2, 3))
-    for iy in range(5):
-        for ix in range(7):
-            if searchable[iy, ix]:
-                expected[iy // 3, ix // 3] += p[iy, ix]
-    np.testing.assert_allclose(coarse.probability, expected, rtol=1e-12, atol=1e-15)
-    assert coarse.expected_people() == pytest.approx(fine.expected_people(), rel=1e-12)
-    np.testing.assert_array_equal(coarse.searchable, expected > 0)
-    with pytest.raises(ValueError, match="factor"):
-        fine.coarsened(0)

@@ -323,26 +323,6 @@ class ProbabilityMap:
         twin.grid, twin.searchable, twin.log_odds = self.grid, self.searchable, self.log_odds.copy()
         return twin
 
-    def coarsened(self, factor: int) -> "ProbabilityMap":
-        """The map on cells ``factor`` times larger (same origin): D of a large cell = the sum of
-        D over its small cells (D is an expected count, so the sums are exact), capped at
-        MAX_CELL_PROBABILITY; a large cell is searchable when one of its small cells is.
-
-        factor: whole number >= 1 of small cells per large cell side (1: a copy)."""
-        if isinstance(factor, (bool, np.bool_)) or int(factor) != factor or factor < 1:
-            raise ActionInputError(f"factor: expected a whole number >= 1, got {factor!r}")
-        f = int(factor)
-        if f == 1:
-            return self.copy()
-        ny, nx = self.grid.shape
-        big = MapGrid(-(-nx // f), -(-ny // f), self.grid.cell_size_m * f, self.grid.origin_m)
-        pad = ((0, big.ny * f - ny), (0, big.nx * f - nx))
-        p = np.pad(expit(self.log_odds), pad).reshape(big.ny, f, big.nx, f).sum(axis=(1, 3))
-        mask = np.pad(self.searchable, pad).reshape(big.ny, f, big.nx, f).any(axis=(1, 3))
-        p = np.clip(p, np.exp(-LOG_ODDS_LIMIT), MAX_CELL_PROBABILITY)
-        log_odds = np.where(mask, np.log(p) - np.log1p(-p), -np.inf)
-        return ProbabilityMap(big, log_odds, mask)
-
     def expected_people(self) -> float:
         """sum_c p_c, the expected number of people on the map (the mean of the Poisson count)."""
         return float(expit(self.log_odds).sum())

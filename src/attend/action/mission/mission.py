@@ -16,9 +16,7 @@ altitude band) at its elapsed time (its last image's t_s, else 0). Legs are chos
 planner one at a time, the UAV whose plan ends first going next, each leg's images booked on a
 working copy of the map as if they saw nothing (so later legs and other UAVs go elsewhere), until
 the plan reaches ``horizon_s`` past the UAV's elapsed time or no further leg fits the flight time
-left, the route home included. The planner values images on the map summed into cells f times
-larger (:meth:`Mission.planning_factor`: the smallest footprint still spans 3 of them), the
-expected number of people per cell being additive (the route inside the area to the home's entry point, then
+left, the route home included (the route inside the area to the home's entry point, then
 straight home, at the UAV's speed). The autopilot returns home at the end of a plan unless
 replanned.
 """
@@ -47,9 +45,6 @@ TARGET_THRESHOLD = 0.5
 PLANNER_LAYERS = 4
 #: Levels at which the planner tabulates its value functions (interpolated between them).
 VALUE_LEVELS = 2048
-#: The smallest footprint side spans at least this many cells of the map the planner values
-#: (coarser than the map when the map's cells are small against the footprint).
-PLANNING_CELLS_PER_FOOTPRINT = 3
 #: Looks of one cell along a planned path whose value counts (the rest count 0).
 MAX_LOOKS = 4
 #: Legs per UAV and call at most (a guard; the horizon ends a plan first).
@@ -285,21 +280,13 @@ class Mission:
             model=self.config.detector, camera=self.cameras[k], speed_m_s=uav.speed_m_s,
             image_rate_hz=1.0 / uav.image_interval_s, altitude_layers_m=layers,
             altitude_limits_m=(low, high + 1e-9), min_separation_m=self.config.min_separation_m,
-            target_threshold=TARGET_THRESHOLD, target_radius_m=self.belief.default_target_radius_m(),
-            seed=self.config.seed, allowed_legs=ground.legs_allowed,
+            target_threshold=TARGET_THRESHOLD, seed=self.config.seed, allowed_legs=ground.legs_allowed,
             route_toward=toward, book_other_plans=False, fly_second_leg=True,
             value_levels=VALUE_LEVELS, max_looks=MAX_LOOKS)
 
-    def planning_factor(self) -> int:
-        """Small cells per side of a planning cell: the largest f with the smallest footprint
-        side (lowest altitude, along-track) still spanning ``PLANNING_CELLS_PER_FOOTPRINT``
-        planning cells of f s (s the map's cell side)."""
-        smallest = min(min(camera.footprint_m(uav.altitude_m[0])) for camera, uav in zip(self.cameras, self.config.uavs))
-        return max(1, int(float(smallest) / (PLANNING_CELLS_PER_FOOTPRINT * self.ground.grid.cell_size_m)))
-
     def _plan_efe(self, horizon: float) -> list[UavPlan]:
         uavs = self.config.uavs
-        work = self.belief.coarsened(self.planning_factor())
+        work = self.belief.copy()
         shared: dict = {}  # UAVs of the same kind share one planner (and its value maps)
         planners = []
         for k, uav in enumerate(uavs):

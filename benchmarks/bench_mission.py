@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import math
 import subprocess
 import sys
@@ -34,6 +35,7 @@ import numpy as np
 from attend.action.mission import Mission
 from attend.action.mission.examples import write_example_mission
 from attend.action.mission.flight_logs import write_flight_logs
+from attend.action.mission.mission import at_least
 from attend.action.mission.simulate import simulate_mission
 
 
@@ -124,12 +126,15 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="4 missions instead of 16")
     parser.add_argument("--missions", type=int, default=None)
     parser.add_argument("--seed", type=int, default=100)
+    parser.add_argument("--json", help="also write every mission's figures to this JSON file")
     args = parser.parse_args()
     n = args.missions or (4 if args.quick else 16)
     wall, cells, images = call_time(args.seed)
     print(f"one `attend plan` call: {wall:.2f} s wall at {cells} cells with {images} images   (target <= 2 s)")
     print(f"closed loop, {n} random missions:")
     rows = closed_loop(n, args.seed)
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1, default=float))
     tuned = min((f"lawnmower@{h:g}" for h in SWEEP_ALTITUDES_M),
                 key=lambda k: np.median([r[k]["t90_s"] for r in rows]))
     for label, key in (("efe", "efe"), (f"lawnmower, tuned ({tuned} m)", tuned),
@@ -150,6 +155,16 @@ def main() -> None:
         if inside.any():
             print(f"  P(all found) in [{low:.1f}, {min(high, 1):.1f}): {inside.sum():3d} flights, mean "
                   f"{predicted[inside].mean():.2f}, all found in {observed[inside].mean():.2f}")
+    # the same with the number of people known ([search] people_known = true): P(>= N targets are people)
+    known = np.array([at_least(np.array([m for m, _ in r[k]["targets"]]), r["people"]) for r in rows
+                      for k in ["efe"] + [f"lawnmower@{h:g}" for h in SWEEP_ALTITUDES_M]])
+    print(f"P(all found) with the number of people known: Brier score {np.mean((known - observed) ** 2):.3f}")
+    for low, high in ((0.0, 0.5), (0.5, 0.9), (0.9, 1.0001)):
+        inside = (known >= low) & (known < high)
+        if inside.any():
+            print(f"  P(all found) in [{low:.1f}, {min(high, 1):.1f}): {inside.sum():3d} flights, mean "
+                  f"{known[inside].mean():.2f}, all found in {observed[inside].mean():.2f}")
+
     targets = np.array([t for run in runs for t in run["targets"]], dtype=float).reshape(-1, 2)
     if len(targets):
         print(f"targets.csv probability, {len(targets)} targets at the end: mean {targets[:, 0].mean():.3f}, "

@@ -198,3 +198,17 @@ def test_prior_map_from_csv_and_geotiff_puts_the_mass_where_the_weights_are(tmp_
     prior = Mission.from_file(path).prior.probability
     assert prior[xx < 0].sum() < 1e-9 * prior.sum()
     assert prior.sum() == pytest.approx(5.0, rel=1e-9)
+
+
+def test_at_least_is_the_poisson_binomial_tail():
+    """P(at least n of 6 independent events) against the sum over all 2^6 outcomes."""
+    import itertools
+
+    from attend.action.mission.mission import at_least
+
+    rng = np.random.default_rng(1)
+    q = rng.random(6)
+    for n in range(8):
+        brute = sum(np.prod([q[i] if bit else 1 - q[i] for i, bit in enumerate(bits)])
+                    for bits in itertools.product([0, 1], repeat=6) if sum(bits) >= n)
+        assert at_least(q, n) == pytest.approx(brute, abs=1e-14)

@@ -28,7 +28,7 @@ else:  # pragma: no cover
 
 _SECTIONS = {"area", "search", "uav", "detector", "planner"}
 _AREA_KEYS = {"boundary", "exclude", "cell_size_m"}
-_SEARCH_KEYS = {"people", "flight_time_s", "prior_map", "seed"}
+_SEARCH_KEYS = {"people", "flight_time_s", "prior_map", "seed", "people_known"}
 _UAV_KEYS = {"name", "home", "speed_m_s", "altitude_m", "camera_fov_deg", "image_interval_s"}
 _DETECTOR_KEYS = {"altitude_m", "detection_probability", "false_detections_per_image", "position_std_m"}
 _PLANNER_KEYS = {"name", "horizon_s", "min_separation_m", "lawnmower_altitude_m"}
@@ -57,7 +57,9 @@ class MissionConfig:
     how far ahead [s] a plan reaches (the autopilot returns home after it unless replanned);
     min_separation_m: distance [m] UAVs keep apart; lawnmower_altitude_m: the lawnmower's
     altitude [m] (None: chosen, :mod:`attend.action.mission.lawnmower`); seed: seeds the planner's random lattice
-    rotation (a plan is a function of the mission file and the logs); path: the mission file."""
+    rotation (a plan is a function of the mission file and the logs); path: the mission file;
+    people_known: the number of people is exactly ``people`` (a whole number), not an expectation:
+    P(all found) is then the probability that at least that many targets are people."""
 
     boundary: Path
     exclude: tuple[Path, ...]
@@ -73,6 +75,7 @@ class MissionConfig:
     seed: int = 0
     path: Path | None = None
     lawnmower_altitude_m: float | None = None
+    people_known: bool = False
 
     def uav_index(self, name: str) -> int:
         """Index of the UAV called ``name`` (KeyError if none)."""
@@ -123,6 +126,12 @@ def mission_from_dict(raw: dict, path: str | Path) -> MissionConfig:
                      low=0.0, open_low=True, high=86400.0)
     prior = search.get("prior_map")
     prior_path = None if prior is None else _file(base, prior, path, "search.prior_map")
+    known = search.get("people_known", False)
+    if not isinstance(known, bool):
+        raise MissionInputError(f"expected true or false, got {known!r}", file=path, column="search.people_known")
+    if known and people != int(people):
+        raise MissionInputError(f"people_known = true needs a whole number of people, got {people:g}", file=path,
+                                column="search.people")
     seed = search.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise MissionInputError(f"expected a whole number >= 0, got {seed!r}", file=path, column="search.seed")
@@ -173,7 +182,7 @@ def mission_from_dict(raw: dict, path: str | Path) -> MissionConfig:
                                         column="planner.lawnmower_altitude_m")
     return MissionConfig(boundary=boundary, exclude=exclude, cell_size_m=cell, people=people, flight_time_s=flight,
                          prior_map=prior_path, uavs=uavs, detector=detector, planner=planner, horizon_s=horizon,
-                         min_separation_m=separation, seed=int(seed), path=path, lawnmower_altitude_m=sweep)
+                         min_separation_m=separation, seed=int(seed), path=path, lawnmower_altitude_m=sweep, people_known=known)
 
 
 def _uav(table, k: int, path: Path) -> UavConfig:

@@ -233,7 +233,14 @@ class Mission:
         return self._targets
 
     def p_all_found(self, cells: list[np.ndarray] | None = None) -> float:
-        """P(nobody outside the targets) = prod over searchable cells outside every target of (1 - p_c)."""
+        """P(everyone found). Expected number of people (the default): P(nobody outside the
+        targets) = prod over searchable cells outside every target of (1 - p_c). Known number N
+        (``[search] people_known``): P(at least N of the targets are people), each target a
+        person with its probability m_k independently (a Poisson-binomial tail); cells: the
+        targets' flat cell indices (None: :meth:`targets`)."""
+        if self.config.people_known:
+            masses = np.clip(self.targets()[1], 0.0, 1.0)
+            return at_least(masses, int(self.config.people))
         if cells is None:
             cells = self.targets()[3]
         log_odds = self.belief.log_odds
@@ -413,6 +420,7 @@ class Mission:
             "expected_people_left": round(float(probability[searchable].sum() - np.sum(
                 [probability.ravel()[c].sum() for c in cells])), 6) if cells else round(float(probability[searchable].sum()), 6),
             "p_all_found": round(self.p_all_found(cells), 6),
+            "p_all_found_model": "known number of people" if self.config.people_known else "expected number of people",
             "targets": int(len(positions)),
             "area_m2": round(float(np.count_nonzero(searchable)) * grid.cell_area_m2, 3),
             "area_covered_m2": round(seen_area, 3),
@@ -425,6 +433,22 @@ class Mission:
             "planner_time_s": round(getattr(self, "planner_time_s", 0.0), 4),
             "fusion_time_s": round(self.fusion_time_s, 4),
         }
+
+
+def at_least(probabilities: np.ndarray, count: int) -> float:
+    """P(at least ``count`` of independent events happen), event k with probability
+    probabilities[k] (the Poisson-binomial tail, by the O(k count) recursion over events)."""
+    if count <= 0:
+        return 1.0
+    # distribution of the number of events so far, truncated at count (the last bin holds >= count)
+    counts = np.zeros(count + 1)
+    counts[0] = 1.0
+    for q in np.asarray(probabilities, dtype=float):
+        moved = counts * q
+        counts = counts * (1.0 - q)
+        counts[1:] += moved[:-1]
+        counts[-1] += moved[-1]
+    return float(counts[-1])
 
 
 def footprint_cells(grid, x: float, y: float, altitude_m: float, yaw_deg: float, fov_deg) -> tuple[tuple[slice, slice], np.ndarray]:

@@ -41,6 +41,13 @@ MODULES = [
      "Format: [Getting started](getting-started.md#the-model-file)."),
     ("attend.interop", "attend.interop: python-control",
      "Conversion to and from `control.StateSpace` (needs `pip install control`)."),
+    ("attend.action.mission", "attend.action.mission: a search on your own ground",
+     "The mission behind `attend plan`: the area from GeoJSON, KML or a QGroundControl .plan, the "
+     "images and detections flown so far, the map, the next plans and the likely people. See "
+     "[A search on your own ground](mission.md)."),
+    ("attend.control", "attend.control: active inference control",
+     "The agent, the world, the closed loop, PID and LQG baselines and metrics. See "
+     "[Active inference control](control.md)."),
 ]
 
 

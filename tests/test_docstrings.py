@@ -76,6 +76,8 @@ MODULES = [
     "attend.action.mission.plan_files",
     "attend.action.mission.simulate",
     "attend.action.mission.examples",
+    "attend.control",
+    "attend.control.attenuation",
     "attend.experiments.quadrotor",
     "attend.experiments.ipp",
     "attend.experiments.rhythm_ipp",

@@ -38,6 +38,7 @@ EXPERIMENTS: dict[str, tuple[str, str]] = {
     "vision": ("attend.experiments.vision", "active vision: saccades to the most informative location on a rhythm (paper Fig. 1)"),
     "search-scale": ("attend.experiments.search_scale", "UAV search at field scale: probability map, EFE planner vs the best lawnmower and a truth oracle, several UAVs"),
     "lorenz": ("attend.experiments.lorenz", "nonlinear DEM on the Lorenz attractor under coloured noise vs EKF/UKF and a particle smoother"),
+    "attenuation": ("attend.control.attenuation", "sensory attenuation as attention: true and perceived force vs the attenuation of sensory precision (active inference control)"),
     "pendulum": ("attend.experiments.pendulum", "nonlinear DEM: pendulum state and unknown input through a (sin, cos) sensor vs augmented EKF/UKF"),
 }
 

@@ -1,0 +1,135 @@
+"""Pure functions of active inference control in generalised coordinates (no state, no validation).
+
+Layout of the joint state Z = [x~ (P n); v~ (Q r); a (k)], P = p + 1 orders of x and y, Q = d + 1
+orders of v; every generalised vector is order-major ([x; x'; x''; ...]).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import expm
+
+
+def causal_embedding_weights(n_orders: int, window: int, dt: float) -> np.ndarray:
+    """W (n_orders, window): y~[k] = W @ [y[k - window + 1]; ...; y[k]], the derivatives at the newest sample
+    of the least-squares polynomial of degree n_orders - 1 through the last ``window`` samples (window =
+    n_orders: exact backward differences). dt: sample spacing [s]."""
+    from math import factorial
+
+    offsets = (np.arange(window) - (window - 1)) * dt
+    taylor = np.stack([offsets**j / factorial(j) for j in range(n_orders)], axis=1)  # (window, n_orders)
+    return np.linalg.pinv(taylor)
+
+
+def rectangular_identity(rows: int, cols: int) -> np.ndarray:
+    """I (rows, cols): ones on the diagonal."""
+    return np.eye(rows, cols)
+
+
+def generalised_errors(x_t, v_t, y_t, eta_t, f0, g0, fx, fv, gx, gv, P, Q):
+    """(e_y, e_x, e_v): sensory, motion and cause prediction errors of the local linearisation.
+
+        e_y = y~ - g~,  g~ = [g(x, v); gx x' + gv v'; ...]
+        e_x = D x~ - f~, f~ = [f(x, v); fx x' + fv v'; ...]        (x^(P) = 0)
+        e_v = v~ - eta~
+    x_t (P n,), v_t (Q r,), y_t (P m,), eta_t (Q r,); f0 = f(x, v), g0 = g(x, v) at order 0."""
+    n, r = fx.shape[0], fv.shape[1]
+    X = x_t.reshape(P, n)
+    V = np.zeros((P, r))
+    orders = min(P, Q)
+    V[:orders] = v_t.reshape(Q, r)[:orders]
+    predicted_y = X @ gx.T + V @ gv.T
+    predicted_y[0] = g0
+    predicted_f = X @ fx.T + V @ fv.T
+    predicted_f[0] = f0
+    motion = np.zeros_like(X)
+    motion[:-1] = X[1:]
+    return y_t - predicted_y.reshape(-1), (motion - predicted_f).reshape(-1), v_t - eta_t
+
+
+def error_jacobian(fx, fv, gx, gv, P, Q):
+    """(E_y, E_x, E_v) = de/dX for X = [x~; v~], Jacobians of f, g held fixed (Gauss-Newton)::
+
+        E_y = -[kron(I_P, gx), kron(I_PQ, gv)],  E_x = [D_x - kron(I_P, fx), -kron(I_PQ, fv)],  E_v = [0, I]"""
+    n, r, m = fx.shape[0], fv.shape[1], gx.shape[0]
+    I_P, I_PQ = np.eye(P), rectangular_identity(P, Q)
+    shift = np.kron(np.eye(P, k=1), np.eye(n))
+    E_y = -np.hstack([np.kron(I_P, gx), np.kron(I_PQ, gv)])
+    E_x = np.hstack([shift - np.kron(I_P, fx), -np.kron(I_PQ, fv)])
+    E_v = np.hstack([np.zeros((Q * r, P * n)), np.eye(Q * r)])
+    return E_y, E_x, E_v
+
+
+def shift_matrix(P: int, n: int, Q: int, r: int) -> np.ndarray:
+    """D = blkdiag(kron(U_P, I_n), kron(U_Q, I_r)): the derivative operator on X = [x~; v~]."""
+    size_x, size_v = P * n, Q * r
+    D = np.zeros((size_x + size_v, size_x + size_v))
+    D[:size_x, :size_x] = np.kron(np.eye(P, k=1), np.eye(n))
+    D[size_x:, size_x:] = np.kron(np.eye(Q, k=1), np.eye(r))
+    return D
+
+
+def joint_system(D, E_y, E_x, E_v, Pi_y, Pi_x, Pi_v, G, Pi_a, gain, action_prior_precision):
+    """Jacobian J of the joint flow of Z = [X; a] and the gains (K_y, K_eta) of its data::
+
+        dX/dt = D X - E' Pi e              (perception: D-step, gradient of F = -e' Pi e / 2)
+        da/dt = -kappa (G' Pi_a e_y + P_a a) (action: G = dy~/da, Pi_a the precision on sensory errors)
+
+    with e_y = y~ + G (a - a_k) - g~(X): within a sample the agent predicts its sensations move with
+    its action (SPM's joint integration of world and agent). Linear in Z:
+    flow(Z) = J Z + K_y (y~ - G a_k) + K_eta eta~ + (offsets of a nonlinear f, g)."""
+    nX, k = D.shape[0], G.shape[1]
+    Wy, Wx, Wv = Pi_y @ E_y, Pi_x @ E_x, Pi_v @ E_v
+    curvature = E_y.T @ Wy + E_x.T @ Wx + E_v.T @ Wv
+    J = np.empty((nX + k, nX + k))
+    J[:nX, :nX] = D - curvature
+    J[:nX, nX:] = -Wy.T @ G
+    PaG = Pi_a @ G
+    J[nX:, :nX] = -gain * (PaG.T @ E_y)
+    J[nX:, nX:] = -gain * (G.T @ PaG) - gain * action_prior_precision * np.eye(k)
+    K_y = np.vstack([-Wy.T, -gain * PaG.T])
+    K_eta = np.vstack([Wv.T, np.zeros((k, Wv.shape[0]))])
+    return J, K_y, K_eta, curvature
+
+
+def local_linearisation_step(J: np.ndarray, flow: np.ndarray, dt: float) -> np.ndarray:
+    """dZ = (expm(J dt) - I) inv(J) flow (Ozaki), from one exponential of [[J, flow], [0, 0]] dt."""
+    N = J.shape[0]
+    block = np.zeros((N + 1, N + 1))
+    block[:N, :N] = J * dt
+    block[:N, N] = flow * dt
+    return expm(block)[:N, N]
+
+
+def relative_degrees(G: np.ndarray, n_orders: int) -> np.ndarray:
+    """Per output i, the lowest order of motion at which some action moves it (rows of G = dy~/da,
+    order-major, n_orders blocks); n_orders - 1 for an output no action moves."""
+    blocks = np.any(G.reshape(n_orders, -1, G.shape[1]) != 0, axis=2)  # (orders, m)
+    first = np.argmax(blocks, axis=0)
+    first[~blocks.any(axis=0)] = n_orders - 1
+    return first
+
+
+def sensory_precision(S_by_order: list, orders: np.ndarray, precision: np.ndarray) -> np.ndarray:
+    """Pi~_z ((P m, P m)) when output i is attended up to order orders[i]: for a diagonal Pi_z,
+    Pi~_z[(o, i), (o', i)] = pi_i S_(orders[i])[o, o'] with S_q = S(s) of q + 1 orders (the marginal precision
+    of the attended orders) and 0 beyond; a full Pi_z uses the lowest order for all outputs, kron(S_q, Pi_z).
+    S_by_order[q]: S_q padded with zeros to (P, P)."""
+    m = precision.shape[0]
+    P = S_by_order[0].shape[0]
+    if np.count_nonzero(precision - np.diag(np.diagonal(precision))) == 0:
+        out = np.zeros((P, m, P, m))
+        for i in range(m):
+            out[:, i, :, i] = precision[i, i] * S_by_order[orders[i]]
+        return out.reshape(P * m, P * m)
+    return np.kron(S_by_order[int(orders.min())], precision)
+
+
+def discrete_transition(J: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """(expm(J dt), int_0^dt expm(J t) dt): the exact step of the linear flow dZ/dt = J Z + c, c held."""
+    N = J.shape[0]
+    block = np.zeros((2 * N, 2 * N))
+    block[:N, :N] = J * dt
+    block[:N, N:] = np.eye(N) * dt
+    full = expm(block)
+    return full[:N, :N], full[:N, N:]

@@ -1,0 +1,624 @@
+"""Active inference control: perception by a D-step, action by descending sensory prediction errors.
+
+At every sample y[k] the agent embeds its outputs in generalised coordinates (y~: value and
+derivatives at the newest sample, from a causal least-squares polynomial over the last W samples)
+and integrates over one sample dt the joint flow of its beliefs X = [x~; v~] and its action a::
+
+    dX/dt = D X + dF/dX = D X - E' Pi~ e                         (perception, the D-step of DEM)
+    da/dt = -kappa (dy~/da)' Pi~_z e_y                           (action)
+
+    e = [e_y; e_x; e_v] = [y~ - g~(X); D x~ - f~(X); v~ - eta~]  (sensory, motion, cause errors)
+    Pi~ = blkdiag(kron(S, Pi_z), kron(S, Pi_w), kron(S_d, P_v))  F = -e' Pi~ e / 2 + log|Pi~| / 2
+
+E = de/dX (Jacobians of f, g held fixed over the sample), S = S(s) the smoothness precision
+(attend.generalized), kappa the ``action_gain``. dy~/da is the process's column of Markov
+parameters [g_a; g_x f_a; g_x f_x f_a; ...] (as spm_ADEM/spm_ALAP take it from the generative
+process): a matrix you give, a function of the beliefs, or "process" (then :func:`run` passes the
+true process's Jacobian at its true state each sample, exactly SPM's convention). Within the
+sample the agent predicts its sensations move with its action, y~ + dy~/da (a - a[k]) (SPM
+integrates world and agent jointly); the joint flow is integrated by local linearisation,
+Z <- Z + (expm(J dt) - I) inv(J) flow(Z) (Ozaki), which is exact for linear models.
+
+Sensory precision Pi_z may be constant, a function Pi_z(x, v) (state-dependent: attention, e.g.
+sensory attenuation), multiplied by a rhythm pi(t) (``precision_schedule``) and/or learned online
+(``precision_learning``). Action uses the same Pi_z(t) unless ``action_precision`` fixes it (SPM's
+G.U: a reflex arc whose gain does not follow attention).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, NamedTuple
+
+import numpy as np
+
+from attend._validation import AttendInputError, number, positive_scalar, precision_matrix
+from attend.control._checks import ClosedLoopDivergence, count, vector
+from attend.control._core import (
+    causal_embedding_weights,
+    relative_degrees,
+    sensory_precision,
+    discrete_transition,
+    error_jacobian,
+    generalised_errors,
+    joint_system,
+    local_linearisation_step,
+    shift_matrix,
+)
+from attend.control.model import GenerativeModel
+from attend.generalized import smoothness_precision
+
+
+@dataclass(frozen=True)
+class SensorPrecisionLearning:
+    """Online learning of the sensory log-precisions lambda (Pi_z = diag(exp(lambda))), one per output.
+
+    Per output i, q_i tracks the squared sensory prediction error of each sample before the D-step
+    absorbs it (a trusted sensor cannot hide its own noise in the belief, as it can in the residual
+    after the step), with forgetting time tau (``time_constant`` [s]):
+    q_i <- (1 - dt/tau) q_i + (dt/tau) q_i(now), and
+    lambda_i maximises n_eff/2 (c_i lambda - e^lambda q_i) - P_lambda/2 (lambda - eta_lambda)^2 (Newton
+    steps; n_eff = tau/dt samples), the M-step's free energy with a Gaussian hyperprior: eta_lambda the
+    model's log-precision, P_lambda ``hyperprior_precision``; lambda stays within eta_lambda +- ``bounds``.
+    ``orders`` "value" (default): q_i(now) = e_i0^2, c_i = 1, the order-0 error whose variance is
+    1/pi_i (plus the belief's one-sample prediction variance) whatever the embedding; "all":
+    q_i(now) = e_i' S e_i over the attended orders, c_i their count (needs derivatives that follow S(s)). ``level`` "absolute" (default):
+    each lambda_i as above; "relative": lambda shifted so that sum(exp(lambda)) = sum(exp(eta_lambda)),
+    only each sensor's share of the designed total precision (the sensory gain of the controller) is
+    learned: an agent's sensory errors hold its own intended prediction errors (what drives its action),
+    which the absolute level counts as noise. A linear model keeps its cached transition until some
+    lambda_i has moved by more than ``rebuild_tolerance``.
+    """
+
+    time_constant: float = 2.0
+    hyperprior_precision: float = 1.0 / 16.0
+    bounds: float = 12.0
+    orders: str = "value"
+    level: str = "absolute"
+    rebuild_tolerance: float = 0.05
+
+    def __post_init__(self) -> None:
+        if self.orders not in ("value", "all"):
+            raise AttendInputError(f"orders: expected 'value' or 'all', got {self.orders!r}")
+        if self.level not in ("absolute", "relative"):
+            raise AttendInputError(f"level: expected 'absolute' or 'relative', got {self.level!r}")
+        object.__setattr__(self, "rebuild_tolerance", positive_scalar(self.rebuild_tolerance, "rebuild_tolerance"))
+        object.__setattr__(self, "time_constant", positive_scalar(self.time_constant, "time_constant", "s"))
+        object.__setattr__(self, "hyperprior_precision", positive_scalar(self.hyperprior_precision, "hyperprior_precision"))
+        object.__setattr__(self, "bounds", positive_scalar(self.bounds, "bounds"))
+
+
+class StepInfo(NamedTuple):
+    """The agent after one sample: time [s]; action a (k,); states x and causes v (order 0 of the
+    beliefs); sensory_error e_y at order 0 (m,); sensor_precision: diag of Pi_z(t) (m,);
+    free_energy: -e' Pi~ e / 2 + log|Pi~| / 2 (up to a constant)."""
+
+    time: float
+    action: np.ndarray
+    states: np.ndarray
+    causes: np.ndarray
+    sensory_error: np.ndarray
+    sensor_precision: np.ndarray
+    free_energy: float
+
+
+def _schedule(schedule) -> Callable | None:
+    """A function t -> precision multiplier pi(t) from an attend.rhythm schedule or a function."""
+    if schedule is None:
+        return None
+    from attend.rhythm import FixedSchedule, PrecisionOscillator, RhythmicSchedule
+
+    if isinstance(schedule, PrecisionOscillator):
+        return schedule.multiplier
+    if isinstance(schedule, RhythmicSchedule):
+        return schedule.oscillator.multiplier
+    if isinstance(schedule, FixedSchedule):
+        if schedule.act_s > 0:
+            raise AttendInputError("precision_schedule: a FixedSchedule with act_s > 0 gives no precision for its act "
+                                   "phase; use act_s = 0 (a constant multiplier) or a PrecisionOscillator")
+        value = schedule.multiplier
+        return lambda t: value
+    if callable(schedule):
+        return schedule
+    raise AttendInputError("precision_schedule: expected a PrecisionOscillator, RhythmicSchedule, FixedSchedule "
+                           f"or a function t -> multiplier, got {type(schedule).__name__}")
+
+
+class ActiveInferenceController:
+    """Active inference controller for a :class:`GenerativeModel`: ``step(y)`` -> action, one sample at a time.
+
+    model: the agent's :class:`GenerativeModel`; dt: sample time [s].
+    action_gain: kappa > 0 in da/dt = -kappa (dy~/da)' Pi~_z e_y.
+    action_jacobian: dy~/da, ((p + 1) m, k) rows order-major (see :func:`markov_parameters`), or a
+    function ``(x, v, a) -> matrix`` of the beliefs, or "process": given each sample by
+    :func:`run` from the true process (SPM's convention). n_actions: k (needed unless
+    action_jacobian is a matrix). action_precision: None (the model's Pi_z(t), attention gates
+    action) or a fixed (m, m) precision (scalar, vector or matrix) for the action's errors.
+    action_prior_precision: P_a >= 0, a leak -kappa P_a a towards a = 0. action_limits: optional
+    (low, high): the action is clipped there (anti-windup). initial_action: a at t = 0 (zeros).
+    precision_schedule: a rhythm on Pi_z: PrecisionOscillator, RhythmicSchedule (its oscillator),
+    FixedSchedule (act_s = 0: its constant multiplier) or a function t -> multiplier (scalar or m).
+    precision_learning: a :class:`SensorPrecisionLearning` to learn Pi_z online (diagonal).
+    embedding_window: W samples per least-squares fit in the causal embedding (default: rho_i + 1,
+    exact backward differences of the attended orders of output i). sensory_orders:
+    the orders of motion of each output that carry sensory precision: "relative_degree" (default:
+    output i up to the first order at which the action moves it, with the marginal precision
+    S(rho_i + 1); outputs no action moves keep all orders), "all" (SPM: kron(S, Pi_z) on p + 1
+    orders) or a highest order for every output. In a sampled loop the finite-difference embedding
+    of a zero-order-held action shows each jump of a in the orders above the relative degree, with
+    the sign opposite to dy~/da there: attending to them is positive feedback (docs/control.md).
+    precision_gradient: for a state-dependent Pi_z(x, v), include d/dx (log|Pi~| - e' Pi~ e) / 2 in
+    the belief flow (True, as spm_ALAP). divergence_limit: |Z| beyond which the controller stops
+    with :class:`ClosedLoopDivergence` naming the settings.
+    """
+
+    def __init__(self, model: GenerativeModel, dt: float, *, action_gain: float = 1.0, action_jacobian="process",
+                 n_actions: int | None = None, action_precision=None, action_prior_precision: float = 0.0,
+                 action_limits=None, initial_action=None, precision_schedule=None,
+                 precision_learning: SensorPrecisionLearning | None = None, embedding_window: int | None = None,
+                 precision_gradient: bool = True, divergence_limit: float = 1e8,
+                 sensory_orders="relative_degree"):
+        if not isinstance(model, GenerativeModel):
+            raise AttendInputError(f"model: expected an attend.control.GenerativeModel, got {type(model).__name__}")
+        self.model = model
+        self.dt = positive_scalar(dt, "dt", "s")
+        self.action_gain = positive_scalar(action_gain, "action_gain")
+        n, r, m = model.n_states, model.n_causes, model.n_outputs
+        P, Q = model.embedding_order + 1, model.cause_order + 1
+        self._sizes = (n, r, m, P, Q)
+        if isinstance(action_jacobian, str):
+            if action_jacobian != "process":
+                raise AttendInputError(f"action_jacobian: expected a matrix, a function (x, v, a) -> matrix or "
+                                       f"'process', got {action_jacobian!r}")
+            self._G_source = "process"
+        elif callable(action_jacobian):
+            self._G_source = action_jacobian
+        else:
+            array = np.asarray(action_jacobian, dtype=float)
+            if array.ndim != 2:
+                raise AttendInputError(f"action_jacobian: expected a ((p + 1) m, k) = ({P * m}, k) matrix, got shape "
+                                       f"{array.shape}")
+            n_actions = array.shape[1] if n_actions is None else n_actions
+            self._G_source = None
+        if n_actions is None:
+            raise AttendInputError("n_actions: expected the number of actions k when action_jacobian is 'process' "
+                                   "or a function")
+        self.n_actions = k = count(n_actions, "n_actions", 1)
+        if isinstance(sensory_orders, str):
+            if sensory_orders not in ("relative_degree", "all"):
+                raise AttendInputError(f"sensory_orders: expected 'relative_degree', 'all' or an order 0..{P - 1}, got "
+                                       f"{sensory_orders!r}")
+        else:
+            sensory_orders = count(sensory_orders, "sensory_orders", 0)
+            if sensory_orders > P - 1:
+                raise AttendInputError(f"sensory_orders: expected an order 0..p = {P - 1}, got {sensory_orders}")
+        self.sensory_orders = sensory_orders
+        self._orders = None
+        self.action_precision = (None if action_precision is None
+                                 else precision_matrix(action_precision, m, "action_precision"))
+        pa = number(action_prior_precision, "action_prior_precision")
+        if not math.isfinite(pa) or pa < 0:
+            raise AttendInputError(f"action_prior_precision: expected a finite number >= 0, got {action_prior_precision!r}")
+        self.action_prior_precision = pa
+        if action_limits is not None:
+            try:
+                low, high = action_limits
+            except (TypeError, ValueError):
+                raise AttendInputError("action_limits: expected a pair (low, high)") from None
+            low, high = vector(low, k, "action_limits low"), vector(high, k, "action_limits high")
+            if np.any(low >= high):
+                raise AttendInputError(f"action_limits: expected low < high, got {low.tolist()}, {high.tolist()}")
+            action_limits = (low, high)
+        self.action_limits = action_limits
+        self._a0 = np.zeros(k) if initial_action is None else vector(initial_action, k, "initial_action")
+        self._multiplier = _schedule(precision_schedule)
+        self.precision_schedule = precision_schedule
+        if precision_learning is not None and not isinstance(precision_learning, SensorPrecisionLearning):
+            raise AttendInputError("precision_learning: expected a SensorPrecisionLearning or None")
+        if precision_learning is not None and model.state_dependent_precision:
+            raise AttendInputError("precision_learning: cannot learn a state-dependent sensor_precision(x, v); give a "
+                                   "constant sensor_precision to start learning from")
+        self.precision_learning = precision_learning
+        if embedding_window is not None:
+            embedding_window = count(embedding_window, "embedding_window", 1)
+        self.embedding_window = embedding_window
+        self._buffer_length = P if embedding_window is None else max(P, embedding_window)
+        self._embed_full = None
+        if sensory_orders != "relative_degree":
+            self._set_orders(np.full(m, P - 1 if sensory_orders == "all" else sensory_orders))
+        self.precision_gradient = bool(precision_gradient)
+        self.divergence_limit = positive_scalar(divergence_limit, "divergence_limit")
+        S_P = smoothness_precision(P, model.kernel_width)
+        S_Q = smoothness_precision(Q, model.kernel_width)
+        self._S_P = S_P
+        self._S_by_order = []
+        for q in range(P):
+            padded = np.zeros((P, P))
+            padded[: q + 1, : q + 1] = smoothness_precision(q + 1, model.kernel_width)
+            self._S_by_order.append(padded)
+        self._S_logdet = [float(np.linalg.slogdet(S[: q + 1, : q + 1])[1]) for q, S in enumerate(self._S_by_order)]
+        self._Pi_x = np.kron(S_P, model.process_precision)
+        self._Pi_v = np.kron(S_Q, model.cause_prior_precision)
+        self._D = shift_matrix(P, n, Q, r)
+        self._logdet_fixed = (np.linalg.slogdet(self._Pi_x)[1] + (np.linalg.slogdet(self._Pi_v)[1] if r else 0.0))
+        self._fast = (model.is_linear and not model.state_dependent_precision
+                      and (self._multiplier is None or _is_constant_schedule(precision_schedule)))
+        self._fast_cache: dict = {}
+        if model.is_linear:
+            A, B, C, Dm = model.matrices
+            self._E = error_jacobian(A, B, C, Dm, P, Q)
+        self._G_fixed = None if self._G_source is not None else self._check_G(action_jacobian)
+        self.reset()
+
+    # --- state ------------------------------------------------------------------------------
+
+    def reset(self) -> None:
+        """Back to t = 0: beliefs at the model's initial states and prior causes, action at initial_action."""
+        n, r, m, P, Q = self._sizes
+        model = self.model
+        Z = np.zeros(P * n + Q * r + self.n_actions)
+        Z[:n] = model.initial_states
+        eta = model.prior(0.0)
+        Z[P * n: P * n + Q * r] = eta
+        if model.initial_causes is not None:
+            Z[P * n: P * n + r] = model.initial_causes
+        Z[P * n + Q * r:] = self._a0
+        self._Z = Z
+        self._buffer = np.zeros((self._buffer_length, m))
+        self._count = 0
+        self._k = 0
+        self._y_t = np.zeros(P * m)
+        self._G_last = None
+        if self.precision_learning is not None:
+            base = np.diag(model.sensor_precision)
+            self._log_precision = np.log(base).copy()
+            self._prior_log_precision = np.log(base).copy()
+            self._q = None  # set at the first update, when the attended orders are known
+        self._last_precision = None
+
+    @property
+    def time(self) -> float:
+        """t [s] of the next sample."""
+        return self._k * self.dt
+
+    @property
+    def action(self) -> np.ndarray:
+        """The current action a (k,)."""
+        return self._Z[-self.n_actions:].copy()
+
+    @property
+    def generalised_states(self) -> np.ndarray:
+        """x~ ((p + 1) n,), order-major."""
+        n, _, _, P, _ = self._sizes
+        return self._Z[: P * n].copy()
+
+    @property
+    def generalised_causes(self) -> np.ndarray:
+        """v~ ((d + 1) r,), order-major."""
+        n, r, _, P, Q = self._sizes
+        return self._Z[P * n: P * n + Q * r].copy()
+
+    @property
+    def states(self) -> np.ndarray:
+        """x (n,): the believed states (order 0)."""
+        return self._Z[: self._sizes[0]].copy()
+
+    @property
+    def causes(self) -> np.ndarray:
+        """v (r,): the believed causes (order 0)."""
+        n, r, _, P, _ = self._sizes
+        return self._Z[P * n: P * n + r].copy()
+
+    @property
+    def sensor_precision(self) -> np.ndarray:
+        """diag Pi_z used at the last sample (m,) (learned, scheduled or state-dependent)."""
+        if self._last_precision is None:
+            n, r, _, P, _ = self._sizes
+            return np.diag(self._precision(self._Z[:n], self._Z[P * n: P * n + r], 0.0))
+        return np.diag(self._last_precision).copy()
+
+    # --- the step ---------------------------------------------------------------------------
+
+    def step(self, y, action_jacobian=None) -> np.ndarray:
+        """Take sample y[k] (m,), update beliefs and action over one sample; return the action a (k,)
+        to hold until the next sample. action_jacobian: dy~/da for this sample (needed when the
+        controller was built with action_jacobian="process"; :func:`run` passes it)."""
+        m = self._sizes[2]
+        sample = np.asarray(y, dtype=float).reshape(-1)
+        if sample.shape[0] != m:
+            raise AttendInputError(f"y: expected {m} outputs (the model's n_outputs), got {sample.shape[0]}")
+        if not np.isfinite(sample).all():
+            raise AttendInputError(f"y: expected finite outputs, got {sample.tolist()} at t = {self.time:g} s")
+        buffer = self._buffer
+        if self._count == 0:
+            buffer[:] = sample  # clamp: the first sample repeated before the log starts
+        else:
+            buffer[:-1] = buffer[1:]
+            buffer[-1] = sample
+        self._count += 1
+        G = self._resolve_G(action_jacobian)  # fixes the attended orders (and the embedding) at the first sample
+        self._y_t = self._embed_full @ buffer.reshape(-1)
+        return self._advance(self._y_t, G)
+
+    def step_generalised(self, y_tilde, action_jacobian=None) -> np.ndarray:
+        """As :meth:`step`, with the generalised outputs given: y_tilde = y~ ((p + 1) m,), order-major (e.g.
+        measured rates); action_jacobian: dy~/da for this sample, as in :meth:`step`."""
+        _, _, m, P, _ = self._sizes
+        y_t = np.asarray(y_tilde, dtype=float).reshape(-1)
+        if y_t.shape[0] != P * m:
+            raise AttendInputError(f"y_tilde: expected (p + 1) m = {P * m} values, got {y_t.shape[0]}")
+        if not np.isfinite(y_t).all():
+            raise AttendInputError("y_tilde: expected finite values")
+        self._y_t = y_t
+        return self._advance(y_t, self._resolve_G(action_jacobian))
+
+    def _check_G(self, G, dead_columns: bool = True) -> np.ndarray:
+        """dy~/da checked: shape, finite and (``dead_columns``) no all-zero column."""
+        _, _, m, P, _ = self._sizes
+        G = np.asarray(G, dtype=float)
+        k = getattr(self, "n_actions", G.shape[1] if G.ndim == 2 else 0)
+        if G.shape != (P * m, k):
+            raise AttendInputError(f"action_jacobian: expected dy~/da of shape ((p + 1) m, k) = ({P * m}, {k}), "
+                                   f"got {G.shape}")
+        if not np.isfinite(G).all():
+            raise AttendInputError("action_jacobian: expected finite values in dy~/da")
+        dead = np.flatnonzero(~np.any(G != 0, axis=0)) if dead_columns else ()
+        if len(dead):
+            raise AttendInputError(f"action_jacobian: column {int(dead[0])} of dy~/da is zero: action a[{int(dead[0])}] "
+                                   f"has no effect on any output at any of the p + 1 = {P} orders of motion; "
+                                   "raise embedding_order or check which outputs the action moves")
+        if self._orders is None:  # sensory_orders "relative_degree": fixed by the first dy~/da
+            self._set_orders(relative_degrees(G, P))
+        return G
+
+    def _set_orders(self, orders: np.ndarray) -> None:
+        """Fix the attended orders per output and the causal embedding: output i from a least-squares
+        polynomial of degree orders[i] through its last W samples (W = orders[i] + 1 unless embedding_window)."""
+        _, _, m, P, _ = self._sizes
+        orders = np.asarray(orders, dtype=int)
+        length = self._buffer_length
+        full = np.zeros((P, m, length, m))
+        for i, q in enumerate(orders):
+            window = q + 1 if self.embedding_window is None else self.embedding_window
+            if window < q + 1:
+                raise AttendInputError(f"embedding_window: expected at least {q + 1} samples to embed output {i} up to "
+                                       f"order {q}, got {window}")
+            full[: q + 1, i, length - window:, i] = causal_embedding_weights(q + 1, window, self.dt)
+        self._orders = orders
+        self._embed_full = full.reshape(P * m, length * m)
+
+    def _resolve_G(self, given) -> np.ndarray:
+        if given is not None:
+            if self._G_last is not None and given is self._G_last[0]:
+                return self._G_last[1]
+            # a Jacobian from the process may vanish for a while (a saturated actuator): only the first is
+            # required to move some output
+            checked = self._check_G(given, dead_columns=self._k == 0)
+            self._G_last = (given, checked)
+            return checked
+        if self._G_fixed is not None:
+            return self._G_fixed
+        if self._G_source == "process":
+            raise AttendInputError("action_jacobian: the controller takes dy~/da from the process; pass "
+                                   "step(y, action_jacobian=...) each sample, use attend.control.run, or build the "
+                                   "controller with a matrix")
+        n, r, _, P, _ = self._sizes
+        return self._check_G(self._G_source(self._Z[:n].copy(), self._Z[P * n: P * n + r].copy(), self.action),
+                             dead_columns=self._k == 0)
+
+    def _precision(self, x0, v0, t) -> np.ndarray:
+        """Pi_z(t) (m, m): learned or model precision times the schedule's multiplier."""
+        m = self._sizes[2]
+        if self.precision_learning is not None:
+            base = np.diag(np.exp(self._log_precision))
+        else:
+            base = self.model.sensor_precision_at(x0, v0)
+        if self._multiplier is None:
+            return base
+        mult = np.asarray(self._multiplier(t), dtype=float).reshape(-1)
+        if mult.size not in (1, m) or not np.isfinite(mult).all() or np.any(mult <= 0):
+            raise AttendInputError(f"precision_schedule: expected a finite multiplier > 0 (1 or {m} values) at "
+                                   f"t = {t:g} s, got {mult.tolist()}")
+        root = np.sqrt(np.broadcast_to(mult, (m,)))
+        return base * root[:, None] * root[None, :]
+
+    def _advance(self, y_t: np.ndarray, G: np.ndarray) -> np.ndarray:
+        n, r, m, P, Q = self._sizes
+        t = self._k * self.dt
+        eta = self.model.prior(t)
+        if self._fast:
+            Z = self._fast_step(G, y_t, eta)
+        else:
+            Z = self._general_step(G, y_t, eta, t)
+        if self.action_limits is not None:
+            np.clip(Z[-self.n_actions:], self.action_limits[0], self.action_limits[1], out=Z[-self.n_actions:])
+        if not (np.isfinite(Z).all() and np.abs(Z).max() <= self.divergence_limit):
+            self._diverged(Z, t)
+        self._Z = Z
+        self._k += 1
+        return Z[-self.n_actions:].copy()
+
+    def _diverged(self, Z, t) -> None:
+        precision = self._last_precision if self._last_precision is not None else np.eye(self._sizes[2])
+        raise ClosedLoopDivergence(
+            f"controller diverged at t = {t:g} s (|beliefs, action| reached {np.nanmax(np.abs(Z)):.3g} > "
+            f"divergence_limit {self.divergence_limit:.3g}): action_gain kappa = {self.action_gain:g}, dt = {self.dt:g} s, "
+            f"max sensor precision {np.max(np.diag(precision)):.3g}; lower action_gain or dt, or check the sign of "
+            "dy~/da (action_jacobian)")
+
+    def _fast_matrices(self, G) -> tuple:
+        """(G, Phi, Gamma_y, Gamma_eta, learned log-precision, precision) of the exact linear step
+        Z+ = Phi Z + Gamma_y y~ + Gamma_eta eta~ at the current precision (no state changes)."""
+        n, r, m, P, Q = self._sizes
+        learning = self.precision_learning
+        precision = self._precision(self._Z[:n], self._Z[P * n: P * n + r], 0.0)
+        Pi_y = sensory_precision(self._S_by_order, self._orders, precision)
+        Pi_a = Pi_y if self.action_precision is None else sensory_precision(self._S_by_order, self._orders,
+                                                                           self.action_precision)
+        E_y, E_x, E_v = self._E
+        J, K_y, K_eta, curvature = joint_system(self._D, E_y, E_x, E_v, Pi_y, self._Pi_x, self._Pi_v, G, Pi_a,
+                                                self.action_gain, self.action_prior_precision)
+        # the offsets of a linear model vanish: flow(Z) = J Z + K_y (y~ - G a_k) + K_eta eta~
+        transition, integral = discrete_transition(J, self.dt)
+        Phi = transition.copy()
+        Phi[:, -self.n_actions:] -= integral @ K_y @ G
+        learned = None if learning is None else self._log_precision.copy()
+        return G, Phi, integral @ K_y, integral @ K_eta, learned, precision
+
+    def _fast_step(self, G, y_t, eta) -> np.ndarray:
+        """Linear model, constant (or learned) precision: Z+ = Phi Z + Gamma_y y~ + Gamma_eta eta~. The matrices are
+        cached per dy~/da and rebuilt when a learned log-precision has moved by more than ``rebuild_tolerance``."""
+        cached = self._fast_cache.get(id(G))
+        learning = self.precision_learning
+        if cached is None or cached[0] is not G or (
+                learning is not None and np.max(np.abs(self._log_precision - cached[4])) > learning.rebuild_tolerance):
+            cached = self._fast_matrices(G)
+            self._fast_cache = {id(G): cached}
+            self._last_precision = cached[5]
+        _, Phi, Gamma_y, Gamma_eta, _, _ = cached
+        if learning is not None:  # the prediction error of this sample, before the step absorbs it
+            n, r, m, P, Q = self._sizes
+            A, B, C, Dm = self.model.matrices
+            predicted = self._Z[: P * n].reshape(P, n) @ C.T
+            if r:
+                V = np.zeros((P, r))
+                V[: min(P, Q)] = self._Z[P * n: P * n + Q * r].reshape(Q, r)[: min(P, Q)]
+                predicted = predicted + V @ Dm.T
+            self._learn(y_t - predicted.reshape(-1))
+        return Phi @ self._Z + Gamma_y @ y_t + Gamma_eta @ eta
+
+    def _general_step(self, G, y_t, eta, t) -> np.ndarray:
+        n, r, m, P, Q = self._sizes
+        model, Z = self.model, self._Z
+        nX = P * n + Q * r
+        x_t, v_t, a = Z[: P * n], Z[P * n: nX], Z[nX:]
+        x0, v0 = x_t[:n], v_t[:r]
+        if model.is_linear:
+            A, B, C, Dm = model.matrices
+            fx, fv, gx, gv = A, B, C, Dm
+            E_y, E_x, E_v = self._E
+            f0, g0 = A @ x0 + B @ v0, C @ x0 + Dm @ v0
+        else:
+            fx, fv, gx, gv = model.jacobians(x0, v0)
+            E_y, E_x, E_v = error_jacobian(fx, fv, gx, gv, P, Q)
+            f0 = np.asarray(model.f(x0, v0), dtype=float).reshape(-1)
+            g0 = np.asarray(model.g(x0, v0), dtype=float).reshape(-1)
+        precision = self._precision(x0, v0, t)
+        self._last_precision = precision
+        Pi_y = sensory_precision(self._S_by_order, self._orders, precision)
+        Pi_a = Pi_y if self.action_precision is None else sensory_precision(self._S_by_order, self._orders,
+                                                                           self.action_precision)
+        e_y, e_x, e_v = generalised_errors(x_t, v_t, y_t, eta, f0, g0, fx, fv, gx, gv, P, Q)
+        J, _, _, curvature = joint_system(self._D, E_y, E_x, E_v, Pi_y, self._Pi_x, self._Pi_v, G, Pi_a,
+                                          self.action_gain, self.action_prior_precision)
+        flow = np.empty_like(Z)
+        flow[:nX] = self._D @ Z[:nX] - (E_y.T @ (Pi_y @ e_y) + E_x.T @ (self._Pi_x @ e_x) + E_v.T @ (self._Pi_v @ e_v))
+        if self.precision_gradient and model.state_dependent_precision:
+            flow[:nX] += self._precision_gradient(x0, v0, e_y, t)
+        flow[nX:] = -self.action_gain * (G.T @ (Pi_a @ e_y) + self.action_prior_precision * a)
+        Z = Z + local_linearisation_step(J, flow, self.dt)
+        if self.precision_learning is not None:
+            self._learn(e_y)  # the prediction error before the step absorbed this sample
+        return Z
+
+    def _attended(self) -> np.ndarray:
+        """Per output, the highest order of motion carrying sensory precision (all before the first dy~/da)."""
+        _, _, m, P, _ = self._sizes
+        return self._orders if self._orders is not None else np.full(m, P - 1)
+
+    def _sensory_logdet(self, precision: np.ndarray) -> float:
+        """log|Pi~_z| over the attended orders."""
+        orders = self._attended()
+        if _is_diagonal(precision):
+            return float(sum(self._S_logdet[q] + (q + 1) * math.log(precision[i, i]) for i, q in enumerate(orders)))
+        q = int(orders.min())
+        return float(precision.shape[0] * self._S_logdet[q] + (q + 1) * np.linalg.slogdet(precision)[1])
+
+    def _precision_gradient(self, x0, v0, e_y, t) -> np.ndarray:
+        """d/d(x, v) at order 0 of (log|Pi~_z| - e_y' Pi~_z e_y) / 2 for a state-dependent Pi_z(x, v), by central
+        differences of Pi_z (the log-determinant term is unchanged by the schedule's multiplier)."""
+        n, r, m, P, Q = self._sizes
+        out = np.zeros(P * n + Q * r)
+        point = np.concatenate([x0, v0])
+        precision = self.model.sensor_precision_at(x0, v0)
+        diagonal = _is_diagonal(precision)
+        orders = self._attended()
+        inverse = np.linalg.inv(precision)
+        mult = 1.0 if self._multiplier is None else np.asarray(self._multiplier(t), dtype=float).reshape(-1)
+        root = np.sqrt(np.broadcast_to(mult, (m,)))
+        steps = np.cbrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(point))
+        for j, h in enumerate(steps):
+            up, down = point.copy(), point.copy()
+            up[j] += h
+            down[j] -= h
+            dPi = (self.model.sensor_precision_at(up[:n], up[n:]) - self.model.sensor_precision_at(down[:n], down[n:])) / (2 * h)
+            if diagonal:
+                dPi = np.diag(np.diagonal(dPi))
+                logdet = 0.5 * float(np.sum((orders + 1) * np.diagonal(dPi) / np.diagonal(precision)))
+            else:
+                logdet = 0.5 * (int(orders.min()) + 1) * float(np.sum(inverse * dPi.T))
+            scaled = dPi * root[:, None] * root[None, :]
+            weighted = sensory_precision(self._S_by_order, orders, scaled)
+            out[j if j < n else P * n + (j - n)] = logdet - 0.5 * float(e_y @ weighted @ e_y)
+        return out
+
+    def _learn(self, e_y: np.ndarray) -> None:
+        """One online update of the sensory log-precisions from the sensory prediction error e_y ((p + 1) m,) of
+        this sample before the D-step (see :class:`SensorPrecisionLearning`)."""
+        n, r, m, P, Q = self._sizes
+        learning = self.precision_learning
+        e = e_y.reshape(P, m)
+        if learning.orders == "value":
+            counts = np.ones(m)
+            q_now = e[0] ** 2
+        else:
+            orders = self._attended()
+            counts = (orders + 1).astype(float)
+            q_now = np.array([e[:, i] @ self._S_by_order[orders[i]] @ e[:, i] for i in range(m)])
+        beta = min(1.0, self.dt / learning.time_constant)
+        if self._q is None:
+            self._q = counts / np.exp(self._log_precision)
+        self._q = (1 - beta) * self._q + beta * q_now
+        n_eff = learning.time_constant / self.dt
+        lam, prior, Pl = self._log_precision, self._prior_log_precision, learning.hyperprior_precision
+        for _ in range(3):
+            grad = 0.5 * n_eff * (counts - np.exp(lam) * self._q) - Pl * (lam - prior)
+            hess = -0.5 * n_eff * np.exp(lam) * self._q - Pl
+            lam = np.clip(lam - grad / hess, prior - learning.bounds, prior + learning.bounds)
+        if learning.level == "relative":  # keep sum(pi): learn each sensor's share of the designed total
+            lam = lam + math.log(np.exp(prior).sum() / np.exp(lam).sum())
+        self._log_precision = lam
+
+    # --- reporting --------------------------------------------------------------------------
+
+    def info(self) -> StepInfo:
+        """The agent now (after the last step): action, beliefs, order-0 sensory error, Pi_z and free energy."""
+        n, r, m, P, Q = self._sizes
+        model, Z = self.model, self._Z
+        nX = P * n + Q * r
+        x_t, v_t = Z[: P * n], Z[P * n: nX]
+        x0, v0 = x_t[:n], v_t[:r]
+        t = max(self._k - 1, 0) * self.dt
+        fx, fv, gx, gv = model.jacobians(x0, v0)
+        f0 = np.asarray(model.f(x0, v0), dtype=float).reshape(-1)
+        g0 = np.asarray(model.g(x0, v0), dtype=float).reshape(-1)
+        eta = model.prior(t)
+        e_y, e_x, e_v = generalised_errors(x_t, v_t, self._y_t, eta, f0, g0, fx, fv, gx, gv, P, Q)
+        precision = self._last_precision if self._last_precision is not None else self._precision(x0, v0, t)
+        Pi_y = sensory_precision(self._S_by_order, self._attended(), precision)
+        quadratic = e_y @ Pi_y @ e_y + e_x @ self._Pi_x @ e_x + e_v @ self._Pi_v @ e_v
+        free_energy = -0.5 * quadratic + 0.5 * (self._sensory_logdet(precision) + self._logdet_fixed)
+        return StepInfo(t, Z[nX:].copy(), x0.copy(), v0.copy(), e_y[:m].copy(), np.diag(precision).copy(),
+                        float(free_energy))
+
+
+def _is_diagonal(matrix: np.ndarray) -> bool:
+    return not np.any(matrix - np.diag(np.diagonal(matrix)))
+
+
+def _is_constant_schedule(schedule) -> bool:
+    from attend.rhythm import FixedSchedule
+
+    return isinstance(schedule, FixedSchedule)
+

@@ -1,0 +1,174 @@
+"""The closed loop: a world (:class:`GenerativeProcess`) and a controller, coupled sample by sample.
+
+    y[k] = g(x[k], a[k-1]) + z[k]   ->   a[k] = controller.step(y[k])   ->   x[k+1] = world over [t_k, t_k + dt) with a[k] held
+
+Any controller with ``dt``, ``n_actions`` and ``step(y) -> a`` runs here (the PID and LQG
+baselines too). A world or controller that diverges stops the run with
+:class:`ClosedLoopDivergence` naming the settings; for a linear world and a linear agent the
+loop's spectral radius is checked before the first sample.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from typing import NamedTuple
+
+import numpy as np
+
+from attend._threads import with_single_blas_thread
+from attend._validation import AttendInputError, positive_scalar
+from attend.control._checks import ClosedLoopDivergence
+from attend.control.controller import ActiveInferenceController
+from attend.control.process import GenerativeProcess
+
+
+class ClosedLoop(NamedTuple):
+    """One closed-loop run, sample k at time[k] [s]: states x[k] of the world (N, n_world), outputs y[k]
+    (N, m), actions a[k] as delivered (saturated) over [t_k, t_k + dt) (N, k); for an active inference
+    controller also its beliefs belief_states (N, n) and belief_causes (N, r), the sensor precision
+    diag Pi_z (N, m) and free_energy (N,) (empty columns / NaN otherwise); step_seconds: wall time of
+    each controller step [s] (N,)."""
+
+    time: np.ndarray
+    states: np.ndarray
+    outputs: np.ndarray
+    actions: np.ndarray
+    belief_states: np.ndarray
+    belief_causes: np.ndarray
+    sensor_precision: np.ndarray
+    free_energy: np.ndarray
+    step_seconds: np.ndarray
+
+
+@with_single_blas_thread
+def run(process: GenerativeProcess, controller, duration: float, *, seed: int | None = 0,
+        divergence_limit: float = 1e8, check_stability: bool = True, record_beliefs: bool = True) -> ClosedLoop:
+    """Simulate ``controller`` acting on ``process`` for ``duration`` [s] at the controller's dt.
+
+    process: the world; controller: an :class:`ActiveInferenceController` (reset first) or any object
+    with ``dt``, ``n_actions``, ``step(y) -> a`` (and optionally ``reset()``); seed: the world's noise;
+    divergence_limit: |x| of the world beyond which the run stops with :class:`ClosedLoopDivergence`;
+    check_stability: for a linear world and a linear agent with constant precision, refuse an
+    unstable loop (spectral radius > 1) before running; record_beliefs: keep the active inference
+    controller's beliefs, precision and free energy per sample (False: faster, those columns NaN).
+    BLAS runs single-threaded inside (small matrices: many threads are 10-300x slower).
+    """
+    if not isinstance(process, GenerativeProcess):
+        raise AttendInputError(f"process: expected an attend.control.GenerativeProcess, got {type(process).__name__}")
+    for name in ("dt", "n_actions", "step"):
+        if not hasattr(controller, name):
+            raise AttendInputError(f"controller: expected an object with dt, n_actions and step(y), it has no {name!r}")
+    dt = positive_scalar(controller.dt, "controller.dt", "s")
+    duration = positive_scalar(duration, "duration", "s")
+    limit = positive_scalar(divergence_limit, "divergence_limit")
+    if controller.n_actions != process.n_actions:
+        raise AttendInputError(f"controller.n_actions: the controller gives {controller.n_actions} actions, the process "
+                               f"takes n_actions = {process.n_actions}")
+    active = isinstance(controller, ActiveInferenceController)
+    if active and controller.model.n_outputs != process.n_outputs:
+        raise AttendInputError(f"model.n_outputs: the model predicts {controller.model.n_outputs} outputs, the process "
+                               f"gives n_outputs = {process.n_outputs}")
+    if hasattr(controller, "reset"):
+        controller.reset()
+    if active and check_stability:
+        radius = closed_loop_spectral_radius(process, controller)
+        if radius is not None and radius > 1 + 1e-9:
+            raise ClosedLoopDivergence(
+                f"closed loop unstable before running: spectral radius {radius:.6g} > 1 (linear world, linear agent): "
+                f"action_gain kappa = {controller.action_gain:g}, dt = {dt:g} s; lower action_gain, or revise the "
+                "precisions or dy~/da (action_jacobian)")
+    n_samples = int(round(duration / dt))
+    world = process.start(n_samples, dt, seed)
+    m, k = process.n_outputs, process.n_actions
+    n_b = controller.model.n_states if active else 0
+    r_b = controller.model.n_causes if active else 0
+    out = dict(time=np.arange(n_samples) * dt, states=np.empty((n_samples, process.n_states)),
+               outputs=np.empty((n_samples, m)), actions=np.empty((n_samples, k)),
+               belief_states=np.full((n_samples, n_b), np.nan), belief_causes=np.full((n_samples, r_b), np.nan),
+               sensor_precision=np.full((n_samples, m), np.nan), free_energy=np.full(n_samples, np.nan),
+               step_seconds=np.empty(n_samples))
+    from_process = active and controller._G_source == "process"
+    p = controller.model.embedding_order if active else 0
+    fixed_G = process.action_jacobian(world.x, np.zeros(k), p) if from_process and process.is_linear else None
+    clock = _time.perf_counter
+    for i in range(n_samples):
+        y = world.output()
+        out["states"][i] = world.x
+        out["outputs"][i] = y
+        started = clock()
+        if from_process:
+            G = fixed_G if fixed_G is not None else process.action_jacobian(world.x, world.applied, p)
+            action = controller.step(y, action_jacobian=G)
+        else:
+            action = controller.step(y)
+        out["step_seconds"][i] = clock() - started
+        if active and record_beliefs:
+            info = controller.info()
+            out["belief_states"][i] = info.states
+            out["belief_causes"][i] = info.causes
+            out["sensor_precision"][i] = info.sensor_precision
+            out["free_energy"][i] = info.free_energy
+        action = np.asarray(action, dtype=float).reshape(-1)
+        if action.shape[0] != k or not np.isfinite(action).all():
+            raise ClosedLoopDivergence(f"controller returned action {action.tolist()} at t = {i * dt:g} s; expected "
+                                       f"{k} finite numbers")
+        world.advance(action)
+        out["actions"][i] = world.applied
+        if not (np.isfinite(world.x).all() and np.abs(world.x).max() <= limit):
+            raise ClosedLoopDivergence(
+                f"the world diverged at t = {(i + 1) * dt:g} s (|x| = {np.nanmax(np.abs(world.x)):.3g} > "
+                f"divergence_limit {limit:.3g}) under {type(controller).__name__}"
+                + (f" (action_gain kappa = {controller.action_gain:g}, dt = {dt:g} s): lower action_gain or check "
+                   "dy~/da" if active else ": check its gains"))
+    return ClosedLoop(**out)
+
+
+def closed_loop_spectral_radius(process: GenerativeProcess, controller: ActiveInferenceController) -> float | None:
+    """Spectral radius of the sampled closed loop of a linear world (``process``) and a linear agent
+    (``controller``) with constant precision (not learned) and constant dy~/da (None otherwise, or with
+    action limits: saturation is not linear). < 1: stable.
+
+    Loop state [x[k]; the embedding window; Z[k]]: y[k] = C x[k] + D a[k-1], window shifted in,
+    Z[k+1] = Phi Z[k] + Gamma_y y~[k] (+ prior), x[k+1] = Ad x[k] + Bd a[k]."""
+    if not (process.is_linear and isinstance(controller, ActiveInferenceController) and controller._fast
+            and controller.precision_learning is None):
+        return None
+    if process.action_limits is not None or controller.action_limits is not None:
+        return None
+    n, r, m, P, Q = controller._sizes
+    if controller._G_fixed is not None:
+        G = controller._G_fixed
+    elif controller._G_source == "process":
+        G = controller._check_G(process.action_jacobian(process.initial_states, np.zeros(process.n_actions), P - 1))
+    else:
+        return None
+    _, Phi, Gamma_y, _, _, _ = controller._fast_matrices(G)
+    from attend.systems import zero_order_hold
+
+    A, B, C, Dw = process.matrices
+    Ad, Bd = zero_order_hold(A, B, controller.dt)
+    nw, W, k = A.shape[0], controller._buffer_length, process.n_actions
+    N = Phi.shape[0]
+    sizes = (nw, W * m, N)
+    total = sum(sizes)
+    ix, ib, iz = slice(0, nw), slice(nw, nw + W * m), slice(nw + W * m, total)
+    select_a = np.zeros((k, N))
+    select_a[:, -k:] = np.eye(k)
+    # y[k] = C x + Dw a(Z)
+    Y = np.zeros((m, total))
+    Y[:, ix] = C
+    Y[:, iz] = Dw @ select_a
+    shift = np.zeros((W * m, W * m))
+    shift[: (W - 1) * m, m:] = np.eye((W - 1) * m)
+    Buf = np.zeros((W * m, total))
+    Buf[:, ib] = shift
+    Buf[(W - 1) * m:, :] += Y
+    embed = controller._embed_full  # y~ = embed @ window (window flattened sample-major)
+    Znext = np.zeros((N, total))
+    Znext[:, iz] = Phi
+    Znext += Gamma_y @ embed @ Buf
+    Xnext = np.zeros((nw, total))
+    Xnext[:, ix] = Ad
+    Xnext += Bd @ select_a @ Znext
+    M = np.vstack([Xnext, Buf, Znext])
+    return float(np.max(np.abs(np.linalg.eigvals(M))))

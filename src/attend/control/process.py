@@ -1,0 +1,227 @@
+"""The generative process: the world the agent acts on, with its own f, g and noise.
+
+    dx/dt = f(x, a) + w(t) + d(t)        y = g(x, a) + sigma_z(t) * z(t)
+
+x (n,) true states, a (k,) action (held over each sample: zero-order hold), y (m,) sampled
+outputs, w and z coloured noise (white noise convolved with a Gaussian kernel, attend.noise), d(t)
+an optional deterministic disturbance and sigma_z(t) an optional per-sensor noise scale (a sensor
+that degrades). Linear worlds are stepped exactly (zero-order hold of a and w); nonlinear ones
+with Runge-Kutta 4 on ``substeps`` sub-intervals.
+
+dy~/da, the generalised response to action, is what the agent's reflex arc needs. As in SPM
+(spm_ADEM_diff, spm_ALAP) it is the column of Markov parameters of the process at (x, a)::
+
+    dy~/da = [g_a; g_x f_a; g_x f_x f_a; ...; g_x f_x^(p-1) f_a]        (p + 1 orders)
+
+i.e. how each order of motion of y responds at once to a step in a (:meth:`action_jacobian`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from attend._validation import AttendInputError, as_matrix, kernel_width as _kernel_width, order, positive_scalar
+from attend.control._checks import count, evaluated, finite_difference, function, jacobian_pair, vector
+
+
+@dataclass(frozen=True, eq=False)
+class GenerativeProcess:
+    """The world: dx/dt = f(x, a) + w + d(t), y = g(x, a) + sigma_z(t) z.
+
+    f, g: functions ``f(x, a)`` -> (n_states,) and ``g(x, a)`` -> (n_outputs,) of 1-D arrays.
+    n_states, n_actions, n_outputs: n, k, m. initial_states: x(0) (default zeros).
+    process_noise_std: std of w per state (per sample) [state unit / s]; sensor_noise_std: std of z
+    per output; process_kernel_width, sensor_kernel_width: their kernel widths s [s] (0: white).
+    disturbance: optional d(t) -> (n,) added to dx/dt (t in s). sensor_noise_scale: optional
+    sigma_z(t) -> scalar or (m,) multiplying the sensor noise (1: nominal). action_limits:
+    optional (low, high), each a number or k numbers: the actuator saturates there.
+    jacobian_f, jacobian_g: optional analytic (d/dx, d/da) functions; else central differences.
+    substeps: Runge-Kutta 4 steps per sample (nonlinear worlds). matrices: (A, B, C, D) for
+    linear worlds (set by :meth:`linear`).
+    """
+
+    f: Callable
+    g: Callable
+    n_states: int
+    n_actions: int
+    n_outputs: int
+    initial_states: object = None
+    process_noise_std: object = 0.0
+    sensor_noise_std: object = 0.0
+    process_kernel_width: float = 0.0
+    sensor_kernel_width: float = 0.0
+    disturbance: Callable | None = None
+    sensor_noise_scale: Callable | None = None
+    action_limits: tuple | None = None
+    jacobian_f: Callable | None = None
+    jacobian_g: Callable | None = None
+    substeps: int = 4
+    matrices: tuple | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        function(self.f, "f", "f(x, a) -> dx/dt")
+        function(self.g, "g", "g(x, a) -> y")
+        n = count(self.n_states, "n_states", 1)
+        k = count(self.n_actions, "n_actions", 1)
+        m = count(self.n_outputs, "n_outputs", 1)
+        for name, value in (("n_states", n), ("n_actions", k), ("n_outputs", m)):
+            object.__setattr__(self, name, value)
+        x0 = np.zeros(n) if self.initial_states is None else vector(self.initial_states, n, "initial_states")
+        object.__setattr__(self, "initial_states", x0)
+        for name, size in (("process_noise_std", n), ("sensor_noise_std", m)):
+            value = vector(getattr(self, name), size, name, "standard deviations")
+            if np.any(value < 0):
+                raise AttendInputError(f"{name}: expected standard deviations >= 0, got {value.tolist()}")
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "process_kernel_width", _kernel_width(self.process_kernel_width, "process_kernel_width"))
+        object.__setattr__(self, "sensor_kernel_width", _kernel_width(self.sensor_kernel_width, "sensor_kernel_width"))
+        for name, form in (("disturbance", "d(t) -> (n,)"), ("sensor_noise_scale", "sigma_z(t) -> (m,)"),
+                           ("jacobian_f", "(x, a) -> (d/dx, d/da)"), ("jacobian_g", "(x, a) -> (d/dx, d/da)")):
+            if getattr(self, name) is not None:
+                function(getattr(self, name), name, form)
+        if self.action_limits is not None:
+            try:
+                low, high = self.action_limits
+            except (TypeError, ValueError):
+                raise AttendInputError("action_limits: expected a pair (low, high)") from None
+            low, high = vector(low, k, "action_limits low"), vector(high, k, "action_limits high")
+            if np.any(low >= high):
+                raise AttendInputError(f"action_limits: expected low < high, got {low.tolist()} and {high.tolist()}")
+            object.__setattr__(self, "action_limits", (low, high))
+        object.__setattr__(self, "substeps", count(self.substeps, "substeps", 1))
+        a0 = np.zeros(k)
+        evaluated(self.f(x0, a0), n, "process f(x, a)")
+        evaluated(self.g(x0, a0), m, "process g(x, a)")
+
+    @classmethod
+    def linear(cls, A, B, C, D=None, **options) -> "GenerativeProcess":
+        """dx/dt = A x + B a + w + d(t), y = C x + D a + z: A (n, n), B (n, k), C (m, n), D (m, k) (default 0).
+
+        options: the other fields of :class:`GenerativeProcess` (noise, limits, initial_states...)."""
+        A = as_matrix(A, "A")
+        n = A.shape[0]
+        if A.shape != (n, n):
+            raise AttendInputError(f"A: expected a square matrix, got shape {A.shape}")
+        B = as_matrix(B, "B", rows=n)
+        C = as_matrix(C, "C", cols=n)
+        k, m = B.shape[1], C.shape[0]
+        D = np.zeros((m, k)) if D is None else as_matrix(D, "D", rows=m, cols=k)
+        return cls(f=lambda x, a: A @ x + B @ a, g=lambda x, a: C @ x + D @ a, n_states=n, n_actions=k,
+                   n_outputs=m, jacobian_f=lambda x, a: (A, B), jacobian_g=lambda x, a: (C, D),
+                   matrices=(A, B, C, D), **options)
+
+    @property
+    def is_linear(self) -> bool:
+        """True when built by :meth:`linear`."""
+        return self.matrices is not None
+
+    def jacobians(self, x, a) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(fx, fa, gx, ga) = (df/dx, df/da, dg/dx, dg/da) at (x, a)."""
+        if self.matrices is not None:
+            return self.matrices
+        n, k, m = self.n_states, self.n_actions, self.n_outputs
+        x, a = np.asarray(x, dtype=float), np.asarray(a, dtype=float)
+        z = np.concatenate([x, a])
+        if self.jacobian_f is not None:
+            fx, fa = jacobian_pair(self.jacobian_f(x, a), n, (n, k), "process jacobian_f(x, a)")
+        else:
+            J = finite_difference(lambda q: self.f(q[:n], q[n:]), z, n)
+            fx, fa = J[:, :n], J[:, n:]
+        if self.jacobian_g is not None:
+            gx, ga = jacobian_pair(self.jacobian_g(x, a), m, (n, k), "process jacobian_g(x, a)")
+        else:
+            J = finite_difference(lambda q: self.g(q[:n], q[n:]), z, m)
+            gx, ga = J[:, :n], J[:, n:]
+        return fx, fa, gx, ga
+
+    def action_jacobian(self, x, a, embedding_order: int) -> np.ndarray:
+        """dy~/da at (x, a): ((p + 1) m, k), rows order-major [g_a; g_x f_a; g_x f_x f_a; ...], p = embedding_order."""
+        p = order(embedding_order, "embedding_order", 12)
+        fx, fa, gx, ga = self.jacobians(x, a)
+        return markov_parameters(fx, fa, gx, ga, p + 1)
+
+    def saturate(self, action: np.ndarray) -> np.ndarray:
+        """The action the actuator delivers: ``action`` clipped to ``action_limits``."""
+        if self.action_limits is None:
+            return action
+        return np.clip(action, self.action_limits[0], self.action_limits[1])
+
+    def start(self, n_samples: int, dt: float, seed: int | None = 0) -> "ProcessRun":
+        """A simulation of ``n_samples`` samples of spacing ``dt`` [s] with noise drawn from ``seed``."""
+        return ProcessRun(self, count(n_samples, "n_samples", 1), positive_scalar(dt, "dt", "s"), seed)
+
+
+def markov_parameters(fx, fa, gx, ga, n_orders: int) -> np.ndarray:
+    """[g_a; g_x f_a; g_x f_x f_a; ...] (n_orders blocks of (m, k)): the instantaneous response of
+    y, y', y'', ... to the action a (fx (n, n), fa (n, k), gx (m, n), ga (m, k))."""
+    blocks = [np.asarray(ga, dtype=float)]
+    column = np.asarray(fa, dtype=float)
+    for _ in range(1, n_orders):
+        blocks.append(gx @ column)
+        column = fx @ column
+    return np.vstack(blocks)
+
+
+class ProcessRun:
+    """One simulation of the :class:`GenerativeProcess` ``process``: ``output()`` samples y[k], ``advance(a)``
+    holds the action over one sample and moves to k + 1; n_samples samples of spacing dt [s]. Noise
+    sequences are drawn at the start from ``seed``."""
+
+    def __init__(self, process: GenerativeProcess, n_samples: int, dt: float, seed):
+        from attend.noise import coloured_noise
+
+        self.process, self.dt, self.n_samples = process, dt, n_samples
+        seeds = np.random.SeedSequence(seed).spawn(2)
+        n, m = process.n_states, process.n_outputs
+        self._w = (coloured_noise(n_samples + 1, n, dt, process.process_kernel_width, process.process_noise_std,
+                                  np.random.default_rng(seeds[0]))
+                   if np.any(process.process_noise_std > 0) else np.zeros((n_samples + 1, n)))
+        self._z = (coloured_noise(n_samples + 1, m, dt, process.sensor_kernel_width, process.sensor_noise_std,
+                                  np.random.default_rng(seeds[1]))
+                   if np.any(process.sensor_noise_std > 0) else np.zeros((n_samples + 1, m)))
+        self.k = 0
+        self.x = process.initial_states.copy()
+        self.applied = np.zeros(process.n_actions)
+        if process.matrices is not None:
+            from attend.systems import zero_order_hold
+
+            A, B, _, _ = process.matrices
+            self._Ad, drive = zero_order_hold(A, np.hstack([B, np.eye(n)]), dt)
+            self._Bd, self._Wd = drive[:, : B.shape[1]], drive[:, B.shape[1]:]
+
+    @property
+    def time(self) -> float:
+        """t = k dt [s] of the current sample."""
+        return self.k * self.dt
+
+    def output(self) -> np.ndarray:
+        """y[k] = g(x[k], a) + sigma_z(t) z[k], a the action held since the last sample."""
+        p = self.process
+        noise = self._z[self.k]
+        if p.sensor_noise_scale is not None:
+            noise = noise * np.asarray(p.sensor_noise_scale(self.time), dtype=float)
+        return np.asarray(p.g(self.x, self.applied), dtype=float).reshape(-1) + noise
+
+    def advance(self, action) -> None:
+        """Hold ``action`` (saturated) over [t, t + dt) and move to the next sample."""
+        p = self.process
+        a = p.saturate(np.asarray(action, dtype=float).reshape(-1))
+        drive = self._w[self.k] + (0.0 if p.disturbance is None else np.asarray(p.disturbance(self.time), dtype=float))
+        if p.matrices is not None:
+            self.x = self._Ad @ self.x + self._Bd @ a + self._Wd @ drive
+        else:
+            h = self.dt / p.substeps
+            x = self.x
+            rate = lambda state: np.asarray(p.f(state, a), dtype=float).reshape(-1) + drive  # noqa: E731
+            for _ in range(p.substeps):
+                k1 = rate(x)
+                k2 = rate(x + 0.5 * h * k1)
+                k3 = rate(x + 0.5 * h * k2)
+                k4 = rate(x + h * k3)
+                x = x + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+            self.x = x
+        self.applied = a
+        self.k += 1

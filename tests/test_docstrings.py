@@ -33,6 +33,7 @@ MODULES = [
     "attend.perception.nonlinear.path_learning",
     "attend.perception.nonlinear.jax_backend",
     "attend.perception.nonlinear.start",
+    "attend.perception.nonlinear.start_search",
     "attend.perception.block_tridiagonal",
     "attend.perception.nonlinear._workspace",
     "attend.perception.nonlinear_baselines",

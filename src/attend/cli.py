@@ -499,7 +499,7 @@ def _describe_estimator(estimator) -> str:
         inputs = (f"; unknown inputs as random walks matching their prior (width {estimator.input_kernel_width:g} s)"
                   if unknown else "")
         start = ("[observer] initial_state" if model.initial_state is not None
-                 else "DEM's estimate of the first sample, as wide as its states' spread")
+                 else "the best of a search over x[0] (several starts, ranked by how well they explain the log)")
         return (f"method ukf (unscented Kalman smoother, the default for nonlinear models; model "
                 f"{model.python_path}): white-noise model with the per-sample variance of the coloured noise "
                 f"(kernel width {model.kernel_width:g} s){inputs}; start: {start}; std: the smoother's error "

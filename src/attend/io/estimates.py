@@ -8,6 +8,7 @@ from attend._validation import AttendInputError
 from attend.io.logs import Log
 from attend.io.model import ModelFile
 from attend.perception.dem import DEMEstimate, DEMObserver
+from attend.perception.nonlinear.start_search import AmbiguousStartError
 
 
 def _check_samples(model: ModelFile, log: Log, minimum: int, why: str) -> float:
@@ -55,6 +56,8 @@ def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEst
         if model.nonlinear:
             try:
                 estimate = observer.estimate(outputs, signals)
+            except AmbiguousStartError as error:  # names the setting that decides: [observer] initial_state
+                raise AttendInputError(f"{model.path}: [observer] {error}") from None
             except AttendInputError as error:
                 text = str(error)
                 if model.python_path and text.startswith(model.python_path):

@@ -180,8 +180,9 @@ class NonlinearFileEstimator:
     noises' per-sample variance (Q = dt^2 inv(Pi_w), R = inv(Pi_z)); unknown inputs ride in the
     state as random walks whose one-sample increments have the variance of their prior's
     (:func:`attend.perception.nonlinear_baselines.input_random_walk_variance`), started at the prior mean; measured inputs drive f and g.
-    Without [observer] initial_state the smoother starts from DEM's estimate of the first sample
-    with the spread of DEM's states over the log as its std (:meth:`_start`). method "dem": :class:`attend.perception.nonlinear.NonlinearDEM` (measured inputs,
+    Without [observer] initial_state the smoother starts from the best start of a global search over
+    x[0] (:mod:`attend.perception.nonlinear.start_search`; an error naming initial_state where two
+    starts fit the log about equally well and lead to different estimates; :meth:`_start`). method "dem": :class:`attend.perception.nonlinear.NonlinearDEM` (measured inputs,
     when some are unknown, get their measurement as prior mean with precision known_input_precision).
 
     model: the parsed :class:`ModelFile`; dt: sample time [s]; method: "ukf" or "dem";
@@ -250,50 +251,66 @@ class NonlinearFileEstimator:
             precision_matrix(model.sensor_precision, self.system.n_outputs, "sensor_precision"),
             precisions, self.input_kernel_width, known, signals[0] if unknown else None, who='method "ukf"')
         inputs = (signals if known.any() else None) if unknown else (signals if r else None)
-        mean, std, substeps = self._start(outputs, signals, initial)
+        mean, std, substeps = self._start(outputs, signals, initial, inputs, options)
         # the std: the smoother's error spread under the file's coloured noise (error_spread)
         prior = (1.0 / precisions, self.input_kernel_width) if unknown else None
         return unscented_kalman(self.system, self.dt, outputs, inputs, initial_mean=mean,
                                 initial_covariance=np.diag(np.asarray(std, dtype=float) ** 2), substeps=substeps,
                                 noise_kernel_width=model.kernel_width, input_prior=prior, **options)
 
-    def _start(self, outputs, signals, initial):
-        """(x[0], its std, RK4 sub-steps) of the smoother, from DEM's D-step over the log: the file's
-        initial_state and initial_state_std, or else
-        :func:`attend.perception.nonlinear.path_starts.initial_state_prior` (the D-step's first
-        estimate with the spread of its states over the log, or its widened std on the first
-        samples where its estimate of the log is not to be trusted); the sub-steps from
-        :func:`attend.perception.nonlinear.path_starts.smoother_substeps` (10 where the D-step
-        fails and the file gives initial_state); both from one
-        :func:`attend.perception.nonlinear.path_starts.d_step_basis`. initial: the file's initial_state or None."""
+    def _start(self, outputs, signals, initial, inputs, options):
+        """(x[0], its std, RK4 sub-steps) of the smoother. With the file's initial_state: it and
+        initial_state_std. Without: the best start of a global search over x[0]
+        (:func:`attend.perception.nonlinear.start_search.search_start`) under a Gaussian prior about
+        DEM's start as wide as its states' spread where DEM's D-step follows the whole log
+        (:func:`attend.perception.nonlinear.path_starts.initial_state_prior`), else a Student t (one
+        degree of freedom) about 0 with scale the file's initial_state_std or 1; DEM's start, where
+        DEM gives one, is also one of the search's starts. An
+        :class:`~attend.perception.nonlinear.start_search.AmbiguousStartError` where two starts fit
+        the log about equally well and lead to different estimates; a ModelWarning naming
+        initial_state where the best start's estimate does not follow the log. Sub-steps:
+        :func:`attend.perception.nonlinear.path_starts.smoother_substeps` on DEM's D-step (10 where
+        it fails), then, without initial_state, ``rk4_substeps`` along the chosen start's estimate.
+        initial: the file's initial_state or None; inputs, options: the smoother's (measured inputs,
+        white-noise model)."""
         import warnings
 
         from attend.perception.nonlinear.path_starts import d_step_basis, initial_state_prior, smoother_substeps
+        from attend.perception.nonlinear.start_search import MISFIT_LIMIT, AmbiguousStartError, search_start
+        from attend.perception.nonlinear_baselines.kalman import rk4_substeps
         from attend.systems import ModelWarning
 
         dem, n = self.dem(), self.system.n_states
-        failure = mean = std = None
+        dem_start, dem_followed = None, False
         substeps = 10
         try:
-            with warnings.catch_warnings():  # of the D-step, which only starts the smoother here
+            with warnings.catch_warnings():  # of the D-step, which only helps start the smoother here
                 warnings.simplefilter("ignore", ModelWarning)
                 checked = dem._signals(outputs, signals)
                 basis = d_step_basis(dem, checked, dem._sample_estimate(checked, True, None, check=False))
                 substeps = smoother_substeps(dem, basis)
                 if initial is None:
-                    mean, std = initial_state_prior(dem, checked, basis)
+                    dem_start, dem_followed = initial_state_prior(dem, checked, basis), basis[1]
         except AttendInputError as error:
             if self.model.python_path and str(error).startswith(self.model.python_path):
                 raise
-            failure = error
         if initial is not None:
             given = self.model.initial_state_std
             return initial, np.broadcast_to(np.asarray(0.0 if given is None else given, dtype=float), (n,)), substeps
-        if failure is not None or not (np.all(np.isfinite(mean)) and np.all(np.isfinite(std))):
-            reason = f" ({failure})" if failure is not None else " (non-finite)"
-            raise AttendInputError(f"the smoother starts from DEM's estimate of the first sample, which failed"
-                                   f"{reason}; give initial_state and initial_state_std") from None
-        return mean, std, substeps
+        centre, scale, dof = None, self.model.initial_state_std, 1.0
+        if scale is None and dem_followed:  # DEM's D-step follows the whole log: its start and states' spread
+            (centre, scale), dof = dem_start, np.inf
+        search = search_start(self.system, self.dt, outputs, inputs, substeps=substeps, prior_mean=centre,
+                              prior_scale=None if scale is None else np.asarray(scale, dtype=float), prior_dof=dof,
+                              extra_starts=() if dem_start is None else (dem_start,), **options)
+        if search.ambiguous:
+            raise AmbiguousStartError(search.message)
+        best = search.modes[0]
+        if best.misfit > MISFIT_LIMIT:
+            warnings.warn(f"{self.model.path}: [observer] {search.misfit_message}", ModelWarning, stacklevel=2)
+        with np.errstate(all="ignore"):
+            substeps = rk4_substeps(self.system, self.dt, best.states, signals)
+        return search.mean, search.std, substeps
 
 
 def _path_prior_std(model) -> np.ndarray | None:

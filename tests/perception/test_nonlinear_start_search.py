@@ -1,0 +1,130 @@
+"""The start search without initial_state (attend.perception.nonlinear.start_search): its prior and
+components in closed form, the bank's filter against the library's unscented filter, and a
+bimodal start (a double well seen through x^2) that the data decide, or cannot."""
+
+import numpy as np
+import pytest
+
+from attend._validation import AttendInputError
+from attend.perception.nonlinear import NonlinearSystem, simulate_nonlinear
+from attend.perception.nonlinear import start_search as search
+from attend.perception.nonlinear_baselines import unscented_kalman, white_noise_options
+
+
+def test_the_prior_is_flat_near_its_centre_and_heavy_tailed():
+    prior = search.StartPrior(np.array([1.0, -2.0]), np.array([2.0, 0.5]))
+    assert prior.log_density(prior.centre) == pytest.approx(-np.log(2.0 * 0.5))
+    # far out, t_1 in n = 2 falls as |z|^-(n + 1): ten times farther costs 3 ln 10 nats, not 50 |z|^2
+    far = prior.centre + np.array([2.0, 0.5]) * np.array([1e3, 0.0])
+    farther = prior.centre + np.array([2.0, 0.5]) * np.array([1e4, 0.0])
+    assert prior.log_density(far) - prior.log_density(farther) == pytest.approx(3 * np.log(10), rel=1e-5)
+    assert prior.weight(prior.centre) == pytest.approx(3.0)  # (dof + n) / dof
+    gaussian = search.StartPrior(prior.centre, prior.scale, np.inf)
+    assert gaussian.log_density(far) - gaussian.log_density(prior.centre) == pytest.approx(-0.5e6)
+    assert gaussian.weight(far) == 1.0
+
+
+@pytest.mark.parametrize("n, bound", [(1, 1.0), (2, 1.1), (3, 1.3), (4, 1.9)])
+def test_the_components_cover_the_prior_out_to_256_scales(n, bound):
+    """Every point within 256 sigma_0 of the centre is within ``bound`` component std of a component
+    centre (the module docstring's figures), on 4000 points with log-uniform radii."""
+    centres, stds = search.initial_components(np.zeros(n), np.ones(n))
+    rng = np.random.default_rng(0)
+    directions = rng.normal(size=(4000, n))
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    points = directions * np.exp(rng.uniform(np.log(0.01), np.log(256.0), 4000))[:, None]
+    distance = np.sqrt(np.min(np.sum(((points[:, None] - centres[None]) / stds[None]) ** 2, axis=2), axis=1))
+    assert distance.max() <= bound
+
+
+def test_data_information_divides_out_the_components_prior():
+    """Gaussian oracle: prior N(c, diag(P)) times the likelihood exp(-1/2 x'J x + h'x) is N(m, Sigma)
+    with inv(Sigma) = J + inv(P), m = Sigma (h + inv(P) c); dividing the prior out gives J and h back."""
+    rng = np.random.default_rng(1)
+    root = rng.normal(size=(3, 3))
+    information = root @ root.T
+    shift = rng.normal(size=3)
+    c, std = rng.normal(size=3), np.array([2.0, 3.0, 0.5])
+    covariance = np.linalg.inv(information + np.diag(std**-2.0))
+    mean = covariance @ (shift + c / std**2)
+    got_information, got_shift = search.data_information(mean, covariance, c, std)
+    np.testing.assert_allclose(got_information, information, atol=1e-9)
+    np.testing.assert_allclose(got_shift, shift, atol=1e-9)
+
+
+def test_the_prior_takes_back_only_the_directions_the_log_does_not_see():
+    prior = search.StartPrior(np.zeros(2), np.ones(2))
+    # the log fixes x1 = 3 (information 100) and says nothing of x2, whose guess (50) is the component's
+    start = search.prior_map(np.diag([100.0, 0.0]), np.array([300.0, 0.0]), np.array([3.0, 50.0]), prior)
+    assert start[0] == pytest.approx(3.0, abs=0.1) and abs(start[1]) < 1e-6
+    # a state the log fixes far from the centre (Lorenz at 30) stays there: the t prior pulls it in by a
+    # fraction w / (1 + w) with w = 3 / (1 + |z|^2) ~ 0.0017 (0.05 of 30), where a N(0, 1) prior would halve it
+    start = search.prior_map(np.eye(2), np.array([30.0, -30.0]), np.array([30.0, -30.0]), prior)
+    weight = prior.weight(start)
+    np.testing.assert_allclose(start, np.array([30.0, -30.0]) / (1 + weight), rtol=1e-8)
+    assert 29.9 < start[0] < 30.0
+
+
+DT = 1.0
+
+
+def _double_well(x0, amplitude, samples=64, seed=0):
+    """SPM's double well, y = x^2 / 16 + z (sigma_z = e^-1), pushed by u = a sin(pi t / 16)."""
+    system = NonlinearSystem(lambda x, v: (16 * x / (1 + x**2) - x / 2 + 2 * v) / 8, lambda x, v: x**2 / 16, 1, 1, 1)
+    u = amplitude * np.sin(np.pi * np.arange(samples) / 16.0)[:, None]
+    log = simulate_nonlinear(system, u, DT, kernel_width=0.5, process_std=np.exp(-8), measurement_std=np.exp(-1),
+                             initial_state=[x0], seed=seed)
+    return system, log
+
+
+def _options(unknown: bool):
+    return white_noise_options(DT, np.array([[np.exp(16)]]), np.array([[np.exp(2)]]),
+                               np.array([0.125]) if unknown else None, 0.5, input_mean=np.zeros(1) if unknown else None)
+
+
+def test_the_banks_filters_are_the_librarys_unscented_filter():
+    """Oracle: the bank steps its components as one batch; each component's evidence equals
+    unscented_kalman's log-likelihood from the same prior on the same samples. Two mirrored starts of
+    the symmetric double well (unknown input) keep equal scores, so neither is pruned or merged and the
+    bank runs BANK_HORIZON samples."""
+    system, log = _double_well(5.6, 8.0)
+    options = _options(unknown=True)
+    centres, stds = np.array([[5.0], [-5.0]]), np.array([[1.0], [1.0]])
+    prior = search.StartPrior(np.zeros(1), np.ones(1))
+    bank = search._Bank(system, DT, log.outputs, None, dict(options, known_inputs=None, substeps=2), centres, stds,
+                        prior)
+    mass = bank.score.copy()
+    survivors, samples = bank.run()
+    assert sorted(survivors) == [0, 1] and samples == search.BANK_HORIZON
+    for k, centre in enumerate(centres):
+        filtered = unscented_kalman(system, DT, log.outputs[:samples], None, initial_mean=centre,
+                                    initial_covariance=np.diag(stds[k] ** 2), smooth=False, substeps=2, **options)
+        assert bank.score[list(bank.index).index(k)] - mass[k] == pytest.approx(filtered.log_likelihood, abs=1e-8)
+
+
+@pytest.mark.parametrize("x0", [-5.6, 5.6])
+def test_a_measured_push_tells_the_wells_apart(x0):
+    system, log = _double_well(x0, 4.0, samples=96)
+    found = search.search_start(system, DT, log.outputs, log.inputs, substeps=8, **_options(unknown=False))
+    assert not found.ambiguous
+    assert np.sign(found.mean[0]) == np.sign(x0)
+    assert found.modes[0].misfit < search.MISFIT_LIMIT
+
+
+def test_a_symmetric_model_gives_two_equal_starts_and_says_so():
+    """With the input unknown the double well is symmetric (x, v) -> (-x, -v): the search finds both
+    wells with scores within AMBIGUITY_NATS and different estimates, and its message names
+    initial_state."""
+    system, log = _double_well(5.6, 8.0, samples=96)
+    found = search.search_start(system, DT, log.outputs, None, substeps=8, **_options(unknown=True))
+    assert found.ambiguous
+    best, second = found.modes[:2]
+    assert best.score - second.score < search.AMBIGUITY_NATS
+    assert best.mean[0] == pytest.approx(-second.mean[0], rel=0.05)
+    assert found.message.startswith("initial_state: not given") and "give initial_state" in found.message
+
+
+def test_a_bad_prior_scale_is_named():
+    system, log = _double_well(5.6, 4.0, samples=20)
+    with pytest.raises(AttendInputError, match="initial_state_std: the search's prior needs a finite scale > 0"):
+        search.search_start(system, DT, log.outputs, log.inputs, prior_scale=[0.0], **_options(unknown=False))

@@ -110,7 +110,8 @@ def _add_estimate(add_command) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     estimate.add_argument("model", nargs="?", help="model file (TOML), see README for the format")
-    estimate.add_argument("log", nargs="?", help="log file (CSV with a header and a uniform time column in seconds)")
+    estimate.add_argument("log", nargs="?", help="log file (CSV with a header and a time column in seconds; missing "
+                          "values, skipped and jittered time stamps are accepted: docs/command-line.md)")
     estimate.add_argument("--demo", action="store_true",
                           help="use the bundled quadrotor roll model and flight (exp_21, wind on) instead of MODEL and LOG")
     estimate.add_argument("--out", default="estimates.csv",
@@ -440,6 +441,7 @@ def _check_search_options(args) -> None:
 def _command_estimate(args) -> int:
     from attend import io
     from attend.data import demo_paths
+    from attend.io.irregular import estimate_with_gaps, has_gaps
 
     if args.demo:
         model_path, log_path = demo_paths()
@@ -448,19 +450,26 @@ def _command_estimate(args) -> int:
     else:
         raise AttendInputError("estimate: expected MODEL and LOG paths (or --demo)")
     model = io.read_model(model_path)
-    log = io.read_log(log_path, model.time_column)
+    log = io.read_log(log_path, model.time_column, gaps=True)
     if not model.nonlinear:
         model.system.check()
     _output_file(args.out, "--out", "estimates.csv")
     if args.plot:
         _output_file(args.plot, "--plot", "estimates.png")
     started = time.perf_counter()
+    gaps = None
     with progress_bars(not args.no_progress and sys.stderr.isatty()):
-        observer, estimate = io.estimate_from_files(model, log)
+        if has_gaps(model, log):  # missing values, skipped or jittered time stamps
+            observer, estimate, gaps = estimate_with_gaps(model, log)
+        else:
+            observer, estimate = io.estimate_from_files(model, log)
     elapsed = time.perf_counter() - started
     out = io.write_estimates(args.out, log, model.system, estimate)
-    print(f"estimated {len(log.time)} samples ({len(log.time) * log.dt:.2f} s of log) in {elapsed * 1e3:.1f} ms -> {out}")
+    duration = log.time[-1] - log.time[0] + log.dt
+    print(f"estimated {len(log.time)} samples ({duration:.2f} s of log) in {elapsed * 1e3:.1f} ms -> {out}")
     print("  " + _describe_estimator(observer))
+    if gaps:
+        print("  " + gaps)
     if model.nonlinear and not model.system.vectorized and model.dem_backend != "jax" and elapsed > 5.0:
         from attend.io.python_model import takes_columns
 

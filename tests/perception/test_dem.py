@@ -160,8 +160,10 @@ def test_standard_deviations_shrink_with_sensor_precision():
 
 def test_bad_input_names_the_field():
     observer = _observer()
-    with pytest.raises(AttendInputError, match="outputs: expected finite"):
+    with pytest.raises(AttendInputError, match="outputs 'y1': every value is missing"):  # NaN: missing (gaps)
         observer.estimate(np.full((30, 4), np.nan))
+    with pytest.raises(AttendInputError, match="outputs: expected finite numbers"):
+        observer.estimate(np.full((30, 4), np.inf))
     with pytest.raises(AttendInputError, match="outputs: expected 4 columns"):
         observer.estimate(np.zeros((30, 3)))
     with pytest.raises(AttendInputError, match="at least 4 samples"):

@@ -44,7 +44,8 @@ Model file (all times in seconds)::
                                     # (f~ along the path; Lorenz path mode: ties the UKF smoother)
 
     [log]
-    time_column = "t"               # CSV column with time stamps [s], uniform spacing
+    time_column = "t"               # CSV column with time stamps [s]: uniform, or with gaps and jitter
+                                    # (`attend estimate`: docs/command-line.md, Gaps and jitter)
 
     [learning]                      # only for `attend identify` (all inputs measured)
     free = ["A[2,1]", "A[2,2]", "B[2,1]", "B[2,2]", "B[2,3]", "B[2,4]"]   # entries to learn (1-based)

@@ -27,30 +27,61 @@ class Log:
 
     @property
     def dt(self) -> float:
-        """Mean sample time [s]."""
-        return float((self.time[-1] - self.time[0]) / (len(self.time) - 1))
+        """Sample time [s]: the mean step of a uniform log; with gaps or jitter the nominal step
+        (:func:`attend.perception.sample_times.nominal_step`: gaps counted in whole samples)."""
+        mean = float((self.time[-1] - self.time[0]) / (len(self.time) - 1))
+        if self.uniform:
+            return mean
+        from attend.perception.sample_times import nominal_step
 
-    def matrix(self, names) -> np.ndarray:
+        return nominal_step(self.time)
+
+    @property
+    def uniform(self) -> bool:
+        """Every step within 1e-4 of the mean step (no skipped time stamps, no jitter)."""
+        if len(self.time) < 2:
+            return True
+        mean = (self.time[-1] - self.time[0]) / (len(self.time) - 1)
+        return bool(np.all(np.abs(np.diff(self.time) - mean) <= UNIFORM_STEP_TOLERANCE * mean))
+
+    @property
+    def labels(self) -> list[str]:
+        """How errors name each sample: "line L" of the file."""
+        lines = self.line_numbers if self.line_numbers is not None else np.arange(len(self.time)) + 2
+        return [f"line {line}" for line in lines]
+
+    def matrix(self, names, missing: bool = False) -> np.ndarray:
         """Columns ``names`` side by side as an (N, len(names)) array; NaN, inf and values beyond
-        +-1e150 in them are errors naming the file, line and column."""
-        missing = [name for name in names if name not in self.columns]
-        if missing:
+        +-1e150 in them are errors naming the file, line and column. missing=True: NaN (an empty
+        or "nan" cell) is kept as a missing value, inf and values beyond +-1e150 are still errors."""
+        absent = [name for name in names if name not in self.columns]
+        if absent:
             raise AttendInputError(
-                f"{self.path}: CSV is missing the declared column{'s' if len(missing) > 1 else ''} "
-                f"{', '.join(map(repr, missing))}; it has {', '.join(self.columns)}"
+                f"{self.path}: CSV is missing the declared column{'s' if len(absent) > 1 else ''} "
+                f"{', '.join(map(repr, absent))}; it has {', '.join(self.columns)}"
             )
         lines = self.line_numbers if self.line_numbers is not None else np.arange(len(self.time)) + 2
         for name in names:
-            _check_log_column(self.columns[name], self.path, name, lines)
+            values = self.columns[name]
+            _check_log_column(np.where(np.isnan(values), 0.0, values) if missing else values, self.path, name, lines)
         return np.column_stack([self.columns[name] for name in names]) if names else np.zeros((len(self.time), 0))
 
 
-def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: float = 1e-4) -> Log:
+UNIFORM_STEP_TOLERANCE = 1e-4
+"""Relative deviation from the mean step below which a log's time stamps count as uniform."""
+
+
+def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: float = UNIFORM_STEP_TOLERANCE,
+             gaps: bool = False) -> Log:
     """Read a CSV log with a header; check the time column is present, finite and uniform.
 
     path: the CSV file; time_column: the name of its time column [s]. UTF-8 with or without a
     BOM, LF or CRLF line ends. Every cell must be a number; values beyond +-1e150 are errors.
     Time stamps count as uniform when every step is within ``relative_tolerance`` of the mean step.
+    gaps=True (`attend estimate`): a log with missing samples and jitter is accepted: empty
+    cells read as NaN (missing), time stamps need only increase strictly (errors name the lines
+    where they repeat or go backwards); :mod:`attend.perception.sample_times` says how the
+    estimators treat skipped stamps and uneven steps.
     """
     path = Path(path)
     text = _read_text(path, "log")
@@ -69,14 +100,17 @@ def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: fl
     if time_column not in header:
         raise AttendInputError(f"{path}: CSV is missing the time column {time_column!r}; it has {', '.join(header)}")
     try:
-        values = np.array([row for _, row in rows], dtype=float)
+        cells = [row for _, row in rows]
+        if gaps:  # an empty cell is a missing value
+            cells = [[cell if cell.strip() else "nan" for cell in row] for row in cells]
+        values = np.array(cells, dtype=float)
     except ValueError:
         for line, row in rows:
             if len(row) != len(header):
                 raise AttendInputError(f"{path}: line {line} has {len(row)} fields, the header has {len(header)}") from None
             for name, cell in zip(header, row):
                 try:
-                    float(cell)
+                    float(cell if cell.strip() or not gaps else "nan")
                 except ValueError:
                     raise AttendInputError(f"{path}: line {line}, column {name!r}: expected a number, got {cell!r}") from None
         raise
@@ -84,7 +118,12 @@ def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: fl
     columns = {name: values[:, j] for j, name in enumerate(header)}
     time = columns[time_column]
     _check_log_column(time, path, time_column, line_numbers)
-    if len(time) >= 2:
+    if gaps and len(time) >= 2:
+        from attend.perception.sample_times import check_time_stamps
+
+        check_time_stamps(time, len(time), float(np.min(np.abs(np.diff(time)))) or 1.0,
+                          f"{path}: column {time_column!r}", [f"line {line}" for line in line_numbers])
+    elif len(time) >= 2:
         steps = np.diff(time)
         mean_step = (time[-1] - time[0]) / (len(time) - 1)
         if mean_step <= 0:
@@ -93,7 +132,8 @@ def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: fl
         if abs(steps[worst] - mean_step) > relative_tolerance * mean_step:
             raise AttendInputError(
                 f"{path}: column {time_column!r}: non-uniform time stamps (step {steps[worst]:.6g} s at line "
-                f"{line_numbers[worst + 1]}, mean step {mean_step:.6g} s); resample the log to a uniform rate first"
+                f"{line_numbers[worst + 1]}, mean step {mean_step:.6g} s); resample the log to a uniform rate first "
+                "(`attend estimate` accepts gaps and jitter)"
             )
     return Log(time, columns, str(path), line_numbers)
 

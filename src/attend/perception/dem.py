@@ -405,11 +405,16 @@ class DEMObserver:
 
     @with_single_blas_thread
     def estimate(self, outputs, inputs=None, *, keep_generalized: bool = False,
-                 initial_state=None, segment: int = 1 << 14) -> DEMEstimate:
+                 initial_state=None, segment: int = 1 << 14, time=None) -> DEMEstimate:
         """Batch estimation over a whole log.
 
         outputs: (N, m) measured outputs; inputs: (N, r) measured inputs (known_inputs=True) or the
-        input prior eta (unknown inputs; default 0). The log is processed in segments of
+        input prior eta (unknown inputs; default 0). Gaps: NaN values, and time (N,) [s], the
+        samples' time stamps when they skip samples or jitter: DEM's embedding needs a uniform grid,
+        so the log is resampled onto t_0 + k dt by linear interpolation of every column, bridging at
+        most BRIDGED_GAP (3) consecutive missing samples (a longer gap is an error naming its rows),
+        and the estimates are interpolated back to the log's rows (:mod:`attend.perception.dem_gaps`).
+        The log is processed in segments of
         ``segment`` samples so memory stays O(segment) beyond the (N, n + r) results.
         Row k is the estimate at sample k (it uses samples up to k + delay).
         keep_generalized: also return every generalised state X_t (memory O(N dim X)).
@@ -423,6 +428,16 @@ class DEMObserver:
         the filter's own error on the noise-free response to the given inputs (see
         :func:`attend.perception.dem_flow.known_input_error`), so it depends on the log.
         """
+        try:
+            gaps = time is not None or np.isnan(np.asarray(outputs, dtype=float)).any() or \
+                (inputs is not None and np.isnan(np.asarray(inputs, dtype=float)).any())
+        except (TypeError, ValueError):  # not numbers: _signals says what was expected
+            gaps = False
+        if gaps:
+            from attend.perception.dem_gaps import estimate_with_gaps
+
+            return estimate_with_gaps(self, outputs, inputs, time, keep_generalized=keep_generalized,
+                                      initial_state=initial_state, segment=segment)
         signals = self._signals(outputs, inputs)
         n_samples = signals.shape[0]
         n, r = self.system.n_states, self.system.n_inputs

@@ -20,6 +20,16 @@ in O(N). Kernel width 0 is white noise. Unlike the DEM observer, evidence from t
 Speed: the gains do not depend on the data, so the covariance recursion runs only until it
 has converged (typically tens to a few hundred samples); from there on the means follow a
 time-invariant linear recurrence, evaluated with :func:`attend.perception.recurrence.linear_recurrence`.
+
+Gaps and jitter (:mod:`attend.perception.sample_times`): a NaN output is not used (the update at
+that sample takes the observed rows of H = [C, 0, Lz readout]: the observed rows of C and the
+matching rows of the sensor noise, whose states run on); a time stamp that skips k - 1 samples is
+k steps without a measurement in between; steps off dt (jitter) are discretised for their own
+length h: the plant's zero-order hold over h, x += h Lw e_w, and each noise as a continuous-time
+process (:func:`attend.noise.continuous_noise_state_space`: its correlation rho at the true lags).
+Those runs go through :func:`attend.perception.kalman_recursions.varying_pass`, a time-varying
+filter and smoother that takes the steady gain again on stretches of complete, uniform samples;
+with jitter every step costs O(dim^3) (dim: the augmented state's size).
 """
 
 from __future__ import annotations
@@ -30,27 +40,31 @@ from typing import NamedTuple
 
 import numpy as np
 
-from attend._threads import single_blas_thread, with_single_blas_thread
-from attend._validation import AttendInputError, as_matrix, positive_scalar, precision_matrix, require_finite
+from attend._threads import with_single_blas_thread
+from attend._validation import AttendInputError, positive_scalar, precision_matrix, require_finite
 from attend._validation import kernel_width as checked_width
 from attend.noise import (
     NoiseStateSpace,
+    continuous_noise_state_space,
     kernel_autocorrelation,
     noise_state_space,
     sampled_autocorrelation,
     white_state_space,
 )
+from attend.perception.kalman_online import OnlineKalman
 from attend.perception.kalman_recursions import (
     _filter_variances,
     _filtered_means,
     _gain_schedule,
-    _gain_stream,
     _predicted_means,
     _smoothed_means,
     _smoother_variances,
     _steady_predicted_covariance,
+    steady_gain,
+    varying_pass,
 )
-from attend.systems import LinearSystem, ModelWarning
+from attend.perception.sample_times import SampleGrid, bridge, matrix_with_gaps, sample_grid
+from attend.systems import LinearSystem, ModelWarning, zero_order_hold
 
 __all__ = ["KalmanEstimator", "StateEstimate", "OnlineKalman"]
 
@@ -112,6 +126,7 @@ class KalmanEstimator:
     initial_state: prior mean of x[0] (default 0) and initial_state_std its standard deviation
     (0: known; default: known when initial_state is given, else unknown: a broad prior, 100 times
     the scale of the state seen through C in the first sample, or of the sensor noise if larger).
+    Logs with missing values (NaN) and irregular time stamps: :meth:`estimate` (see the module).
     """
 
     system: LinearSystem
@@ -192,56 +207,96 @@ class KalmanEstimator:
         return "kalman (coloured-noise Kalman smoother)"
 
     def _build(self) -> dict:
+        """The augmented model at the nominal step dt, with the noises sampled every dt (the
+        discrete fits of :func:`attend.noise.noise_state_space`)."""
         system, dt = self.system, self.dt
-        n, r, m = system.n_states, system.n_inputs, system.n_outputs
-        Ad, Bd = system.discretize(dt)
         fields = self._model["width_fields"]
         process = _channel_model(dt, self.process_kernel_width, "kernel", fields["process_kernel_width"])
         sensor = _channel_model(dt, self.sensor_kernel_width, "kernel", fields["sensor_kernel_width"])
-        estimated = np.flatnonzero(~self._known_mask())
-        unknown = len(estimated) > 0
+        unknown = not self._known_mask().all()
         inputs = _channel_model(dt, self.input_kernel_width, "sampled", "input_kernel_width") if unknown else None
-        blocks = [("x", n, None), ("w", n, process), ("z", m, sensor)]
-        if unknown:
-            blocks.append(("u", len(estimated), inputs))
-        slices, start = {}, 0
-        for name, channels, model in blocks:
-            size = channels if model is None else channels * (model.order + 1)
-            slices[name] = slice(start, start + size)
-            start += size
-        dim = start
-        T = np.zeros((dim, dim))
-        noise_in = np.zeros((dim, dim - n))
-        readout = {}
-        column = 0
-        for name, channels, model in blocks[1:]:
-            block = slices[name]
-            T[block, block] = np.kron(np.eye(channels), model.transition)
-            noise_in[block, column: column + channels] = np.kron(np.eye(channels), model.noise_input[:, None])
-            column += channels
-            readout[name] = np.kron(np.eye(channels), model.output[None, :])  # (channels, width)
-        Lw = _factor(self.process_precision, "process_precision")
-        Lz = _factor(self.sensor_precision, "sensor_precision")
-        T[slices["x"], slices["x"]] = Ad
-        T[slices["x"], slices["w"]] = dt * Lw @ readout["w"]
-        H = np.zeros((m, dim))
-        H[:, slices["x"]] = system.C
-        H[:, slices["z"]] = Lz @ readout["z"]
-        output_map = np.zeros((n + len(estimated), dim))  # [x; u - eta of the estimated inputs]
-        output_map[:n, slices["x"]] = np.eye(n)
-        if unknown:
-            Lu = _factor(self.input_prior_precision, "input_prior_precision")
-            T[slices["x"], slices["u"]] = Bd[:, estimated] @ Lu @ readout["u"]
-            output_map[n:, slices["u"]] = Lu @ readout["u"]
-        stationary = np.zeros((dim, dim))
-        for name, channels, model in blocks[1:]:
-            stationary[slices[name], slices[name]] = np.kron(np.eye(channels), model.stationary_covariance)
-        Bd_augmented = np.zeros((dim, r))  # b = Bd u enters the plant block
-        Bd_augmented[slices["x"]] = Bd
-        return dict(T=T, Q=noise_in @ noise_in.T, H=H, Ad=Ad, Bd=Bd, slices=slices, dim=dim, Bd_augmented=Bd_augmented,
-                    stationary=stationary, output_map=output_map, unknown=unknown, estimated=estimated,
+        models = {"w": process, "z": sensor, "u": inputs}
+        layout = self._layout({name: (model.output, model.stationary_covariance) for name, model in models.items()
+                               if model is not None})
+        Ad, Bd = system.discretize(dt)
+        steps = {name: (model.transition, np.outer(model.noise_input, model.noise_input))
+                 for name, model in models.items() if model is not None}
+        T, Q, Bd_augmented = self._assemble(layout, Ad, Bd, dt, steps)
+        return dict(layout, T=T, Q=Q, Ad=Ad, Bd=Bd, Bd_augmented=Bd_augmented,
                     noise_orders={"process": process.order, "sensor": sensor.order,
                                   "input": None if inputs is None else inputs.order})
+
+    def _layout(self, channels: dict) -> dict:
+        """Blocks of the augmented state [x; noise states of w, z (and u)] and the maps that do not
+        depend on the step: H (y = H a), output_map ([x; u - eta] = O a), the stationary prior of
+        the noise states. channels: name -> (readout of one channel (width,), its stationary
+        covariance (width, width))."""
+        system = self.system
+        n, m = system.n_states, system.n_outputs
+        estimated = np.flatnonzero(~self._known_mask())
+        counts = {"w": n, "z": m, "u": len(estimated)}
+        slices, start = {"x": slice(0, n)}, n
+        for name, (readout, _) in channels.items():
+            slices[name] = slice(start, start + counts[name] * readout.size)
+            start += counts[name] * readout.size
+        dim = start
+        readouts = {name: np.kron(np.eye(counts[name]), readout[None, :]) for name, (readout, _) in channels.items()}
+        factors = {"w": _factor(self.process_precision, "process_precision"),
+                   "z": _factor(self.sensor_precision, "sensor_precision")}
+        H = np.zeros((m, dim))
+        H[:, slices["x"]] = system.C
+        H[:, slices["z"]] = factors["z"] @ readouts["z"]
+        output_map = np.zeros((n + len(estimated), dim))  # [x; u - eta of the estimated inputs]
+        output_map[:n, slices["x"]] = np.eye(n)
+        if len(estimated):
+            factors["u"] = _factor(self.input_prior_precision, "input_prior_precision")
+            output_map[n:, slices["u"]] = factors["u"] @ readouts["u"]
+        stationary = np.zeros((dim, dim))
+        for name, (_, covariance) in channels.items():
+            stationary[slices[name], slices[name]] = np.kron(np.eye(counts[name]), covariance)
+        return dict(slices=slices, dim=dim, H=H, output_map=output_map, stationary=stationary,
+                    unknown=len(estimated) > 0, estimated=estimated, readouts=readouts, factors=factors,
+                    counts=counts)
+
+    def _assemble(self, layout: dict, Ad, Bd, step: float, channels: dict):
+        """(T, Q, Bd_augmented) of one step of ``step`` seconds: the plant's zero-order hold (Ad, Bd),
+        the process noise held over the step (x += step Lw e_w) and each noise channel's
+        (transition, covariance) in ``channels``."""
+        slices, readouts, factors, counts = layout["slices"], layout["readouts"], layout["factors"], layout["counts"]
+        dim = layout["dim"]
+        T, Q = np.zeros((dim, dim)), np.zeros((dim, dim))
+        for name, (transition, covariance) in channels.items():
+            block = slices[name]
+            T[block, block] = np.kron(np.eye(counts[name]), transition)
+            Q[block, block] = np.kron(np.eye(counts[name]), covariance)
+        T[slices["x"], slices["x"]] = Ad
+        T[slices["x"], slices["w"]] = step * factors["w"] @ readouts["w"]
+        if layout["unknown"]:
+            T[slices["x"], slices["u"]] = Bd[:, layout["estimated"]] @ factors["u"] @ readouts["u"]
+        Bd_augmented = np.zeros((dim, self.system.n_inputs))  # b = Bd u enters the plant block
+        Bd_augmented[slices["x"]] = Bd
+        return T, Q, Bd_augmented
+
+    def _continuous(self) -> dict:
+        """The augmented model for jittered time stamps: every noise a continuous-time process
+        (:func:`attend.noise.continuous_noise_state_space`, autocorrelation rho(tau) at the actual
+        lags), discretised per step by :meth:`_continuous_step`. Built once."""
+        if "continuous" not in self._model:
+            widths = {"w": self.process_kernel_width, "z": self.sensor_kernel_width}
+            if not self._known_mask().all():
+                widths["u"] = self.input_kernel_width
+            models = {name: continuous_noise_state_space(width) for name, width in widths.items()}
+            layout = self._layout({name: (model.readout, model.stationary_covariance)
+                                   for name, model in models.items()})
+            self._model["continuous"] = dict(layout, models=models, widths=widths)
+        return self._model["continuous"]
+
+    def _continuous_step(self, step: float):
+        """(T, Q, Bd_augmented) of the continuous-time model over one step of ``step`` seconds."""
+        model = self._continuous()
+        Ad, Bd = zero_order_hold(self.system.A, self.system.B, step)
+        channels = {name: noise.step(step, model["widths"][name]) for name, noise in model["models"].items()}
+        return self._assemble(model, Ad, Bd, step, channels)
 
     def _known_mask(self) -> np.ndarray:
         """(r,) True where the input is measured."""
@@ -280,11 +335,10 @@ class KalmanEstimator:
     # --- data --------------------------------------------------------------------------------
 
     def _signals(self, outputs, inputs) -> tuple[np.ndarray, np.ndarray]:
+        """(y (N, m), u (N, r)) checked; NaN marks a missing value (inf is an error)."""
         system = self.system
         m, r = system.n_outputs, system.n_inputs
-        y = as_matrix(outputs, "outputs", cols=m if np.ndim(outputs) == 2 else 1)
-        if y.shape[1] != m:
-            raise AttendInputError(f"outputs: expected {m} columns (one per output), got {y.shape[1]}")
+        y = matrix_with_gaps(outputs, "outputs", m)
         if y.shape[0] < 2:
             raise AttendInputError(f"outputs: expected at least 2 samples, got {y.shape[0]}")
         field_name = "inputs" if self.known_inputs is True else "input_prior"
@@ -293,14 +347,16 @@ class KalmanEstimator:
                 raise AttendInputError("inputs: the estimator was built with known_inputs=True; pass the measured inputs")
             u = np.zeros((y.shape[0], r))
         else:
-            u = as_matrix(inputs, field_name, cols=r if np.ndim(inputs) == 2 else 1)
+            u = matrix_with_gaps(inputs, field_name, r)
             if u.shape != (y.shape[0], r):
                 raise AttendInputError(f"{field_name}: expected shape ({y.shape[0]}, {r}), got {u.shape}")
         return y, u
 
-    def _initial(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Prior mean and covariance of the augmented state at sample 0."""
-        model = self._model
+    def _initial(self, y: np.ndarray, layout: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Prior mean and covariance of the augmented state at sample 0 (layout: the augmented
+        model's blocks, default the nominal one). y: the outputs (NaN: missing); the diffuse prior
+        is scaled by the first sample with a measured output."""
+        model = self._model if layout is None else layout
         n = self.system.n_states
         mean = np.zeros(model["dim"])
         cov = model["stationary"].copy()
@@ -312,31 +368,50 @@ class KalmanEstimator:
         elif self.initial_state is not None:
             cov[x, x] = 0.0
         else:  # diffuse: 100 x the scale of the state seen through C in the first sample
-            inverse = np.linalg.pinv(self.system.C)
-            seen = inverse @ y[0]
-            noise = np.sqrt(np.mean(np.diag(inverse @ np.linalg.pinv(self.sensor_precision) @ inverse.T)))
+            observed = np.isfinite(y)
+            first = int(np.argmax(observed.any(axis=1)))
+            rows = np.flatnonzero(observed[first]) if observed[first].any() else np.arange(y.shape[1])
+            inverse = np.linalg.pinv(self.system.C[rows])
+            seen = inverse @ np.nan_to_num(y[first, rows])
+            noise_cov = np.linalg.pinv(self.sensor_precision)[np.ix_(rows, rows)]
+            noise = np.sqrt(np.mean(np.diag(inverse @ noise_cov @ inverse.T)))
             scale = max(float(np.sqrt(np.mean(seen**2))), float(noise), 1e-12)
             cov[x, x] = np.eye(n) * (100 * scale) ** 2
         return mean, cov
 
     # --- estimation --------------------------------------------------------------------------
 
-    def estimate(self, outputs, inputs=None) -> StateEstimate:
+    def estimate(self, outputs, inputs=None, *, time=None) -> StateEstimate:
         """Posterior means and standard deviations given the whole log (Kalman + RTS smoother).
 
-        outputs (N, m); inputs (N, r): the measured inputs (known_inputs) or the inputs' prior
-        mean eta (unknown inputs; default 0).
+        outputs (N, m), NaN where a value is missing (no update for that channel at that sample);
+        inputs (N, r): the measured inputs (known_inputs) or the inputs' prior mean eta (unknown
+        inputs; default 0), NaN gaps of up to BRIDGED_GAP samples interpolated linearly;
+        time (N,) [s]: the samples' time stamps (default k dt): skipped stamps are missing samples,
+        steps off dt (jitter) are discretised exactly (:mod:`attend.perception.sample_times`).
+        Estimates are returned at every row, the missing ones included.
         """
-        return self._run(outputs, inputs, smooth=True)
+        return self._run(outputs, inputs, smooth=True, time=time)
 
-    def filter(self, outputs, inputs=None) -> StateEstimate:
+    def filter(self, outputs, inputs=None, *, time=None) -> StateEstimate:
         """Causal estimates E[x[k] | y[0..k]] and their standard deviations (the Kalman filter);
-        outputs and inputs as :meth:`estimate`."""
-        return self._run(outputs, inputs, smooth=False)
+        outputs, inputs and time as :meth:`estimate`."""
+        return self._run(outputs, inputs, smooth=False, time=time)
 
     @with_single_blas_thread
-    def _run(self, outputs, inputs, smooth: bool) -> StateEstimate:
+    def _run(self, outputs, inputs, smooth: bool, time=None) -> StateEstimate:
         y, u = self._signals(outputs, inputs)
+        grid = None if time is None else sample_grid(time, self.dt, y.shape[0])
+        complete = np.all(np.isfinite(y)) and np.all(np.isfinite(u))
+        if complete and (grid is None or (grid.uniform and not grid.inserted)):
+            result = self._run_uniform(y, u, smooth)
+            return result if grid is None else result._replace(time=grid.time)
+        if grid is None:
+            grid = sample_grid(np.arange(y.shape[0]) * self.dt, self.dt)
+        return self._run_on_grid(y, u, smooth, grid)
+
+    def _run_uniform(self, y: np.ndarray, u: np.ndarray, smooth: bool) -> StateEstimate:
+        """Every sample present, uniform steps: the steady-gain shortcut of kalman_recursions."""
         N = y.shape[0]
         model = self._model
         T, H = model["T"], model["H"]
@@ -353,6 +428,43 @@ class KalmanEstimator:
         else:
             readout = _filtered_means(schedule, predicted, innovations, model["output_map"])
             covariance_diag = _filter_variances(schedule, H, model["output_map"], N)
+        return self._result(readout, covariance_diag, u, np.arange(N) * self.dt, smooth)
+
+    def _run_on_grid(self, y: np.ndarray, u: np.ndarray, smooth: bool, grid: SampleGrid) -> StateEstimate:
+        """Missing values and irregular time stamps: the time-varying recursions on the grid."""
+        if not np.isfinite(y).any():
+            raise AttendInputError("outputs: every value is missing (NaN); expected some measured outputs")
+        names = [self.system.input_names[j] for j in range(self.system.n_inputs)]
+        field_name = "inputs" if self.known_inputs is True else "input_prior"
+        u_grid = bridge(grid, u, field_name, names) if u.shape[1] else np.zeros((len(grid.time), 0))
+        y_grid = grid.spread(y)
+        observed = np.isfinite(y_grid)
+        if grid.uniform:  # gaps of whole samples: the nominal model at every step
+            layout = self._model
+            T, Q = layout["T"], layout["Q"]
+            drive = u_grid @ layout["Bd_augmented"].T
+            if "steady_predicted" not in layout:
+                layout["steady_predicted"] = _steady_predicted_covariance(T, Q, layout["H"])
+            steady = steady_gain(layout["H"], layout["steady_predicted"])
+
+            def step_model(k):
+                return T, Q, drive[k - 1]
+        else:  # jitter: continuous-time noise models, each step discretised for its own length
+            layout, steps, steady = self._continuous(), grid.steps, None
+
+            def step_model(k):
+                T, Q, Bd_augmented = self._continuous_step(steps[k - 1])
+                return T, Q, Bd_augmented @ u_grid[k - 1]
+        mean0, cov0 = self._initial(y_grid, layout)
+        readout, covariance_diag = varying_pass(step_model, layout["H"], np.where(observed, y_grid, 0.0), observed,
+                                                mean0, cov0, layout["output_map"], smooth, steady,
+                                                layout["slices"].values())
+        rows = grid.rows
+        return self._result(readout[rows], covariance_diag[rows], u_grid[rows], grid.time[rows], smooth)
+
+    def _result(self, readout, covariance_diag, u, time, smooth: bool) -> StateEstimate:
+        """StateEstimate from the readout O a (N, n + e) and its variances; u: the given inputs."""
+        model = self._model
         n = self.system.n_states
         states = readout[:, :n]
         std = np.sqrt(np.clip(covariance_diag, 0, None))
@@ -363,11 +475,12 @@ class KalmanEstimator:
             raise AttendInputError("outputs: the estimate went non-finite; check the scale of the log and of the "
                                    "precisions")
         method = "kalman smoother" if smooth else "kalman filter"
-        return StateEstimate(np.arange(N) * self.dt, states, estimated_inputs, std[:, :n], input_std, method)
+        return StateEstimate(time, states, estimated_inputs, std[:, :n], input_std, method)
 
-    def online(self) -> "OnlineKalman":
-        """A fixed-memory filter fed one sample at a time (see :class:`OnlineKalman`)."""
-        return OnlineKalman(self)
+    def online(self, jittered: bool = False) -> "OnlineKalman":
+        """A fixed-memory filter fed one sample at a time (see :class:`OnlineKalman`); jittered:
+        time stamps off the nominal dt will be passed to its step()."""
+        return OnlineKalman(self, jittered)
 
 
 def unobservable_directions(A: np.ndarray, C: np.ndarray, tolerance: float = 1e-9) -> np.ndarray:
@@ -395,68 +508,3 @@ def unobservable_directions(A: np.ndarray, C: np.ndarray, tolerance: float = 1e-
         return np.zeros((size, 0))
     complement = np.linalg.svd(np.eye(size) - basis @ basis.T)[0][:, : size - basis.shape[1]]
     return complement
-
-
-class OnlineKalman:
-    """The Kalman filter fed one sample at a time: ``step(y, u)`` returns (states, inputs,
-    state_std, input_std) of the same sample (no delay), equal to :meth:`KalmanEstimator.filter`
-    sample by sample (estimator: the KalmanEstimator whose model it runs). Memory does not grow
-    with the stream; once the gain is steady each step is two small matrix-vector products."""
-
-    def __init__(self, estimator: KalmanEstimator):
-        self.estimator = estimator
-        self._model = estimator._model
-        self._count = 0
-        self._mean = None
-        self._previous_input = None
-        self._stream = None
-        self._steady = False
-
-    def _covariance_step(self, y: np.ndarray) -> np.ndarray:
-        """One step of the time-varying filter (until the gain is steady); returns the filtered mean."""
-        est, model = self.estimator, self._model
-        T, H = model["T"], model["H"]
-        if self._count == 0:
-            if "steady_predicted" not in model:
-                model["steady_predicted"] = _steady_predicted_covariance(T, model["Q"], H)
-            mean, P0 = est._initial(y[None, :])
-            self._stream = _gain_stream(T, model["Q"], H, P0, model["steady_predicted"], model["slices"].values())
-        else:
-            mean = T @ self._mean + model["Bd_augmented"] @ self._previous_input
-        K, _, P, self._steady = next(self._stream)
-        A = np.eye(model["dim"]) - K @ H
-        self._gain = K
-        variances = np.einsum("ij,jl,il->i", model["output_map"], A @ P @ A.T, model["output_map"])
-        self._std = np.sqrt(np.clip(variances, 0, None))
-        if self._steady:
-            self._closed = A @ T
-            self._drive_gain = A @ model["Bd_augmented"]
-        return mean + K @ (y - H @ mean)
-
-    def step(self, output, input_value=None):
-        """Feed sample k (output: the outputs (m,); input_value: the measured input or input prior
-        (r,), default 0); return its estimate."""
-        est, model = self.estimator, self._model
-        m, r, n = est.system.n_outputs, est.system.n_inputs, est.system.n_states
-        try:
-            y = np.asarray(output, dtype=float).reshape(-1)
-            u = np.zeros(r) if input_value is None else np.asarray(input_value, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            raise AttendInputError(f"step: expected {m} output numbers and {r} input numbers") from None
-        if y.shape != (m,) or u.shape != (r,):
-            raise AttendInputError(f"step: expected {m} outputs and {r} inputs, got {y.shape[0]} and {u.shape[0]}")
-        require_finite(np.concatenate([y, u]), "step sample")
-        if self._steady:  # a_f[k] = (I - K H)(T a_f[k-1] + b[k-1]) + K y[k]: precomputed products
-            mean = self._closed @ self._mean + self._drive_gain @ self._previous_input + self._gain @ y
-        else:
-            with single_blas_thread():
-                mean = self._covariance_step(y)
-        self._mean = mean
-        self._previous_input = u
-        self._count += 1
-        readout = model["output_map"] @ mean
-        std = self._std
-        inputs, input_std = u.copy(), np.zeros(r)
-        inputs[model["estimated"]] += readout[n:]
-        input_std[model["estimated"]] = std[n:]
-        return readout[:n], inputs, std[:n], input_std

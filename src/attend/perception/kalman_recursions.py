@@ -1,6 +1,8 @@
 """The Kalman filter's and Rauch-Tung-Striebel smoother's recursions on the augmented model of
 :mod:`attend.perception.kalman`: the gain schedule until the gain is steady, then the means and
-variances of the filter and smoother (time-invariant from the steady sample on)."""
+variances of the filter and smoother (time-invariant from the steady sample on); and
+:func:`varying_pass`, the same recursions on a time-varying model (missing channels, a
+transition per step) for logs with gaps and jitter."""
 
 from __future__ import annotations
 
@@ -288,3 +290,170 @@ def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int) -> np
         Lam = 0.5 * (Lam + Lam.T)
         out[j] = variance(j, Lam)
     return out
+
+
+# --- time-varying model: missing channels and per-step discretisation --------------------------
+#
+# The same recursions with the step into sample k given by (T[k], Q[k]) and the update using only
+# the observed rows H_o of H (no update when none is observed). With A = I - K H_o:
+#     P_f = A P_p A'  (Joseph form, computed as X = P_p - K (H_o P_p), P_f = X - (X H_o') K')
+#     lam[k] = H_o' inv(S) nu + A' T[k+1]' lam[k+1],  Lam[k] = H_o' inv(S) H_o + A' T[k+1]' Lam[k+1] T[k+1] A
+# The smoother keeps, per sample, only O P_p[k] (O the output map), K[k] and H_o' inv(S[k]).
+
+class SteadyGain(NamedTuple):
+    """The steady Kalman gain of the model with every channel observed: gain K (dim, m), weight
+    H' inv(S) (dim, m), predicted covariance P_p (dim, dim)."""
+
+    gain: np.ndarray
+    weight: np.ndarray
+    predicted: np.ndarray
+
+
+def steady_gain(H, steady_predicted) -> SteadyGain | None:
+    """:class:`SteadyGain` from the Riccati solution (None when there is none)."""
+    if steady_predicted is None:
+        return None
+    try:
+        weight = cho_solve(cho_factor(H @ steady_predicted @ H.T, lower=True), H).T
+    except np.linalg.LinAlgError:
+        return None
+    return SteadyGain(steady_predicted @ weight, weight, steady_predicted)
+
+
+def _joseph(P, K, Ho):
+    """(I - K H_o) P (I - K H_o)' in O(dim^2 m)."""
+    X = P - K @ (Ho @ P)
+    out = X - (X @ Ho.T) @ K.T
+    return 0.5 * (out + out.T)
+
+
+def _sandwich_transposed(M, K, Ho):
+    """(I - K H_o)' M (I - K H_o) in O(dim^2 m)."""
+    Y = M - Ho.T @ (K.T @ M)
+    out = Y - (Y @ K) @ Ho
+    return 0.5 * (out + out.T)
+
+
+def _diag(left, right=None):
+    """diag(left @ right') row by row (right defaults to left)."""
+    return np.einsum("ij,ij->i", left, left if right is None else right)
+
+
+def varying_pass(step_model, H, y, observed, mean0, P0, output_map, smooth: bool,
+                 steady: SteadyGain | None = None, blocks=None, patience: int = 3):
+    """Kalman filter (smooth=False) or Bryson-Frazier smoother (True) on a time-varying model.
+
+    step_model(k) -> (T[k], Q[k], b[k - 1]): the step from sample k - 1 to k (k >= 1), a[k] =
+    T[k] a[k - 1] + b[k - 1] + noise of covariance Q[k]; H (m, dim); y (N, m) (ignored where not
+    observed); observed (N, m) bool: the channels measured at each sample; mean0, P0: prior of the
+    augmented state at sample 0;
+    output_map O (q, dim). steady: the steady gain of a constant model (step_model the same at
+    every k), taken once the gain is within STEADY_TOLERANCE of it (row ``blocks``, as
+    :func:`_gain_stream`) on ``patience`` fully observed samples, until the next missing channel.
+    Returns (means (N, q), variances (N, q)) of O a: filtered E[. | y[0..k]] or smoothed.
+    """
+    N, dim = y.shape[0], P0.shape[0]
+    O = output_map
+    blocks = [slice(None)] if blocks is None else list(blocks)
+    predicted = np.empty((N, dim))
+    scaled = np.zeros((N, dim))  # H_o' inv(S) nu
+    records: list = [None] * N   # (observed rows, K, H_o' inv(S), O P_p) of the time-varying samples
+    is_steady = np.zeros(N, dtype=bool)
+    means, variances = np.empty((N, O.shape[0])), np.empty((N, O.shape[0]))
+    if steady is not None:
+        steady_filtered = _joseph(steady.predicted, steady.gain, H)
+        steady_filter_variance = _diag(O @ steady_filtered, O)
+    on_steady, calm, plateau = False, 0, _Plateau()
+    a_f = P_f = None
+    for k in range(N):
+        rows = np.flatnonzero(observed[k])
+        full = rows.size == H.shape[0]
+        if k == 0:
+            a, P = mean0, P0
+        else:
+            T, Q, b = step_model(k)
+            a = T @ a_f + b
+            if on_steady:
+                P = None
+            else:
+                P = T @ P_f @ T.T + Q
+                P = 0.5 * (P + P.T)
+        if on_steady and not full:  # leave the steady gain: its predicted covariance is the fixed point
+            on_steady, calm, plateau, P = False, 0, _Plateau(), steady.predicted.copy()
+        predicted[k] = a
+        if on_steady:
+            nu = y[k] - H @ a
+            scaled[k] = steady.weight @ nu
+            a_f = a + steady.gain @ nu
+            is_steady[k] = True
+            if not smooth:
+                means[k], variances[k] = O @ a_f, steady_filter_variance
+            continue
+        if rows.size:
+            Ho = H[rows]
+            W = _innovation_weight(Ho, P)
+            K = P @ W
+            nu = y[k, rows] - Ho @ a
+            scaled[k] = W @ nu
+            a_f = a + K @ nu
+            P_f = _joseph(P, K, Ho)
+        else:
+            K = W = np.zeros((dim, 0))
+            a_f, P_f = a, P
+        if smooth:
+            records[k] = (rows, K, W, O @ P)
+        else:
+            means[k], variances[k] = O @ a_f, _diag(O @ P_f, O)
+        if steady is not None and full:
+            distance = _blockwise_distance(K, steady.gain, blocks)
+            calm = calm + 1 if distance <= STEADY_TOLERANCE else 0
+            if plateau.reached(distance):
+                calm = patience
+            on_steady = calm >= patience
+        else:
+            calm = 0
+    if not smooth:
+        return means, variances
+    return _varying_smoother(step_model, H, O, predicted, scaled, records, is_steady, steady, means, variances)
+
+
+def _varying_smoother(step_model, H, O, predicted, scaled, records, is_steady, steady, means, variances):
+    """The backward pass of :func:`varying_pass` (fills and returns means, variances)."""
+    N, dim = predicted.shape
+    lam = np.zeros(dim)
+    Lam = np.zeros((dim, dim))
+    settled = False  # Lam has converged inside a run of steady samples: it stays put back to the run's start
+    if steady is not None:
+        steady_OP = O @ steady.predicted
+        steady_prior_variance = _diag(steady_OP, O)
+    calm, previous = 0, None
+    for k in range(N - 1, -1, -1):
+        if k < N - 1:
+            T = step_model(k + 1)[0]
+            carry = T.T @ lam
+            carry_Lam = None if settled and is_steady[k] else T.T @ Lam @ T
+        else:
+            carry, carry_Lam = np.zeros(dim), np.zeros((dim, dim))
+        if is_steady[k]:
+            rows, K, W, OP = None, steady.gain, steady.weight, steady_OP
+            Ho = H
+        else:
+            settled, calm, previous = False, 0, None
+            rows, K, W, OP = records[k]
+            Ho = H[rows]
+        lam = scaled[k] + carry - Ho.T @ (K.T @ carry)
+        if carry_Lam is not None:
+            Lam = W @ Ho + _sandwich_transposed(carry_Lam, K, Ho)
+        means[k] = O @ predicted[k] + OP @ lam
+        if is_steady[k] and settled:
+            variances[k] = variances[k + 1]
+            continue
+        prior_variance = steady_prior_variance if is_steady[k] else _diag(OP, O)
+        variances[k] = prior_variance - _diag(OP @ Lam, OP)
+        if is_steady[k]:
+            if previous is not None:
+                change = np.max(np.abs(variances[k] - previous) / np.maximum(np.abs(variances[k]), 1e-300))
+                calm = calm + 1 if change <= STEADY_TOLERANCE else 0
+                settled = calm >= 3
+            previous = variances[k]
+    return means, variances

@@ -11,7 +11,7 @@ from scipy.linalg import solve_triangular
 from attend._validation import AttendInputError, positive_scalar, require_finite
 from attend._validation import kernel_width as checked_width
 from attend.noise import autocorrelation, gaussian_kernel
-from attend.perception.baselines.filters import _inputs, _outputs, _std_vector, _system
+from attend.perception.baselines.filters import _inputs, _std_vector, _system
 
 
 class ExactPosterior(NamedTuple):
@@ -54,6 +54,22 @@ def coloured_noise_correlation(n_samples: int, dt: float, kernel_width: float) -
     return values[lags]
 
 
+def _irregular_transfer_matrix(transitions: list, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
+    """As :func:`_transfer_matrix` with step k's own transition: block (k, j) = Ad_(k-1) ... Ad_(j+1)
+    for j < k (Ad_i: the transition out of sample i), block k of Phi = Ad_(k-1) ... Ad_0."""
+    n = transitions[0].shape[0]
+    L = np.zeros((n_samples * n, n_samples * n))
+    Phi = np.zeros((n_samples * n, n))
+    Phi[:n] = np.eye(n)
+    for k in range(1, n_samples):
+        rows, previous = slice(k * n, (k + 1) * n), slice((k - 1) * n, k * n)
+        Ad = transitions[k - 1]
+        Phi[rows] = Ad @ Phi[previous]
+        L[rows, : (k - 1) * n] = Ad @ L[previous, : (k - 1) * n]
+        L[rows, previous] = np.eye(n)
+    return L, Phi
+
+
 def _transfer_matrix(Ad: np.ndarray, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
     """L (N n, N n) with block (k, j) = Ad^(k-1-j) for j < k (else 0), and Phi (N n, n) with
     block k = Ad^k: stacked x = Phi x[0] + L [drive[0]; drive[1]; ...]."""
@@ -74,7 +90,7 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
                     input_prior_mean=None, input_prior_std=None, initial_mean=None, initial_std=0.0,
                     jitter: float = 1e-12, return_covariance: bool = False,
                     process_kernel_width=None, sensor_kernel_width=None, input_kernel_width=None,
-                    causal: bool = False) -> ExactPosterior:
+                    causal: bool = False, time=None, white_floor: float = 0.0) -> ExactPosterior:
     """Exact posterior of the states (and inputs) under simulate()'s generative model.
 
         x[k] = Ad x[k-1] + Bd u[k-1] + dt w[k-1],   y[k] = C x[k] + z[k],   x[0] ~ N(m0, diag(s0^2))
@@ -100,28 +116,31 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
     causal=True also returns ``causal_states`` / ``causal_inputs``: E[x[k] | y[0..k]] for every k,
     the best causal estimate under the model, read from the same Cholesky factor (the innovations
     of y in time order).
+    NaN outputs are left out of the conditioning (missing). time (N,) [s]: irregular sample times
+    (dt unused): x[k] = Ad(h_k) x[k-1] + Bd(h_k) u[k-1] + h_k w[k-1], h_k = t_k - t_(k-1), noises
+    continuous-time: K_ij = rho(t_i - t_j) (w, z, the inputs' prior). white_floor f: coloured noises
+    get a white part, K -> (1 - f) K + f I (the Kalman smoother's noise models have f = 1e-8).
     Cost O((N min(m, n))^3) time, O((N (n + m + r))^2) memory: for logs up to a few thousand samples.
     """
     system = _system(system)
     dt = positive_scalar(dt, "dt", "s")
     s_w, s_z, s_u = _noise_widths(kernel_width, process_kernel_width, sensor_kernel_width, input_kernel_width)
-    y = _outputs(system, outputs)
+    y, observed = _measured_outputs(system, outputs)
     N = y.shape[0]
+    times = _sample_times(time, N, dt)
     n, r, m = system.n_states, system.n_inputs, system.n_outputs
     sw = _std_vector(process_std, n, "process_std")
     sz = _std_vector(measurement_std, m, "measurement_std")
-    m0 = np.zeros(n) if initial_mean is None else np.asarray(initial_mean, dtype=float).reshape(-1)
-    if m0.shape != (n,):
-        raise AttendInputError(f"initial_mean: expected {n} numbers, got shape {np.shape(initial_mean)}")
-    require_finite(m0, "initial_mean")
+    m0 = _initial_mean(initial_mean, n)
     s0 = _std_vector(initial_std, n, "initial_std")
-    if not (np.isfinite(jitter) and jitter >= 0):
-        raise AttendInputError(f"jitter: expected a finite number >= 0, got {jitter!r}")
+    _check_regularisation(jitter, white_floor)
     known = inputs is not None
     u_mean, su = _input_prior(system, inputs, input_prior_mean, input_prior_std, N)
-    x_mean, x_cov, LB, input_cov, K = _state_prior(system, dt, N, m0, s0, sw, u_mean, su, s_w, s_u, known)
-    K_z = K if s_z == s_w else coloured_noise_correlation(N, dt, s_z)
-    chol, white, xy_cov, Cbig, q, log_likelihood = _condition_on_outputs(system, y, sz, x_mean, x_cov, K_z, jitter)
+    x_mean, x_cov, LB, input_cov, K = _state_prior(system, dt, N, m0, s0, sw, u_mean, su, s_w, s_u, known, times,
+                                                   white_floor)
+    K_z = K if s_z == s_w else _correlation(N, dt, s_z, times, white_floor)
+    chol, white, xy_cov, Cbig, q, log_likelihood = _condition_on_outputs(system, y, sz, x_mean, x_cov, K_z, jitter,
+                                                                          observed)
     # latent z = [x; u] (u only when unknown)
     if known:
         z_mean, zy_cov, z_var = x_mean, xy_cov, np.diag(x_cov)
@@ -136,7 +155,7 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
     covariance = _posterior_covariance(x_cov, LB, input_cov, G) if return_covariance else None
     causal_states = causal_inputs = None
     if causal:
-        causal_states, causal_inputs = _causal_means(G, white, z_mean, u_mean, q, n, known)
+        causal_states, causal_inputs = _causal_means(G, white, z_mean, u_mean, q, n, known, observed)
     states = post_mean[: N * n].reshape(N, n)
     state_std = np.sqrt(post_var[: N * n]).reshape(N, n)
     if known:
@@ -144,8 +163,8 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
     else:
         est_inputs = post_mean[N * n:].reshape(N, r)
         input_std = np.sqrt(post_var[N * n:]).reshape(N, r)
-    return ExactPosterior(np.arange(N) * dt, states, est_inputs, state_std, input_std, covariance,
-                          float(log_likelihood), causal_states, causal_inputs)
+    return ExactPosterior(np.arange(N) * dt if times is None else times, states, est_inputs, state_std, input_std,
+                          covariance, float(log_likelihood), causal_states, causal_inputs)
 
 
 def _input_prior(system, inputs, input_prior_mean, input_prior_std, N):
@@ -160,22 +179,89 @@ def _input_prior(system, inputs, input_prior_mean, input_prior_std, N):
     return _inputs(system, input_prior_mean, N, "input_prior_mean"), _std_vector(input_prior_std, r, "input_prior_std")
 
 
-def _state_prior(system, dt, N, m0, s0, sw, u_mean, su, s_w, s_u, known):
-    """Prior mean and covariance of the stacked states x = Phi x[0] + L (Bd u + dt w), and with
+def _measured_outputs(system, outputs) -> tuple[np.ndarray, np.ndarray]:
+    """(y (N, m) with 0 where missing, observed (N, m)): NaN marks a missing output."""
+    from attend.perception.sample_times import matrix_with_gaps
+
+    y = matrix_with_gaps(outputs, "outputs", system.n_outputs)
+    if y.shape[0] < 1:
+        raise AttendInputError("outputs: expected at least 1 sample")
+    observed = ~np.isnan(y)
+    if not observed.any():
+        raise AttendInputError("outputs: every value is missing (NaN)")
+    return np.where(observed, y, 0.0), observed
+
+
+def _check_regularisation(jitter, white_floor) -> None:
+    """jitter >= 0 and 0 <= white_floor < 1, finite."""
+    for value, field, upper in ((jitter, "jitter", np.inf), (white_floor, "white_floor", 1.0)):
+        if not (np.isfinite(value) and 0 <= value < upper):
+            bound = " and < 1" if upper == 1 else ""
+            raise AttendInputError(f"{field}: expected a finite number >= 0{bound}, got {value!r}")
+
+
+def _initial_mean(initial_mean, n: int) -> np.ndarray:
+    """m0 (n,), default 0, checked."""
+    m0 = np.zeros(n) if initial_mean is None else np.asarray(initial_mean, dtype=float).reshape(-1)
+    if m0.shape != (n,):
+        raise AttendInputError(f"initial_mean: expected {n} numbers, got shape {np.shape(initial_mean)}")
+    require_finite(m0, "initial_mean")
+    return m0
+
+
+def _sample_times(time, N: int, dt: float):
+    """The (N,) irregular sample times [s], checked (None: uniform, k dt)."""
+    if time is None:
+        return None
+    from attend.perception.sample_times import check_time_stamps
+
+    return check_time_stamps(time, N, float(np.min(np.diff(time))) if N > 1 else dt)
+
+
+def _correlation(N: int, dt: float, width: float, times, white_floor: float = 0.0) -> np.ndarray:
+    """Correlation of N samples of a noise of kernel width ``width``: the simulator's on the
+    uniform grid (times None), rho(t_i - t_j) at irregular times (the identity for width 0);
+    a coloured noise's white part of relative variance white_floor added."""
+    if width == 0:
+        return np.eye(N)
+    K = coloured_noise_correlation(N, dt, width) if times is None else \
+        autocorrelation(times[:, None] - times[None, :], width)
+    return (1 - white_floor) * K + white_floor * np.eye(N) if white_floor else K
+
+
+def _state_prior(system, dt, N, m0, s0, sw, u_mean, su, s_w, s_u, known, times=None, white_floor=0.0):
+    """Prior mean and covariance of the stacked states x = Phi x[0] + L (Bd u + h w), and with
     unknown inputs L Bbig (x = ... + L Bbig u) and the inputs' prior covariance; K the process
-    noise's correlation."""
-    Ad, Bd = system.discretize(dt)
-    L, Phi = _transfer_matrix(Ad, N)
-    K = coloured_noise_correlation(N, dt, s_w)
-    # prior of the stacked drive d[k] = Bd u[k] + dt w[k] and of the states
-    drive_mean = (u_mean @ Bd.T).reshape(-1)
-    drive_cov = np.kron(K, np.diag((dt * sw) ** 2))
+    noise's correlation. times: irregular sample times (None: uniform, step dt); white_floor: as
+    :func:`_correlation`."""
+    if times is None:
+        steps = np.full(N, dt)
+        Ad, Bd = system.discretize(dt)
+        L, Phi = _transfer_matrix(Ad, N)
+        holds = np.broadcast_to(Bd, (N, *Bd.shape))
+    else:  # steps[k] = t[k+1] - t[k] carries drive k into sample k + 1 (the last one enters no sample)
+        steps = np.append(np.diff(times), 1.0)
+        pairs = [system.discretize(h) for h in steps]
+        L, Phi = _irregular_transfer_matrix([Ad for Ad, _ in pairs], N)
+        holds = np.array([Bd for _, Bd in pairs])
+    K = _correlation(N, dt, s_w, times, white_floor)
+    # prior of the stacked drive d[k] = Bd(h) u[k] + h w[k] and of the states
+    drive_mean = np.einsum("kij,kj->ki", holds, u_mean).reshape(-1)
+    scale = np.repeat(steps, system.n_states) * np.tile(sw, N)  # h_k sigma_w per stacked entry
+    drive_cov = np.kron(K, np.eye(system.n_states)) * np.outer(scale, scale) \
+        if times is not None else np.kron(K, np.diag((dt * sw) ** 2))
     if not known:
         if s_u <= 0:
             raise AttendInputError("input_kernel_width: expected a width > 0 [s] for the inputs' prior")
-        Ku = autocorrelation(dt * (np.arange(N)[:, None] - np.arange(N)[None, :]), s_u)
+        lags = dt * (np.arange(N)[:, None] - np.arange(N)[None, :]) if times is None \
+            else times[:, None] - times[None, :]
+        Ku = autocorrelation(lags, s_u)
         input_cov = np.kron(Ku, np.diag(su**2))  # (N r, N r)
-        Bbig = np.kron(np.eye(N), Bd)  # d = Bbig u + dt w
+        Bbig = np.zeros((N * system.n_states, N * system.n_inputs))  # d = Bbig u + h w
+        for k in range(N):
+            rows, columns = slice(k * system.n_states, (k + 1) * system.n_states), \
+                slice(k * system.n_inputs, (k + 1) * system.n_inputs)
+            Bbig[rows, columns] = holds[k]
         drive_cov = drive_cov + Bbig @ input_cov @ Bbig.T
     x_mean = Phi @ m0 + L @ drive_mean
     x_cov = L @ drive_cov @ L.T + Phi @ np.diag(s0**2) @ Phi.T
@@ -183,11 +269,14 @@ def _state_prior(system, dt, N, m0, s0, sw, u_mean, su, s_w, s_u, known):
     return x_mean, x_cov, LB, (None if known else input_cov), K
 
 
-def _condition_on_outputs(system, y, sz, x_mean, x_cov, K_z, jitter):
+def _condition_on_outputs(system, y, sz, x_mean, x_cov, K_z, jitter, observed=None):
     """Cholesky factor of Cov(y_q), whitened residual, Cov(x, y_q), the stacked output map, the
-    number q of channels kept and log p(y)."""
+    number q of channels kept and log p(y). observed (N, m): the measured entries (with missing
+    ones the rows of the stacked y are the measured entries, time-major, and q = m)."""
     N, m = y.shape
     n = system.n_states
+    if observed is not None and not observed.all():
+        return _condition_on_measured(system, y, sz, x_mean, x_cov, K_z, jitter, observed)
     # Exact reduction to a sufficient statistic: the measurement noise has covariance
     # K kron diag(sz^2), so with the whitened channels diag(1/sz) y and the QR factor
     # diag(1/sz) C = Qc Rc, the rotated channels Qc' diag(1/sz) y beyond the first q = n are
@@ -223,6 +312,27 @@ def _condition_on_outputs(system, y, sz, x_mean, x_cov, K_z, jitter):
     return chol, white, xy_cov, Cbig, q, log_likelihood
 
 
+def _condition_on_measured(system, y, sz, x_mean, x_cov, K_z, jitter, observed):
+    """:func:`_condition_on_outputs` for the measured entries of y only (no channel reduction)."""
+    N, m = y.shape
+    keep = observed.reshape(-1)
+    Cbig = np.kron(np.eye(N), system.C)[keep]
+    xy_cov = x_cov @ Cbig.T
+    noise_cov = np.kron(K_z, np.diag(sz**2))[np.ix_(keep, keep)]
+    y_cov = Cbig @ xy_cov + noise_cov
+    y_cov = 0.5 * (y_cov + y_cov.T)
+    y_cov[np.diag_indices_from(y_cov)] += jitter * np.mean(np.diag(y_cov))
+    try:
+        chol = np.linalg.cholesky(y_cov)
+    except np.linalg.LinAlgError:
+        raise AttendInputError(
+            "jitter: the output covariance is not numerically positive definite; increase jitter"
+        ) from None
+    white = solve_triangular(chol, y.reshape(-1)[keep] - Cbig @ x_mean, lower=True)
+    log_likelihood = -0.5 * (white @ white) - np.sum(np.log(np.diag(chol))) - 0.5 * keep.sum() * np.log(2 * np.pi)
+    return chol, white, xy_cov, Cbig, m, log_likelihood
+
+
 def _posterior_covariance(x_cov, LB, input_cov, G):
     """Posterior covariance of z = [x; u] (u only when unknown: LB is None when known)."""
     if LB is None:
@@ -234,10 +344,16 @@ def _posterior_covariance(x_cov, LB, input_cov, G):
     return 0.5 * (covariance + covariance.T)
 
 
-def _causal_means(G, white, z_mean, u_mean, q, n, known):
-    """E[z at k | y[0..k]]: only the innovations of samples <= k. Returns (states, inputs)."""
+def _causal_means(G, white, z_mean, u_mean, q, n, known, observed=None):
+    """E[z at k | y[0..k]]: only the innovations of samples <= k. Returns (states, inputs).
+    observed (N, m): the measured entries when some are missing (the rows of G are those)."""
     N, r = u_mean.shape
-    contributions = (G * white[:, None]).reshape(N, q, -1).sum(axis=1)  # (time of y, latent)
+    if observed is not None and not observed.all():
+        sample = np.nonzero(observed)[0]  # time of each measured entry (time-major order)
+        contributions = np.zeros((N, G.shape[1]))
+        np.add.at(contributions, sample, G * white[:, None])
+    else:
+        contributions = (G * white[:, None]).reshape(N, q, -1).sum(axis=1)  # (time of y, latent)
     latent_time = np.concatenate([np.repeat(np.arange(N), n), [] if known else np.repeat(np.arange(N), r)])
     mask = np.arange(N)[:, None] <= latent_time[None, :].astype(int)
     causal_mean = z_mean + np.sum(contributions * mask, axis=0)

@@ -1,0 +1,141 @@
+"""Running a model file's estimator on a log with gaps or jitter (`attend estimate`).
+
+A log read with ``read_log(..., gaps=True)`` may have empty or NaN cells and time stamps that skip
+samples or jitter (:mod:`attend.perception.sample_times`). The linear estimators take such logs:
+
+- method "kalman": no update for a missing output at that sample; skipped stamps are steps
+  without a measurement; each step is discretised for its own length (jitter);
+- method "dem": every column resampled onto the uniform grid by linear interpolation, bridging
+  at most BRIDGED_GAP missing samples in a row (longer gaps are refused).
+
+Measured inputs must be known at every step: gaps of at most BRIDGED_GAP samples are
+interpolated linearly, longer ones (and gaps at either end of the log) are refused. Nonlinear
+models are refused (their estimators need a uniform, complete log).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from attend._validation import AttendInputError
+from attend.io.logs import Log
+from attend.io.model import ModelFile
+from attend.noise import GAUSSIAN_SPECTRUM_DENOMINATOR
+from attend.perception.sample_times import BRIDGED_GAP, SampleGrid, bridge, describe, sample_grid
+
+JITTERED_DT_TOLERANCE = 1e-2
+"""Relative distance between [model] dt and a jittered log's nominal step that is accepted (the
+nominal step of a jittered log is known only to about jitter / sqrt(N))."""
+
+
+def _used_columns(model: ModelFile) -> tuple[list[str], list[str]]:
+    """(output columns, measured-input columns) the model file reads from the log."""
+    return list(model.output_columns), [spec.column for spec in model.inputs if spec.known]
+
+
+def has_gaps(model: ModelFile, log: Log) -> bool:
+    """True when the log skips or jitters time stamps, or the model's columns hold missing values."""
+    if not log.uniform:
+        return True
+    outputs, inputs = _used_columns(model)
+    return any(name in log.columns and np.isnan(log.columns[name]).any() for name in outputs + inputs)
+
+
+def _first_gap(model: ModelFile, log: Log) -> str:
+    """Where the log first misses a value or steps unevenly, in the file's lines."""
+    labels = log.labels
+    outputs, inputs = _used_columns(model)
+    for name in outputs + inputs:
+        if name in log.columns and np.isnan(log.columns[name]).any():
+            return f"{labels[int(np.argmax(np.isnan(log.columns[name])))]}, column {name!r}: a missing value"
+    steps = np.diff(log.time)
+    mean = (log.time[-1] - log.time[0]) / (len(log.time) - 1)
+    worst = int(np.argmax(np.abs(steps - mean)))
+    return f"{labels[worst + 1]}: a step of {steps[worst]:.6g} s (mean step {mean:.6g} s)"
+
+
+def _sample_time(model: ModelFile, log: Log) -> float:
+    """The nominal sample time: the log's (gaps counted in whole samples), checked against [model] dt."""
+    dt = log.dt
+    if model.dt is not None:
+        tolerance = 1e-4 if log.uniform else JITTERED_DT_TOLERANCE
+        if abs(model.dt - dt) > tolerance * dt:
+            raise AttendInputError(f"{model.path}: [model] dt = {model.dt} s but the log {log.path} is sampled every "
+                                   f"{dt:.6g} s (nominal step, gaps counted in whole samples)")
+        dt = float(model.dt)
+    return dt
+
+
+def estimate_with_gaps(model: ModelFile, log: Log):
+    """(observer, estimate, summary) of the model file's linear estimator on a log with gaps or
+    jitter: estimates at every row of the log; summary: one line on what was missing and the
+    jitter handled. Errors name the file and lines."""
+    if model.nonlinear:
+        raise AttendInputError(
+            f"{log.path}: {_first_gap(model, log)}; the estimators of nonlinear models need a complete log on a "
+            "uniform time grid (gaps and jitter are handled for linear models)")
+    minimum = 2 if model.method == "kalman" else max(model.learning_order, model.input_order) + 1
+    if len(log.time) < max(minimum, 2):
+        raise AttendInputError(f"{log.path}: expected at least {max(minimum, 2)} samples, got {len(log.time)}")
+    dt = _sample_time(model, log)
+    outputs = log.matrix(model.output_columns, missing=True)
+    grid = sample_grid(log.time, dt, field=f"{log.path}: column {model.time_column!r}", labels=log.labels)
+    signals = np.zeros((len(log.time), model.system.n_inputs))
+    bridged = 0
+    for j, spec in enumerate(model.inputs):
+        if spec.known:
+            column = log.matrix([spec.column], missing=True)[:, 0]
+            bridge(grid, column, f"{log.path}: column", [spec.column], labels=log.labels)  # refuses long gaps
+            bridged += int(np.isnan(column).sum())
+            signals[:, j] = column - spec.operating_point
+        else:
+            signals[:, j] = spec.prior_mean
+    if not np.isfinite(outputs).any():
+        raise AttendInputError(f"{log.path}: every value of the output columns {', '.join(model.output_columns)} is "
+                               "missing; expected measured outputs")
+    if model.method == "dem":
+        bridge(grid, outputs, f"{log.path}: column", list(model.output_columns), labels=log.labels)
+    try:
+        observer = model.observer(dt)
+    except AttendInputError as error:  # as estimate_from_files: P_v is the [[inputs]] prior_precision
+        message = str(error).replace("input_prior_precision", "[[inputs]] prior_precision")
+        raise AttendInputError(message if message.startswith(str(model.path)) else
+                               f"{model.path}: [observer] {message}") from None
+    with np.errstate(over="ignore", invalid="ignore"):
+        estimate = observer.estimate(outputs, signals, time=log.time)
+    _check_estimate(model, log, estimate)
+    return observer, estimate, summary(grid, outputs, bridged, model.method)
+
+
+def _check_estimate(model: ModelFile, log: Log, estimate) -> None:
+    """Non-finite estimates or standard deviations are errors naming the model file."""
+    for name, values in (("states", estimate.states), ("inputs", estimate.inputs)):
+        if not np.all(np.isfinite(values)):
+            raise AttendInputError(f"{model.path}: [observer] the estimated {name} are not finite on the log "
+                                   f"{log.path}: the observer is numerically unstable for these settings")
+    names = list(model.system.state_names) + list(model.system.input_names)
+    undefined = ~np.all(np.isfinite(np.hstack([estimate.state_std, estimate.input_std])), axis=0)
+    if undefined.any():
+        hidden = ", ".join(name for name, bad in zip(names, undefined) if bad)
+        raise AttendInputError(f"{model.path}: [observer] {hidden}: not informed by the outputs under these settings "
+                               "(no finite standard deviation); add outputs that see them, or give [observer] "
+                               "initial_state and initial_state_std with method = \"kalman\"")
+
+
+def summary(grid: SampleGrid, outputs: np.ndarray, bridged_inputs: int, method: str) -> str:
+    """One line: samples missing, jitter handled, and how (per method)."""
+    missing_rows = int(np.sum(~np.isfinite(outputs).all(axis=1)))
+    if method == "dem":
+        how = "resampled onto t0 + k dt"
+    else:
+        how = (f"each step discretised exactly (continuous-time noise models of order "
+               f"{len(GAUSSIAN_SPECTRUM_DENOMINATOR) - 1})")
+    text = "gaps and jitter: " + describe(grid, missing_rows, how)
+    if bridged_inputs:
+        text += f"; {bridged_inputs} missing input value{'s' if bridged_inputs != 1 else ''} interpolated"
+    if method == "dem":
+        text += (f"; DEM ran on the uniform grid (columns interpolated linearly, gaps of up to {BRIDGED_GAP} samples "
+                 "bridged), its estimates interpolated back to every row")
+    else:
+        text += "; estimates at every row of the log"
+    return text

@@ -101,15 +101,7 @@ def call_time(seed: int) -> tuple[float, int, int]:
         simulate_mission(mission, seed=seed, replan_s=60.0)
         logs = mission.logs
         keep = logs.image_time_s <= 300.0
-        index = np.flatnonzero(keep)
-        renumber = -np.ones(len(keep), dtype=int)
-        renumber[index] = np.arange(len(index))
-        dkeep = keep[logs.detection_image]
-        from attend.action.mission.flight_logs import FlightLogs
-
-        part = FlightLogs(logs.image_time_s[keep], logs.image_uav[keep], logs.image_lon[keep], logs.image_lat[keep],
-                          logs.image_alt_m[keep], logs.image_yaw_deg[keep], renumber[logs.detection_image[dkeep]],
-                          logs.detection_lon[dkeep], logs.detection_lat[dkeep], logs.detection_score[dkeep])
+        part = logs.subset(keep)
         write_flight_logs(part, [u.name for u in mission.config.uavs], folder / "images.csv", folder / "detections.csv")
         walls = []
         for _ in range(3):

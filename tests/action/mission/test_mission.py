@@ -9,7 +9,7 @@ import shapely
 
 from attend.action.mission import Mission
 from attend.action.mission.examples import write_example_mission
-from attend.action.mission.flight_logs import FlightLogs, write_flight_logs
+from attend.action.mission.flight_logs import write_flight_logs
 from attend.action.mission.mission import footprint_cells
 from attend.action.mission.simulate import simulate_mission
 from attend.action.probability_map import MapGrid
@@ -81,7 +81,7 @@ def test_plans_after_flying_part_of_the_mission_stay_inside(tmp_path):
     simulate_mission(mission, seed=1, replan_s=30.0)
     for elapsed in (60.0, 150.0, 190.0):
         keep = mission.logs.image_time_s <= elapsed
-        partial = _prefix(mission.logs, keep)
+        partial = mission.logs.subset(keep)
         mission.set_logs(partial)
         plans = mission.plan()
         assert _check_plans(mission, plans) == []
@@ -91,16 +91,6 @@ def test_plans_after_flying_part_of_the_mission_stay_inside(tmp_path):
             assert plan.start[3] == t
             if len(plan.waypoints):
                 assert plan.waypoints[0, 3] > t
-
-
-def _prefix(logs: FlightLogs, keep: np.ndarray) -> FlightLogs:
-    index = np.flatnonzero(keep)
-    renumber = -np.ones(len(keep), dtype=int)
-    renumber[index] = np.arange(len(index))
-    dkeep = keep[logs.detection_image]
-    return FlightLogs(logs.image_time_s[keep], logs.image_uav[keep], logs.image_lon[keep], logs.image_lat[keep],
-                      logs.image_alt_m[keep], logs.image_yaw_deg[keep], renumber[logs.detection_image[dkeep]],
-                      logs.detection_lon[dkeep], logs.detection_lat[dkeep], logs.detection_score[dkeep])
 
 
 def test_appending_images_gives_the_map_of_a_rebuild(tmp_path):
@@ -130,7 +120,7 @@ def test_replay_split_over_calls_gives_the_same_targets_and_plan(tmp_path):
         out = tmp_path / f"out{calls}"
         for c in range(1, calls + 1):
             cut = times[int(np.ceil(c / calls * len(times))) - 1]
-            part = _prefix(mission.logs, mission.logs.image_time_s <= cut)
+            part = mission.logs.subset(mission.logs.image_time_s <= cut)
             images, detections = tmp_path / f"images{calls}.csv", tmp_path / f"detections{calls}.csv"
             write_flight_logs(part, names, images, detections)
             assert main(["plan", str(path), "--out", str(out), "--images", str(images), "--detections",

@@ -26,9 +26,7 @@ def flown(tmp_path_factory):
     mission = Mission.from_file(path)
     simulate_mission(mission, seed=2, replan_s=40.0)
     keep = mission.logs.image_time_s <= 120.0
-    from tests.action.mission.test_mission import _prefix
-
-    write_flight_logs(_prefix(mission.logs, keep), [u.name for u in mission.config.uavs], folder / "images.csv",
+    write_flight_logs(mission.logs.subset(keep), [u.name for u in mission.config.uavs], folder / "images.csv",
                       folder / "detections.csv")
     return folder
 

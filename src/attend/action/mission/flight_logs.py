@@ -59,6 +59,17 @@ class FlightLogs:
         z = np.zeros(0)
         return cls(z, np.zeros(0, int), z, z, z, z, np.zeros(0, int), z, z, z)
 
+    def subset(self, keep: np.ndarray) -> "FlightLogs":
+        """The logs of the images where ``keep`` ((n,) bool) is True, with their detections
+        (detection_image renumbered into the kept images)."""
+        keep = np.asarray(keep, dtype=bool)
+        renumber = np.full(len(keep), -1, dtype=int)
+        renumber[keep] = np.arange(int(keep.sum()))
+        kept = keep[self.detection_image]
+        return FlightLogs(self.image_time_s[keep], self.image_uav[keep], self.image_lon[keep], self.image_lat[keep],
+                          self.image_alt_m[keep], self.image_yaw_deg[keep], renumber[self.detection_image[kept]],
+                          self.detection_lon[kept], self.detection_lat[kept], self.detection_score[kept])
+
     def fusion_order(self) -> np.ndarray:
         """Image rows in the order they are fused: by time, then by UAV index (stable)."""
         return np.lexsort((self.image_uav, self.image_time_s))

@@ -95,7 +95,7 @@ class SearchGround:
         self._allowed = free.buffer(-self.margin_m / 2, join_style="mitre")
         shapely.prepare(self._allowed)
         shapely.prepare(self._free)
-        self._nodes = _vertices(self._free)
+        self._nodes = ring_vertices(self._free)
         self._graph = self._visibility(self._nodes)
 
     @classmethod
@@ -126,6 +126,11 @@ class SearchGround:
                                     "area or smaller cells")
         margin = max(MIN_MARGIN_M, 0.5 * s)
         return cls(frame, area, no_fly, grid, searchable, margin, in_area)
+
+    @property
+    def flyable(self):
+        """F: the area minus the no-fly zones, shrunk by ``margin_m`` (module docstring)."""
+        return self._free
 
     # ------------------------------------------------------------------------------------
     def inside(self, x, y) -> np.ndarray:
@@ -211,8 +216,8 @@ class SearchGround:
         return lengths
 
 
-def _vertices(geometry) -> np.ndarray:
-    """(k, 2) distinct ring vertices of a Polygon or MultiPolygon."""
+def ring_vertices(geometry) -> np.ndarray:
+    """(k, 2) distinct ring vertices (exteriors and holes) of ``geometry``, a Polygon or MultiPolygon."""
     rings = []
     for polygon in getattr(geometry, "geoms", [geometry]):
         rings.append(np.asarray(polygon.exterior.coords)[:-1])

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
+from attend.action.mission.ground import ring_vertices
 from attend.action.mission.mission import UavPlan
 
 #: Slack on the flown distance when locating a UAV on its pattern.
@@ -56,13 +57,13 @@ def lawnmower_patterns(mission) -> list[np.ndarray]:
     ground = mission.ground
     h = lawnmower_altitude_m(mission)
     width = float(mission.cameras[0].footprint_m(h)[0])
-    free = ground._free
+    free = ground.flyable
     rectangle = np.asarray(free.minimum_rotated_rectangle.exterior.coords)[:4]
     edges = np.diff(np.vstack([rectangle, rectangle[:1]]), axis=0)
     long_edge = edges[int(np.argmax(np.hypot(*edges.T)))]
     along = long_edge / np.hypot(*long_edge)
     across = np.array([-along[1], along[0]])
-    corners = _vertices(free)
+    corners = ring_vertices(free)
     a_lo, a_hi = (corners @ along).min() - 1.0, (corners @ along).max() + 1.0
     c_lo, c_hi = (corners @ across).min(), (corners @ across).max()
     offsets = np.arange(c_lo + width / 2, c_hi, width)
@@ -188,9 +189,3 @@ def _affordable_fraction(mission, k: int, here: np.ndarray, target: np.ndarray, 
         low, high = (middle, high) if fits(middle) else (low, middle)
     return low if low > 1e-3 else 0.0
 
-
-def _vertices(geometry) -> np.ndarray:
-    rings = []
-    for polygon in getattr(geometry, "geoms", [geometry]):
-        rings.append(np.asarray(polygon.exterior.coords)[:, :2])
-    return np.vstack(rings)

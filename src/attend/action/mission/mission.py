@@ -32,7 +32,7 @@ from scipy.special import expit
 
 from attend.action.camera import Camera
 from attend.action.mission.area_files import read_area
-from attend.action.mission.config import MissionConfig, UavConfig, read_mission
+from attend.action.mission.config import MissionConfig, read_mission
 from attend.action.mission.errors import MissionInputError
 from attend.action.mission.flight_logs import FlightLogs, read_flight_logs
 from attend.action.mission.ground import SearchGround, check_home_distance

@@ -94,12 +94,18 @@ def command_plan(args) -> int:
         raise AttendInputError("--simulate: flies its own logs; expected no --images or --detections")
     if Path(args.out).exists() and not Path(args.out).is_dir():
         raise AttendInputError(f"--out: {args.out} is a file; expected a folder")
-    mission = Mission.from_file(args.mission)
     if args.simulate:
-        return _simulate(mission, args, started)
-    mission.read_logs(args.images, args.detections)
-    plans = mission.plan(args.planner, args.horizon)
-    write_outputs(mission, plans, args.out, plot=not args.no_plot)
+        return _simulate(Mission.from_file(args.mission), args, started)
+    from attend.action.mission.map_painter import MapPainter
+
+    painter = MapPainter(enabled=not args.no_plot)  # loads matplotlib in another process meanwhile
+    try:
+        mission = Mission.from_file(args.mission)
+        mission.read_logs(args.images, args.detections)
+        plans = mission.plan(args.planner, args.horizon)
+        write_outputs(mission, plans, args.out, plot=not args.no_plot, painter=painter)
+    finally:
+        painter.close()
     summary = mission.summary(plans)
     waypoints = sum(len(p.waypoints) for p in plans)
     print(f"{summary['images']} images, {summary['detections']} detections fused; {summary['targets']} likely "

@@ -440,3 +440,22 @@ def test_whole_missions_are_calibrated():
     mean, n = p_all[sure].mean(), sure.sum()
     assert n >= 80 and abs(all_found[sure].mean() - mean) <= 3 * np.sqrt(mean * (1 - mean) / n) + 1e-3
 
+
+
+def test_window_sums_and_maxima_equal_scipy_ndimage():
+    """The target search's disc sums and 3 x 3 maxima (numpy windows) against scipy.ndimage."""
+    import scipy.ndimage
+
+    from attend.action.probability_map import _window_maxima_3x3, _window_sums
+
+    rng = np.random.default_rng(7)
+    for _ in range(30):
+        values = rng.random((int(rng.integers(1, 25)), int(rng.integers(1, 25))))
+        reach = int(rng.integers(0, 4))
+        dy, dx = np.mgrid[-reach : reach + 1, -reach : reach + 1]
+        kernel = (dy**2 + dx**2 <= reach**2 + 0.5).astype(float)
+        expected = scipy.ndimage.correlate(values, kernel, mode="constant", cval=0.0)
+        # sums of at most 49 numbers in [0, 1]: the order of additions changes the last bits only
+        np.testing.assert_allclose(_window_sums(values, kernel), expected, rtol=0, atol=64 * np.finfo(float).eps)
+        np.testing.assert_array_equal(_window_maxima_3x3(values),
+                                      scipy.ndimage.maximum_filter(values, size=3, mode="constant", cval=-np.inf))

@@ -66,8 +66,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-import scipy.ndimage
-from scipy.special import expit, logit, ndtr
+from attend.action.log_odds import logistic, logit, normal_cdf
 
 from attend.action.camera import Camera
 from attend.action.detection import DetectionModel
@@ -315,7 +314,7 @@ class ProbabilityMap:
     @property
     def probability(self) -> np.ndarray:
         """p (ny, nx) = 1 / (1 + exp(-l)); 0 on cells that are not searchable."""
-        return expit(self.log_odds)
+        return logistic(self.log_odds)
 
     def copy(self) -> "ProbabilityMap":
         """An independent copy (the read-only searchable mask is shared)."""
@@ -325,7 +324,7 @@ class ProbabilityMap:
 
     def expected_people(self) -> float:
         """sum_c p_c, the expected number of people on the map (the mean of the Poisson count)."""
-        return float(expit(self.log_odds).sum())
+        return float(logistic(self.log_odds).sum())
 
     def update(self, image: ImageObservation, model: DetectionModel, camera: Camera) -> None:
         """Fuse one image (module docstring): on the searchable cells c the image sees,
@@ -342,7 +341,7 @@ class ProbabilityMap:
         sigma = float(model.position_error_m(altitude))
         half = self.neighbourhood_cells(sigma)
         view = self.log_odds[rows, cols]
-        density = np.where(mask, expit(view), 0.0)
+        density = np.where(mask, logistic(view), 0.0)
         mass = np.minimum(_box_sum(density, half), MAX_NEIGHBOURHOOD_MASS)
         numerator = np.full(mask.shape, 1.0 - pd)
         denominator = 1.0 - pd * mass
@@ -378,8 +377,8 @@ class ProbabilityMap:
             if r0 >= r1 or c0 >= c1:
                 continue
             local = (slice(r0 - rows.start, r1 - rows.start), slice(c0 - cols.start, c1 - cols.start))
-            g_x = np.diff(ndtr((x0 + np.arange(c0, c1 + 1) * s - dx) / sigma)) / s
-            g_y = np.diff(ndtr((y0 + np.arange(r0, r1 + 1) * s - dy) / sigma)) / s
+            g_x = np.diff(normal_cdf((x0 + np.arange(c0, c1 + 1) * s - dx) / sigma)) / s
+            g_y = np.diff(normal_cdf((y0 + np.arange(r0, r1 + 1) * s - dy) / sigma)) / s
             f = g_y[:, None] * g_x[None, :] * in_view[local]
             weighted = f * density[local]
             near_mass = _box_sum(weighted, half)
@@ -426,7 +425,7 @@ class ProbabilityMap:
             if not mask.any():
                 continue
             view = self.log_odds[rows, cols]
-            density = np.where(mask, expit(view), 0.0)
+            density = np.where(mask, logistic(view), 0.0)
             mass = np.minimum(_box_sum(density, self.neighbourhood_cells(float(sigma))), MAX_NEIGHBOURHOOD_MASS)
             factor = (1.0 - chance) / (1.0 - chance * mass)
             view[mask] = _scaled_log_odds(view[mask], factor[mask])
@@ -472,10 +471,10 @@ class ProbabilityMap:
             # mass on that region and a 1-cell ring (for the local-maximum test), from p on a wider box
             m0, m1, n0, n1 = max(r0 - 1, 0), min(r1 + 1, ny), max(c0 - 1, 0), min(c1 + 1, nx)
             p0, p1, q0, q1 = max(m0 - reach, 0), min(m1 + reach, ny), max(n0 - reach, 0), min(n1 + reach, nx)
-            p_box = expit(self.log_odds[p0:p1, q0:q1])
-            mass_box = scipy.ndimage.correlate(p_box, kernel, mode="constant", cval=0.0)
+            p_box = logistic(self.log_odds[p0:p1, q0:q1])
+            mass_box = _window_sums(p_box, kernel)
             mass = mass_box[m0 - p0 : m1 - p0, n0 - q0 : n1 - q0]
-            peaks = mass == scipy.ndimage.maximum_filter(mass, size=3, mode="constant", cval=-np.inf)
+            peaks = mass == _window_maxima_3x3(mass)
             inner = (slice(r0 - m0, r1 - m0), slice(c0 - n0, c1 - n0))
             chosen = peaks[inner] & (mass[inner] >= threshold)
             for i, j in zip(*np.nonzero(chosen)):
@@ -490,7 +489,7 @@ class ProbabilityMap:
             inside = (disc_rows >= 0) & (disc_rows < ny) & (disc_cols >= 0) & (disc_cols < nx)
             flat = disc_rows[inside] * nx + disc_cols[inside]
             flat = flat[~np.isin(flat, claimed)]
-            p = expit(self.log_odds.ravel()[flat])
+            p = logistic(self.log_odds.ravel()[flat])
             mass_now = float(p.sum())
             if mass_now < threshold:
                 continue
@@ -547,7 +546,7 @@ def _box_sum(values: np.ndarray, half: int) -> np.ndarray:
 
 
 def _scaled_log_odds(log_odds: np.ndarray, factor: np.ndarray) -> np.ndarray:
-    """The log-odds of p' = p factor (p = expit(log_odds), factor >= 0), clipped to
+    """The log-odds of p' = p factor (p = logistic(log_odds), factor >= 0), clipped to
     [-LOG_ODDS_LIMIT, LOG_ODDS_MAX]: log p' - log(1 - p'), computed in logs (exact for tiny p)."""
     with np.errstate(divide="ignore"):
         log_p = -np.logaddexp(0.0, -log_odds) + np.log(factor)
@@ -589,3 +588,26 @@ def _capped_scale(weights: np.ndarray, total: float, cap: float) -> float:
     scale = (total - cap * capped) / tail
     fits = scale * ordered <= cap * (1 + 1e-12)
     return float(scale[np.argmax(fits)])
+
+
+def _window_sums(values: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """out[i, j] = sum_{a, b} kernel[a, b] values[i + a - r, j + b - r] (zero outside values),
+    r = kernel.shape[0] // 2; values: (m, n); kernel: (2 r + 1, 2 r + 1) of 0 and 1."""
+    reach = kernel.shape[0] // 2
+    padded = np.pad(values, reach)
+    out = np.zeros_like(values, dtype=float)
+    m, n = values.shape
+    for a, b in zip(*np.nonzero(kernel)):
+        out += padded[a : a + m, b : b + n]
+    return out
+
+
+def _window_maxima_3x3(values: np.ndarray) -> np.ndarray:
+    """out[i, j] = max of values over the 3 x 3 cells around (i, j) (-inf outside values)."""
+    padded = np.pad(values, 1, constant_values=-np.inf)
+    m, n = values.shape
+    out = padded[1 : 1 + m, 1 : 1 + n].copy()
+    for a in range(3):
+        for b in range(3):
+            np.maximum(out, padded[a : a + m, b : b + n], out=out)
+    return out

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.special import expit
+from attend.action.log_odds import logistic
 
 from attend.action.camera import Camera
 from attend.action.mission.area_files import read_area
@@ -411,7 +411,7 @@ class Mission:
                 item["plan_end_s"] = round(float(plan.waypoints[-1, 3]) if len(plan.waypoints) else elapsed, 3)
                 item["return_home_s"] = round(plan.home_time_s, 3)
             per_uav.append(item)
-        probability = expit(self.belief.log_odds)
+        probability = logistic(self.belief.log_odds)
         seen_area = float(np.count_nonzero(self.seen & searchable)) * grid.cell_area_m2
         return {
             "uavs": per_uav,

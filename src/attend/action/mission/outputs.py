@@ -24,7 +24,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from scipy.special import expit
+from attend.action.log_odds import logistic
 
 from attend.action.mission.plan_files import fence_rings, write_geojson, write_geotiff, write_qgc_plan, write_wpl
 
@@ -33,15 +33,17 @@ OUTPUT_GLOBS = ("plan.csv", "plan.plan", "plan_*.plan", "plan.waypoints", "plan_
                 "targets.csv", "map.png", "map.tif", "summary.json")
 
 
-def write_outputs(mission, plans, out_dir, plot: bool = True, extra: dict | None = None) -> list[Path]:
+def write_outputs(mission, plans, out_dir, plot: bool = True, extra: dict | None = None, painter=None) -> list[Path]:
     """Write the files of the module docstring for ``mission`` and its ``plans`` into ``out_dir``
-    (created if needed); extra: more files {name: text} (e.g. logs of a simulated mission).
+    (created if needed); plot: write map.png; extra: more files {name: text} (e.g. logs of a
+    simulated mission); painter: a :class:`~attend.action.mission.map_painter.MapPainter` that
+    draws map.png in another process while the other files are written (None: drawn here).
     Returns the paths written."""
     out = Path(out_dir)
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        names = _write_all(mission, plans, staging, plot)
+        names = _write_all(mission, plans, staging, plot, painter)
         for name, text in (extra or {}).items():
             (staging / name).write_text(text)
             names.append(name)
@@ -59,7 +61,14 @@ def write_outputs(mission, plans, out_dir, plot: bool = True, extra: dict | None
         shutil.rmtree(staging, ignore_errors=True)
 
 
-def _write_all(mission, plans, folder: Path, plot: bool) -> list[str]:
+def _write_all(mission, plans, folder: Path, plot: bool, painter) -> list[str]:
+    summary = mission.summary(plans)
+    if plot:  # first, so that another process draws it while the rest is written
+        from attend.action.mission.map_plot import map_picture
+        from attend.action.mission.map_painter import MapPainter
+
+        painter = painter if painter is not None else MapPainter(enabled=False)
+        painter.submit(map_picture(mission, plans, summary), folder / "map.png")
     frame = mission.ground.frame
     config = mission.config
     names = []
@@ -109,9 +118,8 @@ def _write_all(mission, plans, folder: Path, plot: bool) -> list[str]:
     targets = np.column_stack([t_lon, t_lat, masses, counts]) if len(positions) else None
     write_geojson(folder / "plan.geojson", mission.area, flown, planned, targets, homes)
     names.append("plan.geojson")
-    # summary
-    summary = mission.summary(plans)
-    probability = np.where(mission.ground.searchable, expit(mission.belief.log_odds), np.nan)
+    # map.tif and summary
+    probability = np.where(mission.ground.searchable, logistic(mission.belief.log_odds), np.nan)
     grid = mission.ground.grid
     try:
         write_geotiff(folder / "map.tif", probability, grid.origin_m, grid.cell_size_m, frame.crs.to_wkt())
@@ -123,9 +131,7 @@ def _write_all(mission, plans, folder: Path, plot: bool) -> list[str]:
             raise
         summary["map_tif"] = f"not written: {error}"
     if plot:
-        from attend.action.mission.map_plot import plot_mission_map
-
-        plot_mission_map(mission, plans, folder / "map.png", summary)
+        painter.wait()
         names.append("map.png")
     (folder / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     names.append("summary.json")

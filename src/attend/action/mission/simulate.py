@@ -17,7 +17,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.special import expit
+from attend.action.log_odds import logistic
 
 from attend.action.mission.flight_logs import FlightLogs
 from attend.action.mission.mission import Mission
@@ -49,7 +49,7 @@ def place_people(mission: Mission, rng: np.random.Generator) -> np.ndarray:
     """(n, 2) [m] positions of round(people) people (module docstring); mission: their area
     and prior; rng: the random generator."""
     grid = mission.ground.grid
-    weights = np.where(mission.ground.searchable, expit(mission.prior.log_odds), 0.0).ravel()
+    weights = np.where(mission.ground.searchable, logistic(mission.prior.log_odds), 0.0).ravel()
     n = max(1, int(round(mission.config.people)))
     cells = rng.choice(weights.size, size=n, replace=True, p=weights / weights.sum())
     rows, cols = np.divmod(cells, grid.nx)

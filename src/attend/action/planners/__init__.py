@@ -13,17 +13,33 @@ time_to_next_image_s) -> waypoints (w, 3) m``.
 - :mod:`~attend.action.planners.registry`: :data:`PLANNERS` (name -> class), :func:`make_planner`.
 """
 
-from attend.action.planners.base import ALTITUDE_LAYERS_M, Planner, PlanningSetup
-from attend.action.planners.baselines import LawnmowerPlanner, RandomPlanner, coverage_stops
-from attend.action.planners.cover_confirm import CoverConfirmPlanner, confirmation_value, detections
-from attend.action.planners.free_energy import (
-    ExpectedFreeEnergyPlanner,
-    SearchConfirmPlanner,
-    kalman_mean,
-    occupancy_probability,
-)
-from attend.action.planners.informative import AdaptivePlanner, InformativePlanner, PrecisionGainPlanner
-from attend.action.planners.registry import PLANNERS, make_planner
+import importlib
+
+#: Public name -> the module that defines it (imported on first use, PEP 562: a mission that
+#: needs only the field-scale planner does not load the paper's Gaussian-process planners).
+_EXPORTS = {
+    **dict.fromkeys(("ALTITUDE_LAYERS_M", "Planner", "PlanningSetup"), "attend.action.planners.base"),
+    **dict.fromkeys(("LawnmowerPlanner", "RandomPlanner", "coverage_stops"), "attend.action.planners.baselines"),
+    **dict.fromkeys(("CoverConfirmPlanner", "confirmation_value", "detections"), "attend.action.planners.cover_confirm"),
+    **dict.fromkeys(("ExpectedFreeEnergyPlanner", "SearchConfirmPlanner", "kalman_mean", "occupancy_probability"),
+                    "attend.action.planners.free_energy"),
+    **dict.fromkeys(("AdaptivePlanner", "InformativePlanner", "PrecisionGainPlanner"), "attend.action.planners.informative"),
+    **dict.fromkeys(("PLANNERS", "make_planner"), "attend.action.planners.registry"),
+}
+
+
+def __getattr__(name: str):
+    """The public name ``name``, imported on first use."""
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'attend.action.planners' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))
+
 
 __all__ = [
     "ALTITUDE_LAYERS_M",

@@ -71,7 +71,7 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
-from scipy.special import expit, gammaln
+from attend.action.log_odds import log_binomial_coefficient, logistic
 from attend._threads import single_blas_thread
 
 from attend.action.camera import Camera, segments_hit_box
@@ -133,7 +133,7 @@ def mutual_information(p: np.ndarray | float, pd: float, pf: float) -> np.ndarra
 def _binomial_pmf(k: int, q: float) -> np.ndarray:
     """P(j of k independent looks report, each with probability q), j = 0 .. k."""
     j = np.arange(k + 1)
-    log_choose = gammaln(k + 1) - gammaln(j + 1) - gammaln(k - j + 1)
+    log_choose = log_binomial_coefficient(k, j)
     with np.errstate(divide="ignore", invalid="ignore"):
         log_pmf = log_choose + np.where(j > 0, j * np.log(q), 0.0) + np.where(k - j > 0, (k - j) * np.log1p(-q), 0.0)
     return np.exp(log_pmf)
@@ -473,7 +473,7 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         position = np.clip((z + LEVEL_LOGIT_LIMIT) / (grid[1] - grid[0]), 0.0, n - 1.000001)
         low = position.astype(np.intp)
         weight = position - low
-        levels = expit(grid)
+        levels = logistic(grid)
         levels[0], levels[-1] = 0.0, 1.0
         return levels, lambda table: table[low] * (1.0 - weight) + table[low + 1] * weight
 
@@ -870,7 +870,7 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
 
 def _probability(log_odds: np.ndarray, searchable: np.ndarray | None) -> np.ndarray:
     """p = 1 / (1 + exp(-l)), 0 where not searchable."""
-    p = expit(np.asarray(log_odds, dtype=float))
+    p = logistic(np.asarray(log_odds, dtype=float))
     return p if searchable is None else np.where(searchable, p, 0.0)
 
 

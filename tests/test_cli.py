@@ -481,3 +481,50 @@ def test_estimate_plot_labels_units_and_measured_inputs(tmp_path, monkeypatch):
     assert [line.get_label() for line in axes[3, 0].get_lines()] == ["estimate"]
     assert np.allclose(axes[0, 1].get_lines()[0].get_ydata(), 2e-5)  # the band's half-width, own scale
     assert axes[0, 0].get_ylabel() == "phi [rad]" and (tmp_path / "e.png").stat().st_size > 10_000
+
+
+def test_estimate_warns_when_a_state_swings_far_beyond_what_the_data_support(tmp_path, capsys):
+    """A log in degrees for a model in radians: attend estimate runs and names the state and settings."""
+    import numpy as np
+
+    from attend.problems import mass_spring_damper
+    from attend.systems import simulate
+
+    dt, n_samples = 0.05, 800
+    force = np.sin(0.7 * np.arange(n_samples) * dt)[:, None]
+    log = simulate(mass_spring_damper(), force, dt, kernel_width=0.1, process_std=[1e-3, 0.3],
+                   measurement_std=0.02, seed=0)
+    rows = ["t,pos,force"] + [f"{k * dt!r},{float(y) * 180 / np.pi!r},{float(u)!r}"
+                              for k, (y, u) in enumerate(zip(log.outputs[:, 0], force[:, 0]))]
+    (tmp_path / "log.csv").write_text("\n".join(rows) + "\n")
+    model = """
+[model]
+A = [[0, 1], [-0.5714285714285714, -0.2857142857142857]]
+B = [[0], [0.7142857142857143]]
+C = [[1, 0]]
+states = ["position", "velocity"]
+[outputs]
+columns = ["pos"]
+[[inputs]]
+name = "force"
+column = "force"
+[observer]
+kernel_width = 0.1
+sensor_precision = %r
+process_precision = [1e6, 11.11111111111111]
+[log]
+time_column = "t"
+""" % (0.02 * 180 / np.pi) ** -2
+    (tmp_path / "model.toml").write_text(model)
+    assert main(["estimate", str(tmp_path / "model.toml"), str(tmp_path / "log.csv"),
+                 "--out", str(tmp_path / "out.csv")]) == 0
+    err = capsys.readouterr().err
+    assert "attend: warning:" in err and "velocity: the estimate's RMS" in err, err
+    assert "prior spread under the model" in err and "process_precision" in err
+    # the same log in the model's unit: silent
+    rows = ["t,pos,force"] + [f"{k * dt!r},{float(y)!r},{float(u)!r}" for k, (y, u) in enumerate(zip(log.outputs[:, 0], force[:, 0]))]
+    (tmp_path / "log.csv").write_text("\n".join(rows) + "\n")
+    (tmp_path / "model.toml").write_text(model.replace("%r" % ((0.02 * 180 / np.pi) ** -2), "2500.0"))
+    assert main(["estimate", str(tmp_path / "model.toml"), str(tmp_path / "log.csv"),
+                 "--out", str(tmp_path / "out.csv")]) == 0
+    assert "estimate's RMS" not in capsys.readouterr().err

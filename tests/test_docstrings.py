@@ -22,6 +22,7 @@ MODULES = [
     "attend.perception.learning",
     "attend.perception.baselines",
     "attend.perception.dem",
+    "attend.perception.spread_check",
     "attend.perception.dem_flow",
     "attend.perception.dem_online",
     "attend.perception.sample_window",

@@ -464,6 +464,7 @@ def _command_estimate(args) -> int:
         else:
             observer, estimate = io.estimate_from_files(model, log)
     elapsed = time.perf_counter() - started
+    _warn_if_spread_implausible(model, log, estimate)
     out = io.write_estimates(args.out, log, model.system, estimate)
     duration = log.time[-1] - log.time[0] + log.dt
     print(f"estimated {len(log.time)} samples ({duration:.2f} s of log) in {elapsed * 1e3:.1f} ms -> {out}")
@@ -483,6 +484,20 @@ def _command_estimate(args) -> int:
         path = plot_estimates(args.plot, log.time, model.system, estimate, measured, DEMO_UNITS if args.demo else None)
         print(f"  figure -> {path}")
     return 0
+
+
+def _warn_if_spread_implausible(model, log, estimate) -> None:
+    """One warning per state or unknown input whose estimate swings far beyond what the data and the
+    model support (:mod:`attend.perception.spread_check`), whatever the estimator."""
+    import numpy as np
+
+    from attend.perception.spread_check import check_estimate, describe
+    from attend.systems import ModelWarning
+
+    with np.errstate(all="ignore"):
+        findings = check_estimate(model, log, estimate)
+    for finding in findings:
+        warnings.warn(f"{model.path}: {describe(finding)}", ModelWarning, stacklevel=2)
 
 
 def _describe_estimator(estimator) -> str:

@@ -1,6 +1,7 @@
 """DEM observer: the flow and precision against the free energy written out independently,
 batch = online, invariance to the time unit, accuracy, and bad input."""
 
+import re
 import warnings
 
 import numpy as np
@@ -225,15 +226,59 @@ def test_auto_order_is_stable_on_a_bank_of_random_systems():
     assert max(orders) >= 4  # not trivially p = 0
 
 
-def test_unstable_explicit_order_is_refused_with_the_setting_to_change():
-    with pytest.raises(AttendInputError, match=r"embedding_order: the DEM observer is unstable at p = 3 for this "
-                                               r"model \(spectral radius 1\.00\d+ >= 1\).*allow_unstable=True"):
-        _observer(sensor_precision=1.0)
-    with pytest.warns(ModelWarning, match="unstable"):
-        observer = _observer(sensor_precision=1.0, allow_unstable=True)
-    assert np.all(np.isnan(observer.analysis().state_std))
+def _growth_in(warning_or_error) -> float:
+    return float(re.search(r"grow ([0-9.]+)x", str(warning_or_error)).group(1))
+
+
+def test_slightly_unstable_observer_runs_on_a_short_log_and_is_refused_on_a_long_one():
+    """Sensor precision 1 at p = 3: the flow's slowest mode grows (rho = 1.0044 per sample, doubling
+    in ~158 samples). What is judged is its growth over the log, rho^N: under 2x it runs with a
+    warning naming the growth and the setting; 2x or more is refused naming embedding_order."""
+    from scipy.linalg import expm
+
+    observer = _observer(sensor_precision=1.0)  # no log yet: nothing refused, nothing to warn about
+    A_obs = observer.generalized_matrices()["A_obs"]
+    rho = float(np.max(np.abs(np.linalg.eigvals(expm(A_obs * observer.dt)))))  # independently of dem_flow
+    assert 1.001 < rho < 1.01
+    analysis = observer.analysis()
+    assert analysis.spectral_radius == pytest.approx(rho, rel=1e-12)
+    assert analysis.doubling_time == pytest.approx(observer.dt * np.log(2) / np.log(rho), rel=1e-9)
+    doubling = int(np.log(2) / np.log(rho))  # samples
+    assert np.all(np.isfinite(analysis.state_std)) and np.all(analysis.state_std > 0)
+    short = doubling // 2
+    y = np.random.default_rng(0).standard_normal((short, 4))
+    with pytest.warns(ModelWarning, match=r"embedding_order: the DEM observer at p = 3 is not stable .*"
+                                          rf"\({short} samples, .*grow .*x \(< 2x: run") as record:
+        estimate = observer.estimate(y)
+    growth = [_growth_in(w.message) for w in record if "not stable" in str(w.message)]
+    assert growth[0] == pytest.approx(rho**short, rel=2e-3)  # the closed form, to the 3 digits printed
+    assert np.all(np.isfinite(estimate.states)) and np.all(np.isfinite(estimate.state_std))
+    # the homogeneous flow grows as the closed form says: Phi^N on the slowest eigenvector
+    values, vectors = np.linalg.eig(observer.generalized_matrices()["transition"])
+    slowest = vectors[:, np.argmax(np.abs(values))]
+    grown = np.linalg.matrix_power(observer.generalized_matrices()["transition"], short) @ slowest
+    assert np.linalg.norm(grown) / np.linalg.norm(slowest) == pytest.approx(rho**short, rel=1e-9)
+    long = 3 * doubling
+    with pytest.raises(AttendInputError, match=rf"embedding_order: the DEM observer at p = 3 is not stable .*"
+                                               rf"\({long} samples, .*grow .*x \(>= 2x.*a log shorter than .* s "
+                                               r"runs, else no order 0..6 is stable.*allow_unstable=True") as error:
+        observer.estimate(np.zeros((long, 4)))
+    assert _growth_in(error.value) == pytest.approx(rho**long, rel=2e-3)
+    with pytest.raises(AttendInputError, match="embedding_order: .* a stream has no end"):
+        observer.online()
+    allowed = _observer(sensor_precision=1.0, allow_unstable=True)  # runs, without a std
+    with pytest.warns(ModelWarning, match="running it anyway"):
+        estimate = allowed.estimate(np.zeros((long, 4)))
+    assert np.all(np.isnan(estimate.state_std))
     with pytest.raises(AttendInputError, match="'auto' found no order 0..6 with a stable DEM observer"):
         _observer(sensor_precision=1.0, embedding_order="auto")
+
+
+def test_order_that_doubles_within_the_shortest_log_is_refused_at_construction():
+    with pytest.raises(AttendInputError, match=r"embedding_order: the DEM observer is unstable at p = 3 for this "
+                                               r"model \(spectral radius \d\.\d+ >= 1: its slowest mode grows "
+                                               r".*x over the shortest log of 4 samples\).*allow_unstable=True"):
+        _observer(sensor_precision=1e-4, dt=3.0)
 
 
 def test_no_stability_warning_on_a_fine_observer():
@@ -421,3 +466,35 @@ def test_a_dem_estimate_worse_than_the_prior_is_named_in_a_warning():
             found.append(error / spread[i])
     assert found, "no case of the bank triggered the warning"
     assert np.median(found) > 0.8
+
+
+def _hover_quadrotor():
+    """A 12-state quadrotor linearised at hover, shaped like the AR.Drone 2 flight of issue 29
+    (positions, angles, velocities, rates; 6 outputs; thrust and three torques as unknown inputs)."""
+    from attend import LinearSystem
+
+    A = np.zeros((12, 12))
+    A[0:3, 6:9] = A[3:6, 9:12] = np.eye(3)
+    A[6, 4], A[7, 3] = -9.81, 9.81
+    B = np.zeros((12, 4))
+    B[8, 0], B[9, 1], B[10, 2], B[11, 3] = 1 / 0.42, 1 / 2.2e-3, 1 / 2.9e-3, 1 / 5.3e-3
+    return LinearSystem(A, B, np.eye(6, 12))
+
+
+def test_authors_quadrotor_settings_run_with_a_note():
+    """25 Hz, kernel width 0.04 s, sigma_w 0.08-28, sigma_z down to 7e-4, input prior std e^4, p = 5:
+    spectral radius 1.00007 (>= 1), growth 1.2x over 2600 samples: it runs, with a warning naming it."""
+    sigma_w = np.array([0.08, 0.08, 0.08, 0.1, 0.1, 0.1, 1.0, 1.0, 1.0, 28, 28, 20.0])
+    sigma_z = np.array([0.01, 0.01, 0.01, 7e-4, 7e-4, 2e-3])
+    observer = DEMObserver(_hover_quadrotor(), 0.04, 0.04, 1 / sigma_z**2, 1 / sigma_w**2, np.exp(-8), 5, 2,
+                           precision_convention="max")
+    rho = observer.analysis().spectral_radius
+    assert 1.00005 < rho < 1.0001
+    y = 0.01 * np.random.default_rng(1).standard_normal((2600, 6))
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        estimate = observer.estimate(y)
+    notes = [str(w.message) for w in record if "is not stable" in str(w.message)]
+    assert len(notes) == 1 and "(2600 samples, 104 s)" in notes[0] and "< 2x: run" in notes[0], notes
+    assert _growth_in(notes[0]) == pytest.approx(rho**2600, rel=2e-3) and 1.1 < _growth_in(notes[0]) < 1.3
+    assert np.all(np.isfinite(estimate.states)) and np.all(np.isfinite(estimate.inputs))

@@ -21,8 +21,14 @@ folded into Gamma: each step is a product with the raw window of samples around 
 
 Before estimating, :meth:`DEMObserver.analysis` says what the observer can promise (stability of
 Phi, how long the start is remembered, the steady-state error std under the model; see
-:mod:`attend.perception.dem_analysis`). Unstable or drifting configurations are refused with an
-AttendInputError naming the setting to change, unless ``allow_unstable=True``.
+:mod:`attend.perception.dem_analysis`). What cannot run on the log is refused with an
+AttendInputError naming the setting to change, unless ``allow_unstable=True``: a stable observer
+that still remembers its start late in the log ("drifting"), or one whose slowest mode grows
+(spectral radius rho >= 1) by GROWTH_LIMIT (2x) or more over the log's N samples, rho^N >= 2. Since
+N is known only there, that judgement is made in :meth:`DEMObserver.estimate`; slower growth runs
+with a ModelWarning naming it (the authors' AR.Drone settings: rho = 1.00007, 1.2x over 2600
+samples). The constructor refuses only orders that double within the shortest log they accept,
+or have a mode on the unit circle (to 1e-9: a coordinate the flow does not pull at all).
 """
 
 from __future__ import annotations
@@ -66,6 +72,19 @@ AUTO_MAX_CONDITION = 1e8
 AUTO_START_WIDTHS = 50
 #: A log is too short for the observer ("drifting") when 5 start time constants exceed its length.
 DRIFT_FACTOR = 5.0
+#: An observer whose slowest mode does not decay (spectral radius rho >= 1) runs on a log of N samples
+#: when that mode grows less than this factor over it, rho^N < GROWTH_LIMIT (with a ModelWarning).
+GROWTH_LIMIT = 2.0
+#: A spectral radius within this of 1 is a mode on the unit circle (a coordinate the flow does not
+#: pull at all; it may grow polynomially, not as rho^N): refused at construction as before.
+ON_CIRCLE = 1e-9
+
+
+def log_growth(radius: float, n_samples: int) -> float:
+    """rho^N: the growth of the slowest mode of a transition of spectral radius rho (``radius``) over
+    a log of N samples (``n_samples``); < 1 for a stable observer, whose start then fades."""
+    with np.errstate(over="ignore"):
+        return float(np.exp(n_samples * np.log(radius))) if radius > 0 else 0.0
 
 
 def _width(value, name: str) -> float:
@@ -110,6 +129,10 @@ class DEMAnalysis(NamedTuple):
     embedding_order: p in use; automatic: chosen by embedding_order="auto";
     spectral_radius: of the discrete transition Phi = expm(A_obs dt) (stable when < 1);
     slowest_time_constant: -dt / ln(spectral_radius) [s] over all modes (inf if not stable);
+    doubling_time: dt ln 2 / ln(spectral_radius) [s], the time in which the slowest mode of an
+    observer that is not stable doubles (inf when spectral_radius <= 1): estimate() runs such an
+    observer only on logs shorter than this (growth rho^N < GROWTH_LIMIT (2) over N samples, with
+    a ModelWarning) and refuses longer ones;
     start_time_constant: effective time constant [s] of the start transient as seen in the
     order-0 estimates (modes those estimates do not see excluded; see
     dem_analysis.start_time_constant). A log shorter than DRIFT_FACTOR (5) of these is
@@ -122,7 +145,9 @@ class DEMAnalysis(NamedTuple):
     error variance is unbounded or above UNOBSERVABLE_RATIO (100) times the prior variance
     (inputs with prior precision >= PINNED_INPUT_PRECISION count as given, not unobservable);
     state_std (n,), input_std (r,): steady-state std of the estimation error (NaN where
-    unobservable or when the observer is not stable; 0 for known inputs).
+    unobservable, or when the slowest mode doubles within the shortest log the observer accepts;
+    0 for known inputs). For an observer that is not stable it is the std of the filter with the
+    same frequency response, which the log sees while its slowest mode has grown less than 2x.
     """
 
     embedding_order: int
@@ -135,6 +160,7 @@ class DEMAnalysis(NamedTuple):
     unobservable: tuple
     state_std: np.ndarray
     input_std: np.ndarray
+    doubling_time: float = float("inf")
 
 
 @dataclass(frozen=True, eq=False)
@@ -165,8 +191,9 @@ class DEMObserver:
     z: Vy = kron(S_p(s_z), Pi_z). Both default to kernel_width. A width of 0 (white noise) has no
     derivatives and is refused: use method="kalman" for white noise.
     initial_state: order-0 states (n,) the flow starts from (default: the static MAP of the
-    first sample, see :meth:`estimate`); allow_unstable: run configurations that analysis()
-    finds unstable or drifting (with a ModelWarning and NaN std) instead of refusing them.
+    first sample, see :meth:`estimate`); allow_unstable: run configurations that would be refused
+    (a slowest mode that grows 2x or more over the log, or a drifting start; with a ModelWarning
+    and NaN std where the growth is 2x or more) instead of refusing them.
     integration: "attend" (default: the data held over each step, row k the state after the step
     with sample k) or "spm" (spm_DEM's D-step: the data ride along their generalised motion over the
     step, row k is the state before the step with sample k (row 0 the start), the top order's motion
@@ -249,15 +276,28 @@ class DEMObserver:
             self._matrices.update(self._build(self.embedding_order))
         self._cache["automatic"] = automatic
         radius = self._matrices["radius"]
-        if radius >= 1.0 and not automatic:
+        if radius >= 1.0 and not automatic and not self._runs_on_some_log():
+            # no log is short enough: refused now (a slower growth is judged on the log, in estimate())
+            shortest = max(self.embedding_order, self.input_order) + 1
+            reason = (f"a mode on the unit circle, which the flow does not pull at all"
+                      if radius <= 1.0 + ON_CIRCLE else
+                      f"its slowest mode grows {log_growth(radius, shortest):.3g}x over the shortest log of "
+                      f"{shortest} samples")
             message = (f"embedding_order: the DEM observer is unstable at p = {self.embedding_order} for this "
-                       f"model (spectral radius {radius:.6g} >= 1)")
+                       f"model (spectral radius {radius:.6g} >= 1: {reason})")
             if not self.allow_unstable:
                 raise AttendInputError(message + f"; {self._suggestion()} (or allow_unstable=True to run it anyway)")
             warnings.warn(message + "; running it anyway (allow_unstable=True), std not reported",
                           ModelWarning, stacklevel=3)
 
     # --- construction ----------------------------------------------------------------------
+
+    def _runs_on_some_log(self) -> bool:
+        """A stable observer, or one whose slowest mode lies off the unit circle (|rho - 1| > ON_CIRCLE)
+        and grows less than GROWTH_LIMIT over the shortest log estimate() accepts."""
+        radius = self._matrices["radius"]
+        shortest = max(self.embedding_order, self.input_order) + 1
+        return radius < 1.0 or (radius > 1.0 + ON_CIRCLE and log_growth(radius, shortest) < GROWTH_LIMIT)
 
     def _suggestion(self) -> str:
         try:
@@ -422,7 +462,10 @@ class DEMObserver:
         sample, higher orders at their prior mean (see :meth:`_start_state`; the constructor's
         ``initial_state`` sets its order-0 states).
         Raises AttendInputError when the log is shorter than DRIFT_FACTOR start time constants
-        (analysis().start_time_constant): the start would still matter at its end. The std
+        (analysis().start_time_constant): the start would still matter at its end; and, for an
+        observer that is not stable (spectral radius rho >= 1), when its slowest mode grows
+        rho^N >= GROWTH_LIMIT (2x) over the N samples (analysis().doubling_time): less growth runs
+        with a ModelWarning naming it (:meth:`_check_log_length`). The std
         columns are those of :meth:`analysis` (steady state under the model, edges excluded);
         with known inputs the state std adds the mean square, over the middle 80 % of the log, of
         the filter's own error on the noise-free response to the given inputs (see
@@ -460,12 +503,14 @@ class DEMObserver:
                 "their std is NaN and their estimates follow the model and the prior only",
                 ModelWarning, stacklevel=2,
             )
-        state_std = analysis.state_std
+        state_std, input_std = analysis.state_std, analysis.input_std
+        if not self._runs_on_some_log() or log_growth(self._matrices["radius"], n_samples) >= GROWTH_LIMIT:
+            state_std, input_std = np.full(n, np.nan), np.where(input_std == 0.0, 0.0, np.nan)
         if self.known_inputs and np.all(np.isfinite(state_std)) and n_samples >= 10:
             state_std = np.sqrt(state_std**2 + known_input_error(self, signals, segment))
-        self._warn_if_worse_than_the_prior(state_std, analysis.input_std)
+        self._warn_if_worse_than_the_prior(state_std, input_std)
         state_std = np.broadcast_to(state_std, (n_samples, n))
-        input_std = np.broadcast_to(analysis.input_std, (n_samples, r))
+        input_std = np.broadcast_to(input_std, (n_samples, r))
         return DEMEstimate(np.arange(n_samples) * self.dt, states, inputs_out, state_std, input_std, generalized)
 
     def _run(self, signals: np.ndarray, state, keep_generalized: bool, segment: int):
@@ -505,9 +550,18 @@ class DEMObserver:
     def _check_log_length(self, n_samples: int) -> None:
         """Drifting: a start error of one natural unit (see DEMAnalysis.start_time_constant) still
         moves an order-0 estimate by >= 1/e of it somewhere after the first 1/DRIFT_FACTOR of the
-        log (for a single visible mode: time constant > log length / 5)."""
-        if self._matrices["radius"] >= 1.0:
-            return  # refused at construction, or allowed explicitly
+        log (for a single visible mode: time constant > log length / 5).
+
+        An observer whose slowest mode does not decay (spectral radius rho >= 1, an explicit
+        embedding_order) never forgets its start: a start error in that mode, and the noise that
+        enters it, grow by rho^N over the N samples of the log. What grows less than GROWTH_LIMIT
+        (2x) runs with a ModelWarning naming the growth; more is refused (AttendInputError naming
+        embedding_order and the longest log that would run) unless allow_unstable=True."""
+        radius = self._matrices["radius"]
+        if radius >= 1.0:
+            if self._runs_on_some_log():  # else refused at construction, or allowed explicitly
+                self._check_growth(radius, n_samples)
+            return
         first = int(np.ceil(n_samples / DRIFT_FACTOR))
         if self._start_constant() < first * self.dt:
             return
@@ -531,6 +585,29 @@ class DEMObserver:
             )
         warnings.warn(message, ModelWarning, stacklevel=3)
 
+    def _check_growth(self, radius: float, n_samples: int) -> None:
+        """The growth test of :meth:`_check_log_length` for rho >= 1 (see there)."""
+        growth = log_growth(radius, n_samples)
+        p, length = self.embedding_order, n_samples * self.dt
+        doubling = self.analysis().doubling_time
+        if growth < GROWTH_LIMIT:
+            self._cache[("growth", n_samples)] = growth
+            warnings.warn(
+                f"embedding_order: the DEM observer at p = {p} is not stable (spectral radius {radius:.6g}): over "
+                f"this log ({n_samples} samples, {length:.4g} s) its slowest mode, and a start error in it, grow "
+                f"{growth:.3g}x (< {GROWTH_LIMIT:g}x: run; it doubles in {doubling:.4g} s); for an observer that "
+                f"forgets its start, {self._suggestion()}", ModelWarning, stacklevel=5)
+            return
+        message = (f"the DEM observer at p = {p} is not stable (spectral radius {radius:.6g}): over this log "
+                   f"({n_samples} samples, {length:.4g} s) its slowest mode, and a start error in it, grow "
+                   f"{growth:.3g}x (>= {GROWTH_LIMIT:g}x; it doubles in {doubling:.4g} s, "
+                   f"{int(np.log(GROWTH_LIMIT) / np.log(radius))} samples)")
+        if not self.allow_unstable:
+            raise AttendInputError(f"embedding_order: {message}; a log shorter than {doubling:.4g} s runs, else "
+                                   f"{self._suggestion()} (or allow_unstable=True to run it anyway)")
+        warnings.warn(message + "; running it anyway (allow_unstable=True), std not reported",
+                      ModelWarning, stacklevel=5)
+
     def _start_constant(self) -> float:
         if "start_time_constant" not in self._cache:
             self._cache["start_time_constant"] = self._start_time_constant(self._matrices, self.embedding_order)
@@ -553,7 +630,8 @@ class DEMObserver:
             scaled = mats["Pi_X"] / np.sqrt(np.outer(*(2 * [np.clip(np.diag(mats["Pi_X"]), 1e-300, None)])))
         singular = bool(np.any(np.diag(mats["Pi_X"]) <= 0) or np.linalg.eigvalsh(scaled).min() < 1e-13)
         names = tuple(system.state_names) + (() if self.known_inputs else tuple(system.input_names))
-        if radius >= 1.0:
+        doubling = self.dt * np.log(GROWTH_LIMIT) / np.log(radius) if radius > 1.0 else np.inf
+        if not self._runs_on_some_log():  # no log runs (allow_unstable=True)
             state_std, input_std = np.full(n, np.nan), np.full(r, 0.0 if self.known_inputs else np.nan)
             unobservable = ()
         else:
@@ -565,7 +643,7 @@ class DEMObserver:
             embedding_order=p, automatic=self._cache["automatic"], spectral_radius=radius,
             slowest_time_constant=float(slowest), start_time_constant=float(tau),
             condition_S=self._condition_S(p), precision_singular=singular, unobservable=unobservable,
-            state_std=state_std, input_std=input_std,
+            state_std=state_std, input_std=input_std, doubling_time=float(doubling),
         )
         self._cache["analysis"] = result
         return result
@@ -593,5 +671,14 @@ class DEMObserver:
                           ModelWarning, stacklevel=3)
 
     def online(self) -> "OnlineDEM":
-        """A fixed-memory observer fed one sample at a time (see :class:`OnlineDEM`)."""
+        """A fixed-memory observer fed one sample at a time (see :class:`OnlineDEM`). A stream has no
+        end, so an observer whose slowest mode does not decay (spectral radius >= 1, which
+        :meth:`estimate` runs on logs shorter than analysis().doubling_time) is refused unless
+        allow_unstable=True."""
+        radius = self._matrices["radius"]
+        if radius >= 1.0 and not self.allow_unstable:
+            raise AttendInputError(
+                f"embedding_order: the DEM observer at p = {self.embedding_order} is not stable (spectral radius "
+                f"{radius:.6g}; it doubles in {self.analysis().doubling_time:.4g} s) and a stream has no end; "
+                f"{self._suggestion()}, or allow_unstable=True to run it anyway")
         return OnlineDEM(self)

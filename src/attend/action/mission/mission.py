@@ -357,6 +357,31 @@ class Mission:
         others = [np.array(paths[j]) for j in range(len(paths)) if j != k]
         budget = self.config.flight_time_s - clock
         left = budget - self.home_time_s(k, pose[:2])
+        home = np.asarray(self.homes_m[k], dtype=float)
+        entry = self.ground.entry_point(*home)
+        outside = float(np.hypot(*(home - entry)))
+        area_legs = self.ground.legs_allowed
+
+        def allowed(starts, ends):
+            """Legs in the area after which the UAV can still fly home in time: the straight line
+            from the pose to the leg's start (a first leg, then a second), the leg, and a lower
+            bound of the way home (straight to the home's entry point)."""
+            ok = np.asarray(area_legs(starts, ends), dtype=bool)
+            before = np.hypot(starts[:, 0] - pose[0], starts[:, 1] - pose[1]) + np.abs(starts[:, 2] - pose[2])
+            during = np.hypot(ends[:, 0] - starts[:, 0], ends[:, 1] - starts[:, 1]) + np.abs(ends[:, 2] - starts[:, 2])
+            after = np.hypot(ends[:, 0] - entry[0], ends[:, 1] - entry[1]) + outside
+            return ok & ((before + during + after) / uav.speed_m_s <= budget)
+
+        planner.allowed_legs = allowed  # this call's budget (the planner is shared by UAVs of one kind)
+        try:
+            return self._feasible_leg(k, planner, work, pose, others, budget, left)
+        finally:
+            planner.allowed_legs = area_legs
+
+    def _feasible_leg(self, k: int, planner, work: ProbabilityMap, pose, others, budget: float, left: float):
+        """The planner's leg from ``pose`` shortened until it and the way home fit ``budget`` [s]
+        (up to 3 tries), or None."""
+        uav = self.config.uavs[k]
         for _ in range(3):
             if left <= uav.image_interval_s:
                 return None

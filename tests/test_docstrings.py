@@ -84,6 +84,8 @@ MODULES = [
     "attend.action.log_odds",
     "attend.control",
     "attend.control.attenuation",
+    "attend.control.reaching",
+    "attend.control.roll",
     "attend.experiments.quadrotor",
     "attend.experiments.ipp",
     "attend.experiments.rhythm_ipp",

@@ -20,6 +20,8 @@ sensory attenuation), modulated by a rhythm (attend.rhythm) or learned online.
   metrics (:mod:`attend.control.metrics`): :func:`step_metrics`, :class:`StepMetrics`
 - errors: :class:`ClosedLoopDivergence` (an :class:`attend.AttendInputError`)
 - the sensory-attenuation reproduction: :mod:`attend.control.attenuation` (run, plot, claims)
+- the reaching reproduction (SPM's ADEM_reaching): :mod:`attend.control.reaching` (run, plot, claims)
+- the quadrotor roll plant of the wind flights and its identified wind: :mod:`attend.control.roll`
 """
 
 from attend.control._checks import ClosedLoopDivergence

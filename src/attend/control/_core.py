@@ -47,11 +47,41 @@ def generalised_errors(x_t, v_t, y_t, eta_t, f0, g0, fx, fv, gx, gv, P, Q):
     return y_t - predicted_y.reshape(-1), (motion - predicted_f).reshape(-1), v_t - eta_t
 
 
+def _diagonal_blocks(out: np.ndarray, block: np.ndarray, rows: int, cols: int, sign: float = 1.0) -> None:
+    """Write sign * kron(eye(rows, cols), block) into ``out`` (rows * a, cols * b) in place (no kron temporaries)."""
+    a, b = block.shape
+    if a == 0 or b == 0:
+        return
+    view = out.reshape(rows, a, cols, b)
+    index = np.arange(min(rows, cols))
+    view[index, :, index, :] = sign * block
+
+
 def error_jacobian(fx, fv, gx, gv, P, Q):
     """(E_y, E_x, E_v) = de/dX for X = [x~; v~], Jacobians of f, g held fixed (Gauss-Newton)::
 
         E_y = -[kron(I_P, gx), kron(I_PQ, gv)],  E_x = [D_x - kron(I_P, fx), -kron(I_PQ, fv)],  E_v = [0, I]"""
     n, r, m = fx.shape[0], fv.shape[1], gx.shape[0]
+    size_x, size_v = P * n, Q * r
+    E_y = np.zeros((P * m, size_x + size_v))
+    E_x = np.zeros((size_x, size_x + size_v))
+    left_y, right_y = np.zeros((P * m, size_x)), np.zeros((P * m, size_v))
+    left_x, right_x = np.zeros((size_x, size_x)), np.zeros((size_x, size_v))
+    _diagonal_blocks(left_y, np.asarray(gx, dtype=float), P, P, -1.0)
+    _diagonal_blocks(right_y, np.asarray(gv, dtype=float), P, Q, -1.0)
+    _diagonal_blocks(left_x, np.asarray(fx, dtype=float), P, P, -1.0)
+    _diagonal_blocks(right_x, np.asarray(fv, dtype=float), P, Q, -1.0)
+    left_x[np.arange(size_x - n), np.arange(n, size_x)] += 1.0  # the shift D_x = kron(U_P, I_n)
+    E_y[:, :size_x], E_y[:, size_x:] = left_y, right_y
+    E_x[:, :size_x], E_x[:, size_x:] = left_x, right_x
+    E_v = np.zeros((size_v, size_x + size_v))
+    E_v[:, size_x:] = np.eye(size_v)
+    return E_y, E_x, E_v
+
+
+def error_jacobian_reference(fx, fv, gx, gv, P, Q):
+    """:func:`error_jacobian` written with numpy's kron (the definition; slower), for tests."""
+    n, r = fx.shape[0], fv.shape[1]
     I_P, I_PQ = np.eye(P), rectangular_identity(P, Q)
     shift = np.kron(np.eye(P, k=1), np.eye(n))
     E_y = -np.hstack([np.kron(I_P, gx), np.kron(I_PQ, gv)])

@@ -150,7 +150,11 @@ class ActiveInferenceController:
     the sign opposite to dy~/da there: attending to them is positive feedback (docs/control.md).
     precision_gradient: for a state-dependent Pi_z(x, v), include d/dx (log|Pi~| - e' Pi~ e) / 2 in
     the belief flow (True, as spm_ALAP). divergence_limit: |Z| beyond which the controller stops
-    with :class:`ClosedLoopDivergence` naming the settings.
+    with :class:`ClosedLoopDivergence` naming the settings. jacobian_tolerance: None (default: a nonlinear
+    model is re-linearised every sample) or a relative tolerance >= 0: while dy~/da and Pi_z are unchanged and
+    each Jacobian of f and g moved by at most this fraction of its largest entry (max(1, .)) since the last
+    linearisation, that linearisation and its transition int_0^dt expm(J s) ds are reused (0: only when the
+    Jacobians are exactly equal, which changes nothing but the speed).
     """
 
     def __init__(self, model: GenerativeModel, dt: float, *, action_gain: float = 1.0, action_jacobian="process",
@@ -158,7 +162,7 @@ class ActiveInferenceController:
                  action_limits=None, initial_action=None, precision_schedule=None,
                  precision_learning: SensorPrecisionLearning | None = None, embedding_window: int | None = None,
                  precision_gradient: bool = True, divergence_limit: float = 1e8,
-                 sensory_orders="relative_degree"):
+                 sensory_orders="relative_degree", jacobian_tolerance: float | None = None):
         if not isinstance(model, GenerativeModel):
             raise AttendInputError(f"model: expected an attend.control.GenerativeModel, got {type(model).__name__}")
         self.model = model
@@ -229,6 +233,14 @@ class ActiveInferenceController:
             self._set_orders(np.full(m, P - 1 if sensory_orders == "all" else sensory_orders))
         self.precision_gradient = bool(precision_gradient)
         self.divergence_limit = positive_scalar(divergence_limit, "divergence_limit")
+        if jacobian_tolerance is not None:
+            jt = number(jacobian_tolerance, "jacobian_tolerance")
+            if not math.isfinite(jt) or jt < 0:
+                raise AttendInputError(f"jacobian_tolerance: expected None or a finite number >= 0, got "
+                                       f"{jacobian_tolerance!r}")
+            jacobian_tolerance = jt
+        self.jacobian_tolerance = jacobian_tolerance
+        self._general_cache = None
         S_P = smoothness_precision(P, model.kernel_width)
         S_Q = smoothness_precision(Q, model.kernel_width)
         self._S_P = S_P
@@ -276,6 +288,7 @@ class ActiveInferenceController:
             self._prior_log_precision = np.log(base).copy()
             self._q = None  # set at the first update, when the attended orders are known
         self._last_precision = None
+        self._general_cache = None
 
     @property
     def time(self) -> float:
@@ -501,23 +514,45 @@ class ActiveInferenceController:
             f0, g0 = A @ x0 + B @ v0, C @ x0 + Dm @ v0
         else:
             fx, fv, gx, gv = model.jacobians(x0, v0)
-            E_y, E_x, E_v = error_jacobian(fx, fv, gx, gv, P, Q)
+            E_y = None  # built below unless the last linearisation is reused
             f0 = np.asarray(model.f(x0, v0), dtype=float).reshape(-1)
             g0 = np.asarray(model.g(x0, v0), dtype=float).reshape(-1)
         precision = self._precision(x0, v0, t)
         self._last_precision = precision
-        Pi_y = sensory_precision(self._S_by_order, self._orders, precision)
-        Pi_a = Pi_y if self.action_precision is None else sensory_precision(self._S_by_order, self._orders,
-                                                                           self.action_precision)
+        # reuse of the last sample's linearisation: same dy~/da and precision, Jacobians within jacobian_tolerance
+        cached = self._general_cache
+        tolerance = self.jacobian_tolerance
+        reuse = (tolerance is not None and cached is not None and cached["G"] is G
+                 and np.array_equal(cached["precision"], precision)
+                 and all(np.abs(new - old).max(initial=0.0) <= tolerance * max(1.0, np.abs(old).max(initial=0.0))
+                         for new, old in zip((fx, fv, gx, gv), cached["jacobians"])))
+        if reuse:
+            Pi_y, Pi_a, J = cached["Pi_y"], cached["Pi_a"], cached["J"]
+            E_y, E_x, E_v = cached["E"]
+            fx, fv, gx, gv = cached["jacobians"]
+        else:
+            if E_y is None:
+                E_y, E_x, E_v = error_jacobian(fx, fv, gx, gv, P, Q)
+            Pi_y = sensory_precision(self._S_by_order, self._orders, precision)
+            Pi_a = Pi_y if self.action_precision is None else sensory_precision(self._S_by_order, self._orders,
+                                                                               self.action_precision)
+            J, _, _, curvature = joint_system(self._D, E_y, E_x, E_v, Pi_y, self._Pi_x, self._Pi_v, G, Pi_a,
+                                              self.action_gain, self.action_prior_precision)
+            if tolerance is not None:
+                self._general_cache = dict(G=G, precision=precision, jacobians=(fx, fv, gx, gv), E=(E_y, E_x, E_v),
+                                           Pi_y=Pi_y, Pi_a=Pi_a, J=J, integral=None)
         e_y, e_x, e_v = generalised_errors(x_t, v_t, y_t, eta, f0, g0, fx, fv, gx, gv, P, Q)
-        J, _, _, curvature = joint_system(self._D, E_y, E_x, E_v, Pi_y, self._Pi_x, self._Pi_v, G, Pi_a,
-                                          self.action_gain, self.action_prior_precision)
         flow = np.empty_like(Z)
         flow[:nX] = self._D @ Z[:nX] - (E_y.T @ (Pi_y @ e_y) + E_x.T @ (self._Pi_x @ e_x) + E_v.T @ (self._Pi_v @ e_v))
         if self.precision_gradient and model.state_dependent_precision:
             flow[:nX] += self._precision_gradient(x0, v0, e_y, t)
         flow[nX:] = -self.action_gain * (G.T @ (Pi_a @ e_y) + self.action_prior_precision * a)
-        Z = Z + local_linearisation_step(J, flow, self.dt)
+        if reuse:  # int_0^dt expm(J s) ds, computed at the first reuse of this J, then one product per sample
+            if cached["integral"] is None:
+                cached["integral"] = discrete_transition(J, self.dt)[1]
+            Z = Z + cached["integral"] @ flow
+        else:
+            Z = Z + local_linearisation_step(J, flow, self.dt)
         if self.precision_learning is not None:
             self._learn(e_y)  # the prediction error before the step absorbed this sample
         return Z

@@ -39,6 +39,7 @@ EXPERIMENTS: dict[str, tuple[str, str]] = {
     "search-scale": ("attend.experiments.search_scale", "UAV search at field scale: probability map, EFE planner vs the best lawnmower and a truth oracle, several UAVs"),
     "lorenz": ("attend.experiments.lorenz", "nonlinear DEM on the Lorenz attractor under coloured noise vs EKF/UKF and a particle smoother"),
     "attenuation": ("attend.control.attenuation", "sensory attenuation as attention: true and perceived force vs the attenuation of sensory precision (active inference control)"),
+    "reaching": ("attend.control.reaching", "reaching with a two-joint arm: action fulfils the predicted movement to a cued target (active inference control, SPM's ADEM_reaching)"),
     "pendulum": ("attend.experiments.pendulum", "nonlinear DEM: pendulum state and unknown input through a (sin, cos) sensor vs augmented EKF/UKF"),
 }
 

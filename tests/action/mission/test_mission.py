@@ -115,6 +115,7 @@ def test_replay_split_over_calls_gives_the_same_targets_and_plan(tmp_path):
     simulate_mission(mission, seed=3, replan_s=30.0)
     names = [u.name for u in mission.config.uavs]
     times = np.sort(mission.logs.image_time_s)
+    times = times[times <= 120.0]  # the logs of the first 120 s of 180: a plan is left to compare
     finals = {}
     for calls in (1, 3, 10):
         out = tmp_path / f"out{calls}"

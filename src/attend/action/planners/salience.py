@@ -39,11 +39,15 @@ footprint (``Camera.footprint_m``), computed in O(1) from the summed-area table 
 Images of a path. One image every s = speed / rate metres along the path, the last at each
 waypoint: a straight leg of horizontal length L holds n = max(1, round(L / s)) images at
 distances L, L - s, ... from its start, all at the leg's altitude (the UAV changes altitude
-first, at its start, then flies level). Overlap: a cell seen by several images of a path
-counts once. Along a straight leg the union of the footprints is exact by inclusion-exclusion
-of consecutive images (F_j and F_k, k < j - 1, meet only inside F_{j-1}):
-V = sum_j [V(F_j) - V(F_j ∩ F_{j-1})]; for the second leg each image also loses its overlap with
-the nearest image of the first (the larger of the two overlaps; a lower bound of the union's).
+first, at its start, then flies level). Overlap: a cell seen by k images of a path is worth
+v_h^(k), the value of k looks (the k-look information I_k of the count of detections, and the
+probability that k looks confirm), for k up to K_h = min(``max_looks``, the most looks one
+straight leg gives). With the differences Delta_k = v^(k) - v^(k-1) and the tables T_1 =
+Delta_1, T_k = Delta_k - Delta_{k-1}, T_{K+1} = -Delta_K, the value of a chain of images is
+sum_j [T_1(F_j) + sum_i T_{i+1}(F_j ∩ F_{j-i})] (F_{j-i} the i-th image before F_j): exact along
+a straight leg, where the footprints a cell lies in are consecutive. For the second leg the chain
+continues through the first leg's images, and each image also loses at least its overlap with
+the nearest image of the first (-T_2 over their intersection; the larger loss is taken).
 
 Time of a leg: t = L / v + |dz| / v_z, and at least n / rate (the camera's pace).
 

@@ -29,8 +29,7 @@ precisions in :mod:`attend.constants`.
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
+from attend._lazy import lazy_exports
 
 __version__ = "0.1.0"
 
@@ -85,16 +84,4 @@ _EXPORTS = {
 __all__ = sorted(_EXPORTS)
 
 
-def __getattr__(name: str):
-    """The public name ``name`` (or the subpackage ``attend.name``), imported on first use."""
-    if name not in _EXPORTS:
-        if not name.startswith("_") and importlib.util.find_spec(f"attend.{name}") is not None:
-            return importlib.import_module(f"attend.{name}")  # the import binds it in globals()
-        raise AttributeError(f"module 'attend' has no attribute {name!r}")
-    value = getattr(importlib.import_module(_EXPORTS[name]), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy_exports("attend", _EXPORTS, globals())

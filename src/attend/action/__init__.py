@@ -19,8 +19,7 @@ mission with its files, ``attend search``)."""
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
+from attend._lazy import lazy_exports
 
 #: public name -> the module that defines it, imported at the first use of the name (PEP 562): a
 #: command that needs one part of the action package does not load the others (the paper's
@@ -86,16 +85,4 @@ _EXPORTS = {
 __all__ = ["ActionInputError", "DetectionModel", "ExpectedFreeEnergySearchPlanner", "FieldLawnmowerPlanner", "ImageObservation", "MapGrid", "ProbabilityMap", "SearchLog", "SearchPlanner", "SearchSettings", "SearchWorld", "fly_search", "make_world", "run_probability_search", "simulate_image", "world_from_field", "AdaptivePlanner", "Camera", "CoverConfirmPlanner", "Detector", "EpisodeLog", "ExpectedFreeEnergyPlanner", "FOUND_THRESHOLD", "FlightModel", "GaussianProcessPrior", "Grid", "Image", "LawnmowerPlanner", "Obstacle", "OccupancyMap", "PAPER_PRIOR", "PLANNERS", "Person", "PlanContext", "Planner", "PlanningSetup", "PrecisionGainPlanner", "RandomPlanner", "ReplanPolicy", "SearchConfirmPlanner", "SearchField", "confirmation_value", "detections", "fly", "kalman_update", "kalman_update_diagonal", "make_field", "make_planner", "map_metrics", "noise_variance", "observation_gains", "prior_covariance", "root_squared_error", "run_search", "take_image"]
 
 
-def __getattr__(name: str):
-    """The public name ``name`` (or the subpackage ``attend.action.name``), imported on first use."""
-    if name not in _EXPORTS:
-        if not name.startswith("_") and importlib.util.find_spec(f"attend.action.{name}") is not None:
-            return importlib.import_module(f"attend.action.{name}")
-        raise AttributeError(f"module 'attend.action' has no attribute {name!r}")
-    value = getattr(importlib.import_module(_EXPORTS[name]), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy_exports("attend.action", _EXPORTS, globals())

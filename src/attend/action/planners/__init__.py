@@ -13,7 +13,7 @@ time_to_next_image_s) -> waypoints (w, 3) m``.
 - :mod:`~attend.action.planners.registry`: :data:`PLANNERS` (name -> class), :func:`make_planner`.
 """
 
-import importlib
+from attend._lazy import lazy_exports
 
 #: Public name -> the module that defines it (imported on first use, PEP 562: a mission that
 #: needs only the field-scale planner does not load the paper's Gaussian-process planners).
@@ -28,17 +28,7 @@ _EXPORTS = {
 }
 
 
-def __getattr__(name: str):
-    """The public name ``name``, imported on first use."""
-    if name not in _EXPORTS:
-        raise AttributeError(f"module 'attend.action.planners' has no attribute {name!r}")
-    value = getattr(importlib.import_module(_EXPORTS[name]), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy_exports("attend.action.planners", _EXPORTS, globals(), subpackages=False)
 
 
 __all__ = [

@@ -527,7 +527,8 @@ def _describe_estimator(estimator) -> str:
         return (f"method ukf (unscented Kalman smoother, the default for nonlinear models; model "
                 f"{model.python_path}): white-noise model with the per-sample variance of the coloured noise "
                 f"(kernel width {model.kernel_width:g} s){inputs}; start: {start}; std: the smoother's error "
-                "spread under the coloured noise (200 draws); [observer] method = \"dem\" runs the nonlinear DEM")
+                "spread under the coloured noise (exact through its linearisation, no draws); "
+                "[observer] method = \"dem\" runs the nonlinear DEM")
     if isinstance(estimator, DEMObserver):
         analysis = estimator.analysis()
         chosen = " (automatic)" if analysis.automatic else ""

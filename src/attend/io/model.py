@@ -252,11 +252,13 @@ class NonlinearFileEstimator:
             precisions, self.input_kernel_width, known, signals[0] if unknown else None, who='method "ukf"')
         inputs = (signals if known.any() else None) if unknown else (signals if r else None)
         mean, std, substeps = self._start(outputs, signals, initial, inputs, options)
-        # the std: the smoother's error spread under the file's coloured noise (error_spread)
+        # the std: the smoother's error spread under the file's coloured noise, its exact covariance
+        # through the smoother's linearisation (error_spread.smoother_error_covariance: no draws)
         prior = (1.0 / precisions, self.input_kernel_width) if unknown else None
         return unscented_kalman(self.system, self.dt, outputs, inputs, initial_mean=mean,
                                 initial_covariance=np.diag(np.asarray(std, dtype=float) ** 2), substeps=substeps,
-                                noise_kernel_width=model.kernel_width, input_prior=prior, **options)
+                                noise_kernel_width=model.kernel_width, input_prior=prior, spread_draws=None,
+                                **options)
 
     def _start(self, outputs, signals, initial, inputs, options):
         """(x[0], its std, RK4 sub-steps) of the smoother. With the file's initial_state: it and

@@ -98,7 +98,7 @@ def command_plan(args) -> int:
         return _simulate(Mission.from_file(args.mission), args, started)
     from attend.action.mission.map_painter import MapPainter
 
-    painter = MapPainter(enabled=not args.no_plot)  # loads matplotlib in another process meanwhile
+    painter = MapPainter()  # loads matplotlib and rasterio in another process meanwhile
     try:
         mission = Mission.from_file(args.mission)
         mission.read_logs(args.images, args.detections)

@@ -1,4 +1,4 @@
-"""map.png drawn by a forked process (attend.action.mission.map_painter)."""
+"""map.png and map.tif written by a forked process (attend.action.mission.map_painter)."""
 
 import os
 import sys
@@ -21,22 +21,32 @@ def _picture(**changes) -> MapPicture:
     return MapPicture(**fields)
 
 
+def _tif_job(path):
+    probability = np.full((6, 8), 0.25)
+    probability[0, 0] = np.nan
+    return ("tif", (probability, (100.0, 200.0), 2.0, 'LOCAL_CS["metres"]'), path)
+
+
 @linux_only
-def test_forked_painter_writes_the_same_png_as_drawing_here(tmp_path):
+def test_forked_painter_writes_the_same_files_as_writing_here(tmp_path):
     painter = MapPainter()
     assert painter.pid is not None
-    painter.submit(_picture(), tmp_path / "forked.png")
-    painter.wait()
-    MapPainter(enabled=False).submit(_picture(), tmp_path / "here.png")
+    painter.submit([("png", _picture(), tmp_path / "forked.png"), _tif_job(tmp_path / "forked.tif")])
+    forked = painter.wait()
+    here = MapPainter(enabled=False)
+    here.submit([("png", _picture(), tmp_path / "here.png"), _tif_job(tmp_path / "here.tif")])
+    assert here.wait() == {"here.png": None, "here.tif": None}
+    assert forked == {"forked.png": None, "forked.tif": None}
     assert (tmp_path / "forked.png").read_bytes() == (tmp_path / "here.png").read_bytes()
+    assert (tmp_path / "forked.tif").read_bytes() == (tmp_path / "here.tif").read_bytes()
 
 
 @linux_only
-def test_painter_reports_the_childs_error_and_closes_cleanly(tmp_path):
+def test_painter_reports_the_childs_errors_and_closes_cleanly(tmp_path):
     painter = MapPainter()
-    painter.submit(_picture(probability="not an image"), tmp_path / "bad.png")
-    with pytest.raises(RuntimeError, match="map.png could not be drawn"):
-        painter.wait()
+    painter.submit([("png", _picture(probability="not an image"), tmp_path / "bad.png"), _tif_job(tmp_path / "ok.tif")])
+    results = painter.wait()
+    assert results["ok.tif"] is None and results["bad.png"].split(":")[0] in ("TypeError", "ValueError", "AttributeError")
     idle = MapPainter()
     pid = idle.pid
     idle.close()  # nothing submitted: the child exits

@@ -26,7 +26,8 @@ from pathlib import Path
 import numpy as np
 from attend.action.log_odds import logistic
 
-from attend.action.mission.plan_files import fence_rings, write_geojson, write_geotiff, write_qgc_plan, write_wpl
+from attend.action.mission.map_painter import MapPainter
+from attend.action.mission.plan_files import fence_rings, write_geojson, write_qgc_plan, write_wpl
 
 #: Files of a previous call that a new call replaces or removes.
 OUTPUT_GLOBS = ("plan.csv", "plan.plan", "plan_*.plan", "plan.waypoints", "plan_*.waypoints", "plan.geojson",
@@ -63,12 +64,17 @@ def write_outputs(mission, plans, out_dir, plot: bool = True, extra: dict | None
 
 def _write_all(mission, plans, folder: Path, plot: bool, painter) -> list[str]:
     summary = mission.summary(plans)
-    if plot:  # first, so that another process draws it while the rest is written
+    # the map files first, so that another process writes them while the rest is written here
+    grid = mission.ground.grid
+    probability = np.where(mission.ground.searchable, logistic(mission.belief.log_odds), np.nan)
+    jobs = [("tif", (probability, grid.origin_m, grid.cell_size_m, mission.ground.frame.crs.to_wkt()),
+             folder / "map.tif")]
+    if plot:
         from attend.action.mission.map_plot import map_picture
-        from attend.action.mission.map_painter import MapPainter
 
-        painter = painter if painter is not None else MapPainter(enabled=False)
-        painter.submit(map_picture(mission, plans, summary), folder / "map.png")
+        jobs.append(("png", map_picture(mission, plans, summary), folder / "map.png"))
+    painter = painter if painter is not None else MapPainter(enabled=False)
+    painter.submit(jobs)
     frame = mission.ground.frame
     config = mission.config
     names = []
@@ -118,21 +124,14 @@ def _write_all(mission, plans, folder: Path, plot: bool, painter) -> list[str]:
     targets = np.column_stack([t_lon, t_lat, masses, counts]) if len(positions) else None
     write_geojson(folder / "plan.geojson", mission.area, flown, planned, targets, homes)
     names.append("plan.geojson")
-    # map.tif and summary
-    probability = np.where(mission.ground.searchable, logistic(mission.belief.log_odds), np.nan)
-    grid = mission.ground.grid
-    try:
-        write_geotiff(folder / "map.tif", probability, grid.origin_m, grid.cell_size_m, frame.crs.to_wkt())
-        names.append("map.tif")
-    except ImportError as error:  # pragma: no cover - rasterio is in the default install
-        summary["map_tif"] = f"not written: {error}"
-    except ValueError as error:
-        if "rasterio" not in str(error):
-            raise
-        summary["map_tif"] = f"not written: {error}"
-    if plot:
-        painter.wait()
-        names.append("map.png")
+    # map.tif, map.png and summary
+    for name, error in painter.wait().items():
+        if error is None:
+            names.append(name)
+        elif name == "map.tif" and "rasterio" in error:  # the optional GeoTIFF extra is not installed
+            summary["map_tif"] = f"not written: {error.split(': ', 1)[-1]}"
+        else:
+            raise RuntimeError(f"{name} could not be written: {error}")
     (folder / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     names.append("summary.json")
     return names

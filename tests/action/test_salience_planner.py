@@ -327,3 +327,25 @@ def test_cached_value_tables_equal_fresh_ones_after_map_changes():
         fresh = ExpectedFreeEnergySearchPlanner(model, camera, 10.0, 1.0)
         expected = fresh._value_tables(belief, lattice, 2.0)
         assert np.allclose(cached._value_tables(belief, lattice, 2.0), expected, rtol=1e-10, atol=1e-9)
+
+
+def test_footprint_follows_the_heading_when_the_camera_turns_with_the_uav():
+    """A 60 x 45 degree camera at 40 m sees 2 h tan(30) = 46.2 m across-track and 2 h tan(22.5) =
+    33.1 m along-track: along x for a north-south leg, along y for an east-west leg when the
+    camera turns with the UAV; the paper's fixed camera keeps across-track along x."""
+    from attend.action.planners.salience import _Lattice as Lattice
+
+    grid = MapGrid.square(200.0, 1.0)
+    lattice = Lattice(grid)
+    camera = Camera(fov_x_deg=60.0, fov_y_deg=45.0)
+    across, along = 2 * 40 * np.tan(np.radians(30)), 2 * 40 * np.tan(np.radians(22.5))
+    starts = np.array([[0.0, 0.0, 40.0], [0.0, 0.0, 40.0]])
+    ends = np.array([[0.0, 50.0, 40.0], [50.0, 0.0, 40.0]])  # north, east
+    points = np.zeros((2, 1, 2))
+    for turning, expected in ((True, [(across, along), (along, across)]), (False, [(across, along)] * 2)):
+        planner = ExpectedFreeEnergySearchPlanner(DetectionModel(), camera, 10.0, 1.0, altitude_layers_m=[40.0],
+                                                  footprint_follows_heading=turning)
+        r0, r1, c0, c1 = planner._footprint_ranges(lattice, points, np.array([0, 0]), starts, ends)
+        for leg, (width_x, width_y) in enumerate(expected):
+            # cells whose centres lie within the rectangle: its side in cells, to one cell
+            assert abs((c1 - c0)[leg, 0] - width_x) <= 1.0 and abs((r1 - r0)[leg, 0] - width_y) <= 1.0

@@ -289,7 +289,7 @@ class Mission:
             altitude_limits_m=(low, high + 1e-9), min_separation_m=self.config.min_separation_m,
             target_threshold=TARGET_THRESHOLD, seed=self.config.seed, allowed_legs=ground.legs_allowed,
             route_toward=toward, book_other_plans=False, fly_second_leg=True,
-            value_levels=VALUE_LEVELS, max_looks=MAX_LOOKS)
+            value_levels=VALUE_LEVELS, max_looks=MAX_LOOKS, footprint_follows_heading=True)
 
     def _plan_efe(self, horizon: float) -> list[UavPlan]:
         uavs = self.config.uavs
@@ -410,6 +410,8 @@ class Mission:
         n = max(1, int(round(length / spacing)))
         camera = self.cameras[k]
         width_x, width_y = camera.footprint_m(float(b[2]))
+        if abs(b[0] - a[0]) > abs(b[1] - a[1]):  # an east-west leg: the across-track side along y
+            width_x, width_y = width_y, width_x
         windows = []
         for j in range(n):
             point = b + (a - b) * (j * spacing / length)

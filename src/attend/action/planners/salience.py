@@ -279,7 +279,11 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
     at every distinct value of the map, exact) or a number of levels evenly spaced in logit at
     which they are tabulated and interpolated (faster on detailed maps; :meth:`_levels`);
     max_looks: the most looks of one cell along a path whose value is counted (later looks count
-    0: a lower bound of the path's value; fewer looks, fewer tables to sum).
+    0: a lower bound of the path's value; fewer looks, fewer tables to sum);
+    footprint_follows_heading: the camera turns with the UAV (False: it keeps its across-track
+    side along x, as in the paper's world): the footprint of a leg flown closer to east-west than
+    to north-south has its across-track side along y (the axis-aligned rectangle of the nearer
+    axis; a diagonal leg's rotated footprint is approximated by it).
     """
 
     name = "efe"
@@ -308,6 +312,7 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         book_other_plans: bool = True,
         value_levels: int | None = None,
         max_looks: int = MAX_LOOKS,
+        footprint_follows_heading: bool = False,
     ) -> None:
         if not isinstance(model, DetectionModel):
             raise ActionInputError(f"model: expected a DetectionModel, got {type(model).__name__}")
@@ -376,6 +381,7 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         self.allowed_legs = allowed_legs
         self.route_toward = route_toward
         self.book_other_plans = bool(book_other_plans)
+        self.footprint_follows_heading = bool(footprint_follows_heading)
         if value_levels is not None and not (isinstance(value_levels, (int, np.integer)) and value_levels >= 16):
             raise ActionInputError(f"value_levels: expected None or a whole number >= 16, got {value_levels!r}")
         self.value_levels = None if value_levels is None else int(value_levels)
@@ -665,6 +671,8 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
                     point = b + (a - b) * (j * self.image_spacing_m / length if length > 0 else 0.0)
                     h = float(b[2])
                     width_x, width_y = self.camera.footprint_m(h)
+                    if self.footprint_follows_heading and abs(b[0] - a[0]) > abs(b[1] - a[1]):
+                        width_x, width_y = width_y, width_x  # an east-west leg: across-track along y
                     windows.append(grid.window(float(point[0]), float(point[1]), float(width_x), float(width_y)))
                     altitudes.append(h)
         return windows, altitudes
@@ -805,10 +813,16 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         seconds = np.maximum(seconds, count / self.image_rate_hz)
         return points, valid, seconds
 
-    def _footprint_ranges(self, lattice: _Lattice, points, layers):
-        half_x = self._half_widths[0, layers][:, None]
-        half_y = self._half_widths[1, layers][:, None]
-        return lattice.ranges(points[..., 0], points[..., 1], half_x, half_y)
+    def _footprint_ranges(self, lattice: _Lattice, points, layers, starts=None, ends=None):
+        """Index ranges of the footprints of images at ``points`` (m, n, 2) from ``layers`` (m,),
+        on legs starts -> ends (m, 3) (their headings orient the footprints when
+        ``footprint_follows_heading``)."""
+        half_x = self._half_widths[0, layers]
+        half_y = self._half_widths[1, layers]
+        if self.footprint_follows_heading and starts is not None:
+            east_west = np.abs(ends[:, 0] - starts[:, 0]) > np.abs(ends[:, 1] - starts[:, 1])
+            half_x, half_y = np.where(east_west, half_y, half_x), np.where(east_west, half_x, half_y)
+        return lattice.ranges(points[..., 0], points[..., 1], half_x[:, None], half_y[:, None])
 
     def _chain_values(self, tables, lay, ranges, predecessors):
         """Per image (m, n): T_1(F_j) + sum_i T_{i+1}(F_j ∩ F_{j-i}) over the images' i-th
@@ -826,7 +840,7 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         Delta_k), time (m,) [s], and the image ranges, validity and positions (for the second
         leg)."""
         points, valid, seconds = self._image_points(starts, ends)
-        ranges = self._footprint_ranges(lattice, points, layers)
+        ranges = self._footprint_ranges(lattice, points, layers, starts, ends)
         lay = np.broadcast_to(layers[:, None], valid.shape)
         n = valid.shape[1]
         # images are ordered from the end backwards: image j's i-th predecessor in time is j + i
@@ -845,7 +859,7 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         at least what it would lose if the nearest image of the first leg had seen its cells
         once before (-T_2 over their intersection: the larger loss is taken)."""
         points, valid, seconds = self._image_points(starts, ends)
-        ranges = self._footprint_ranges(lattice, points, layers)
+        ranges = self._footprint_ranges(lattice, points, layers, starts, ends)
         lay = np.broadcast_to(layers[:, None], valid.shape)
         count = valid.sum(axis=1)
         count1 = int(valid1.sum())

@@ -6,7 +6,7 @@ from typing import Callable
 
 import numpy as np
 
-from attend._validation import AttendInputError, numeric_array, precision_matrix
+from attend._validation import AttendInputError, as_matrix, numeric_array, precision_matrix
 
 
 class ClosedLoopDivergence(AttendInputError):
@@ -114,3 +114,20 @@ def finite_difference(function_: Callable, point: np.ndarray, size: int) -> np.n
         out[:, j] = (np.asarray(function_(up), dtype=float).reshape(-1)
                      - np.asarray(function_(down), dtype=float).reshape(-1)) / (2 * h)
     return out
+
+
+def linear_matrices(A, B, C, D=None, inputs_optional: bool = False):
+    """(A, B, C, D) of dx/dt = A x + B u, y = C x + D u checked together: A (n, n), B (n, k),
+    C (m, n), D (m, k) (None: zeros); inputs_optional: B may be None or empty (k = 0)."""
+    A = as_matrix(A, "A")
+    n = A.shape[0]
+    if A.shape != (n, n):
+        raise AttendInputError(f"A: expected a square matrix, got shape {A.shape}")
+    if inputs_optional and (B is None or np.size(B) == 0):
+        B = np.zeros((n, 0))
+    else:
+        B = as_matrix(B, "B", rows=n)
+    C = as_matrix(C, "C", cols=n)
+    k, m = B.shape[1], C.shape[0]
+    D = np.zeros((m, k)) if D is None else as_matrix(D, "D", rows=m, cols=k)
+    return A, B, C, D

@@ -17,13 +17,14 @@ from typing import Callable
 
 import numpy as np
 
-from attend._validation import AttendInputError, as_matrix, order, positive_scalar
+from attend._validation import AttendInputError, order, positive_scalar
 from attend.control._checks import (
     count,
     evaluated,
     finite_difference,
     function,
     jacobian_pair,
+    linear_matrices,
     positive_precision,
     precision_value,
     vector,
@@ -108,14 +109,8 @@ class GenerativeModel:
         """dx/dt = A x + B v + w, y = C x + D v + z: A (n, n), B (n, r), C (m, n), D (m, r) (default 0).
 
         options: the other fields of :class:`GenerativeModel` (precisions, cause_prior, orders...)."""
-        A = as_matrix(A, "A")
-        n = A.shape[0]
-        if A.shape != (n, n):
-            raise AttendInputError(f"A: expected a square matrix, got shape {A.shape}")
-        B = np.zeros((n, 0)) if B is None or np.size(B) == 0 else as_matrix(B, "B", rows=n)
-        C = as_matrix(C, "C", cols=n)
-        r, m = B.shape[1], C.shape[0]
-        D = np.zeros((m, r)) if D is None else as_matrix(D, "D", rows=m, cols=r)
+        A, B, C, D = linear_matrices(A, B, C, D, inputs_optional=True)
+        n, r, m = A.shape[0], B.shape[1], C.shape[0]
         return cls(f=lambda x, v: A @ x + B @ v, g=lambda x, v: C @ x + D @ v, n_states=n, n_causes=r,
                    n_outputs=m, jacobian_f=lambda x, v: (A, B), jacobian_g=lambda x, v: (C, D),
                    matrices=(A, B, C, D), **options)

@@ -23,8 +23,8 @@ from typing import Callable
 
 import numpy as np
 
-from attend._validation import AttendInputError, as_matrix, kernel_width as _kernel_width, order, positive_scalar
-from attend.control._checks import count, evaluated, finite_difference, function, jacobian_pair, vector
+from attend._validation import AttendInputError, kernel_width as _kernel_width, order, positive_scalar
+from attend.control._checks import count, evaluated, finite_difference, function, jacobian_pair, linear_matrices, vector
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,14 +101,8 @@ class GenerativeProcess:
         """dx/dt = A x + B a + w + d(t), y = C x + D a + z: A (n, n), B (n, k), C (m, n), D (m, k) (default 0).
 
         options: the other fields of :class:`GenerativeProcess` (noise, limits, initial_states...)."""
-        A = as_matrix(A, "A")
-        n = A.shape[0]
-        if A.shape != (n, n):
-            raise AttendInputError(f"A: expected a square matrix, got shape {A.shape}")
-        B = as_matrix(B, "B", rows=n)
-        C = as_matrix(C, "C", cols=n)
-        k, m = B.shape[1], C.shape[0]
-        D = np.zeros((m, k)) if D is None else as_matrix(D, "D", rows=m, cols=k)
+        A, B, C, D = linear_matrices(A, B, C, D)
+        n, k, m = A.shape[0], B.shape[1], C.shape[0]
         return cls(f=lambda x, a: A @ x + B @ a, g=lambda x, a: C @ x + D @ a, n_states=n, n_actions=k,
                    n_outputs=m, jacobian_f=lambda x, a: (A, B), jacobian_g=lambda x, a: (C, D),
                    matrices=(A, B, C, D), **options)

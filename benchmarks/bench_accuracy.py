@@ -125,8 +125,9 @@ def main() -> None:
     parser.add_argument("--process-precision", type=float, default=8.0,
                         help="log of the DEM process precision Pi_w (default 8 = 1/sigma_w^2)")
     args = parser.parse_args()
-    delay = DEMObserver(convolution_model(), DT, KERNEL_WIDTH, np.exp(8.0), np.exp(8.0),
-                        PRIOR_PRECISION, P, D).delay
+    delay = DEMObserver(convolution_model(), DT, kernel_width=KERNEL_WIDTH, sensor_precision=np.exp(8.0),
+                        process_precision=np.exp(8.0), input_prior_precision=PRIOR_PRECISION, embedding_order=P,
+                        input_order=D).delay
     start = time.perf_counter()
     r = run(args.seeds, args.process_precision, delay)
     elapsed = time.perf_counter() - start

@@ -294,7 +294,7 @@ def dem(case: Case) -> Result:
     start = time.perf_counter()
     try:
         observer = DEMObserver(
-            case.system, case.dt, None, sensor_precision=case.sensor_std**-2,
+            case.system, case.dt, kernel_width=None, sensor_precision=case.sensor_std**-2,
             process_precision=case.process_std**-2,
             input_prior_precision=None if case.known else case.input_prior_std**-2,
             known_inputs=case.known, process_kernel_width=case.process_width,
@@ -323,7 +323,7 @@ def dem_noise_free(case: Case) -> float:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ModelWarning)
         observer = DEMObserver(
-            case.system, case.dt, None, sensor_precision=case.sensor_std**-2,
+            case.system, case.dt, kernel_width=None, sensor_precision=case.sensor_std**-2,
             process_precision=case.process_std**-2, known_inputs=True,
             process_kernel_width=case.process_width, sensor_kernel_width=case.sensor_width,
             initial_state=np.zeros(case.system.n_states))

@@ -74,7 +74,8 @@ def _jax_speeds(cfg, logs) -> dict:
         return {}
     from attend.perception.nonlinear import NonlinearDEM
 
-    dem = NonlinearDEM(lorenz.build_jax_system(cfg), cfg["dt"], cfg["kernel_width"], 1.0, 1 / 400, embedding_order=6, backend="jax")
+    dem = NonlinearDEM(lorenz.build_jax_system(cfg), cfg["dt"], kernel_width=cfg["kernel_width"], sensor_precision=1.0,
+                       process_precision=1 / 400, embedding_order=6, backend="jax")
     start = time.perf_counter()
     dem.estimate(logs[0].outputs)
     compile_seconds = time.perf_counter() - start
@@ -94,8 +95,8 @@ def speed_worker() -> None:
     logs = [simulate_nonlinear(system, n_samples, dt, kernel_width=s, process_std=20.0, measurement_std=1.0,
                                initial_state=cfg["initial_state"], seed=0) for n_samples in (200, 2000)]
     log = logs[0]
-    dem = NonlinearDEM(system, dt, s, 1.0, 1 / 400, embedding_order=6)
-    Q, R = white_noise_covariances(system, dt, s, 20.0, 1.0)
+    dem = NonlinearDEM(system, dt, kernel_width=s, sensor_precision=1.0, process_precision=1 / 400, embedding_order=6)
+    Q, R = white_noise_covariances(system, dt, kernel_width=s, process_std=20.0, measurement_std=1.0)
     rates = dict(DEM=_best_rate(lambda: dem.estimate(log.outputs), 200),
                  DEM_20s=_best_rate(lambda: dem.estimate(logs[1].outputs), 2000),
                  UKF=_best_rate(lambda: unscented_kalman(system, dt, log.outputs, process_covariance=Q,
@@ -256,7 +257,7 @@ def part5(seeds: int) -> None:
     for ratio in (1, 2, 4):
         s = ratio * dt
         rows = {"DEM p = 6": [], "DEM p = 10": [], "DEM path p = 6": [], "UKF smoother (white)": []}
-        Q, R = white_noise_covariances(system, dt, s, sw, sz)
+        Q, R = white_noise_covariances(system, dt, kernel_width=s, process_std=sw, measurement_std=sz)
         for seed in range(seeds):
             u = np.zeros((200, 1))
             log = simulate(linear, u, dt, kernel_width=s, process_std=sw, measurement_std=sz, seed=seed,
@@ -266,11 +267,12 @@ def part5(seeds: int) -> None:
             trim = slice(8, 192)
             reference = np.sum((exact.states - log.states)[trim] ** 2)
             for label, p in (("DEM p = 6", 6), ("DEM p = 10", 10)):
-                dem = NonlinearDEM(system, dt, s, 1 / sz**2, 1 / sw**2, embedding_order=p, known_inputs=True)
+                dem = NonlinearDEM(system, dt, kernel_width=s, sensor_precision=1 / sz**2, process_precision=1 / sw**2,
+                                   embedding_order=p, known_inputs=True)
                 estimate = dem.estimate(log.outputs, u)
                 rows[label].append(np.sum((estimate.states - log.states)[trim] ** 2) / reference)
-            path = NonlinearDEM(system, dt, s, 1 / sz**2, 1 / sw**2, embedding_order=6, known_inputs=True,
-                                states="path").estimate(log.outputs, u)
+            path = NonlinearDEM(system, dt, kernel_width=s, sensor_precision=1 / sz**2, process_precision=1 / sw**2,
+                                embedding_order=6, known_inputs=True, states="path").estimate(log.outputs, u)
             rows["DEM path p = 6"].append(np.sum((path.states - log.states)[trim] ** 2) / reference)
             ukf = unscented_kalman(system, dt, log.outputs, u, process_covariance=Q, measurement_covariance=R,
                                    initial_mean=[0.5, 0.0], initial_covariance=1e-4)
@@ -379,8 +381,8 @@ def part7(cases: int) -> None:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 # the exact posterior's prior on x[0] (about 0; "known": std 0, given as 1e-6 (1 + 0))
-                estimate = NonlinearDEM(system, case.dt, s, 1 / case.sensor_std**2, 1 / case.process_std**2,
-                                        **options).estimate(case.outputs,
+                estimate = NonlinearDEM(system, case.dt, kernel_width=s, sensor_precision=1 / case.sensor_std**2,
+                                        process_precision=1 / case.process_std**2, **options).estimate(case.outputs,
                                                             case.input_prior_mean if unknown else case.inputs,
                                                             initial_state=np.zeros(A.shape[0]),
                                                             initial_state_std=case.initial_std or 1e-6)

@@ -116,13 +116,17 @@ def run_case(case: dict) -> dict:
     if unknown:
         dem_options.update(input_prior_precision=prior_precision, input_kernel_width=case["input_width"])
     Pi_z, Pi_w = 1 / case["sigma_z"] ** 2, 1 / case["sigma_w"] ** 2
-    Q, R = white_noise_covariances(system, DT, s, case["sigma_w"], case["sigma_z"])
+    Q, R = white_noise_covariances(system, DT, kernel_width=s, process_std=case["sigma_w"],
+                                   measurement_std=case["sigma_z"])
     ukf_options = dict(process_covariance=Q, measurement_covariance=R, initial_mean=np.zeros(n), initial_covariance=1.0)
     if unknown:
-        ukf_options.update(input_variance=float(input_random_walk_variance(prior_precision, case["input_width"], DT)))
+        ukf_options.update(input_variance=float(input_random_walk_variance(prior_precision,
+                                                                           kernel_width=case["input_width"], dt=DT)))
     runs = {
-        "DEM": lambda: NonlinearDEM(system, DT, s, Pi_z, Pi_w, **dem_options).estimate(log.outputs, inputs),
-        "DEM path": lambda: NonlinearDEM(system, DT, s, Pi_z, Pi_w, states="path", **dem_options, **path_options).estimate(
+        "DEM": lambda: NonlinearDEM(system, DT, kernel_width=s, sensor_precision=Pi_z, process_precision=Pi_w,
+                                    **dem_options).estimate(log.outputs, inputs),
+        "DEM path": lambda: NonlinearDEM(system, DT, kernel_width=s, sensor_precision=Pi_z, process_precision=Pi_w,
+                                         states="path", **dem_options, **path_options).estimate(
             log.outputs, inputs, initial_state=np.zeros(n), initial_state_std=1.0),
         "UKF": lambda: unscented_kalman(system, DT, log.outputs, inputs, smooth=True, **ukf_options),
         "coloured UKS": lambda: coloured_unscented_smoother(

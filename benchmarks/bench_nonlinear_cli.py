@@ -123,11 +123,13 @@ def main() -> None:
         for index in range(args.first, args.first + args.cases):
             case = bank.draw_case(index)
             n, unknown = case["n"], case["input_kind"] == "unknown"
-            Q, R = white_noise_covariances(case["system"], bank.DT, case["s"], case["sigma_w"], case["sigma_z"])
+            Q, R = white_noise_covariances(case["system"], bank.DT, kernel_width=case["s"], process_std=case["sigma_w"],
+                                           measurement_std=case["sigma_z"])
             options = dict(process_covariance=Q, measurement_covariance=R, initial_mean=np.zeros(n),
                            initial_covariance=1.0)
             if unknown:
-                options.update(input_variance=float(input_random_walk_variance(1.0, case["input_width"], bank.DT)))
+                options.update(input_variance=float(input_random_walk_variance(1.0, kernel_width=case["input_width"],
+                                                                               dt=bank.DT)))
             inputs = case["log"].inputs if case["input_kind"] == "measured" else None
             smoother = unscented_kalman(case["system"], bank.DT, case["log"].outputs, inputs, **options)
             p = case["p"]

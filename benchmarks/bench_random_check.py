@@ -123,8 +123,8 @@ def validate(tool, seed: int, logs: int) -> None:
     case = redraw(tool, seed)
     n, m = case["Ad"].shape[0], case["C"].shape[0]
     for start_std in (0.0, 0.1):
-        smoother = KalmanEstimator(case["system"], case["dt"], np.eye(m) / case["sigma_z"] ** 2,
-                                   np.eye(n) / case["sigma_w"] ** 2, kernel_width=case["s"],
+        smoother = KalmanEstimator(case["system"], case["dt"], sensor_precision=np.eye(m) / case["sigma_z"] ** 2,
+                                   process_precision=np.eye(n) / case["sigma_w"] ** 2, kernel_width=case["s"],
                                    initial_state=np.zeros(n), initial_state_std=start_std)
         posterior = posterior_operator(case, start_std)
         rng = np.random.default_rng(123)

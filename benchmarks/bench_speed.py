@@ -33,8 +33,9 @@ def acc_observer(embedding_order=6, input_order=2, system=None):
     # a speed benchmark: run every p of the sweep, also those the stability analysis would refuse
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ModelWarning)
-        return DEMObserver(system or convolution_model(), 0.1, 0.5, np.exp(8), np.exp(8), np.exp(-8),
-                           embedding_order, input_order, allow_unstable=True)
+        return DEMObserver(system or convolution_model(), 0.1, kernel_width=0.5, sensor_precision=np.exp(8),
+                           process_precision=np.exp(8), input_prior_precision=np.exp(-8),
+                           embedding_order=embedding_order, input_order=input_order, allow_unstable=True)
 
 
 def random_stable_system(n_states, seed=0):

@@ -83,17 +83,19 @@ def lorenz_estimator(integration: str = "attend") -> NonlinearDEM:
     precisions, the flow in sample units with one D-step per bin, repeated end samples;
     integration: "attend" (data held, row k after the step) or "spm" (spm_DEM's D-step)."""
     cfg = lorenz.SETTINGS
-    return NonlinearDEM(lorenz.build_system(cfg), cfg["dt"], cfg["kernel_width"], 1.0 / cfg["measurement_std"] ** 2,
-                        1.0 / cfg["process_std"] ** 2, embedding_order=EMBEDDING_ORDER, flow_time="samples",
-                        substeps=1, motion="linearized", edges="clamp", integration=integration)
+    return NonlinearDEM(lorenz.build_system(cfg), cfg["dt"], kernel_width=cfg["kernel_width"],
+                        sensor_precision=1.0 / cfg["measurement_std"] ** 2,
+                        process_precision=1.0 / cfg["process_std"] ** 2, embedding_order=EMBEDDING_ORDER,
+                        flow_time="samples", substeps=1, motion="linearized", edges="clamp", integration=integration)
 
 
 def convolution_estimator(integration: str = "attend") -> DEMObserver:
     """attend's linear DEMObserver on SPM's convolution settings (p = d = 6, start at x = 0);
     integration: "attend" or "spm" as in :func:`lorenz_estimator`."""
     c = CONVOLUTION
-    return DEMObserver(convolution_model(), c["dt"], c["kernel_width"], np.exp(c["log_precision"]),
-                       np.exp(c["log_precision"]), np.exp(c["prior_log_precision"]), embedding_order=EMBEDDING_ORDER,
+    return DEMObserver(convolution_model(), c["dt"], kernel_width=c["kernel_width"],
+                       sensor_precision=np.exp(c["log_precision"]), process_precision=np.exp(c["log_precision"]),
+                       input_prior_precision=np.exp(c["prior_log_precision"]), embedding_order=EMBEDDING_ORDER,
                        input_order=EMBEDDING_ORDER, edges="clamp", initial_state=np.zeros(2), allow_unstable=True,
                        integration=integration)
 
@@ -324,9 +326,11 @@ def check_input_order() -> None:
     for convention in ("max", "size"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            estimate = DEMObserver(convolution_model(), c["dt"], c["kernel_width"], np.exp(c["log_precision"]),
-                                   np.exp(c["log_precision"]), 1.0, embedding_order=EMBEDDING_ORDER, input_order=2,
-                                   edges="clamp", initial_state=np.zeros(2), allow_unstable=True,
+            estimate = DEMObserver(convolution_model(), c["dt"], kernel_width=c["kernel_width"],
+                                   sensor_precision=np.exp(c["log_precision"]),
+                                   process_precision=np.exp(c["log_precision"]), input_prior_precision=1.0,
+                                   embedding_order=EMBEDDING_ORDER, input_order=2, edges="clamp",
+                                   initial_state=np.zeros(2), allow_unstable=True,
                                    precision_convention=convention).estimate(outputs)
         print(f"spm_style_flow (attend's conventions) vs DEMObserver(precision_convention={convention!r}): "
               f"x {np.sum((flow_x - estimate.states) ** 2):.2g}, u {np.sum((flow_u - estimate.inputs) ** 2):.2g}")

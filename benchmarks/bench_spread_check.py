@@ -82,8 +82,8 @@ def run_estimators(case, dem: bool = True):
     signal = case["drive"] if unknown else case["inputs"]
     out = {}
     kalman = KalmanEstimator(system, dt, sensor_precision=case["sensor_precision"],
-                             process_precision=case["process_precision"], kernel_width=width,
-                             known_inputs=not unknown, input_prior_precision=case["input_precision"] if unknown else None,
+                             process_precision=case["process_precision"], kernel_width=width, known_inputs=not unknown,
+                             input_prior_precision=case["input_precision"] if unknown else None,
                              input_kernel_width=case["input_width"] if unknown else None)
     estimate = kalman.estimate(case["outputs"], signal)
     out["kalman"] = (estimate.states, estimate.inputs if unknown else case["inputs"])
@@ -91,8 +91,10 @@ def run_estimators(case, dem: bool = True):
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ModelWarning)
-                observer = DEMObserver(system, dt, width, case["sensor_precision"], case["process_precision"],
-                                       case["input_precision"] if unknown else None, known_inputs=not unknown,
+                observer = DEMObserver(system, dt, kernel_width=width, sensor_precision=case["sensor_precision"],
+                                       process_precision=case["process_precision"],
+                                       input_prior_precision=case["input_precision"] if unknown else None,
+                                       known_inputs=not unknown,
                                        input_kernel_width=case["input_width"] if unknown else None)
                 estimate = observer.estimate(case["outputs"], signal)
             out["dem"] = (estimate.states, estimate.inputs)

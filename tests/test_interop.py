@@ -24,7 +24,8 @@ def test_from_statespace_round_trip():
 @pytest.mark.parametrize("known_inputs", [False, True])
 def test_exported_observer_reproduces_batch_estimates(known_inputs):
     system = convolution_model()
-    observer = DEMObserver(system, 0.1, 0.5, np.exp(8), np.exp(8), None if known_inputs else np.exp(-8), 6, 2,
+    observer = DEMObserver(system, 0.1, kernel_width=0.5, sensor_precision=np.exp(8), process_precision=np.exp(8),
+                           input_prior_precision=None if known_inputs else np.exp(-8), embedding_order=6, input_order=2,
                            known_inputs=known_inputs, edges="clamp")
     rng = np.random.default_rng(0)
     y = np.cumsum(rng.standard_normal((300, 4)), axis=0) * 0.01

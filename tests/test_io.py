@@ -61,7 +61,9 @@ def test_spm_conventions_from_the_model_file(tmp_path):
     model, log = io.read_model(model_path), io.read_log(log_path)
     observer, estimate = io.estimate_from_files(model, log)
     assert (observer.integration, observer.edges) == ("spm", "clamp")
-    direct = DEMObserver(model.system, 0.1, 0.5, 2980.0, 2980.0, [0.01], 4, 2, integration="spm", edges="clamp")
+    direct = DEMObserver(model.system, 0.1, kernel_width=0.5, sensor_precision=2980.0, process_precision=2980.0,
+                         input_prior_precision=[0.01], embedding_order=4, input_order=2, integration="spm",
+                         edges="clamp")
     np.testing.assert_allclose(estimate.states, direct.estimate(log.matrix(["y1", "y2"]), np.zeros((50, 1))).states,
                                rtol=1e-12, atol=1e-12)
     _, default = io.estimate_from_files(io.read_model(_write(tmp_path, MODEL.replace(

@@ -106,7 +106,8 @@ def test_gappy_log_estimates_match_the_library(tmp_path, capsys):
     assert code == 0, err
     table = np.loadtxt(path, delimiter=",", skiprows=1)
     values = np.array([[float(cell) if cell else np.nan for cell in row] for row in rows])
-    estimator = KalmanEstimator(SYSTEM, DT, 1e4, 100.0, kernel_width=0.2, initial_state=[0.0, 0.0])
+    estimator = KalmanEstimator(SYSTEM, DT, sensor_precision=1e4, process_precision=100.0, kernel_width=0.2,
+                                initial_state=[0.0, 0.0])
     expected = estimator.estimate(values[:, 1:3], values[:, 3:], time=values[:, 0])
     np.testing.assert_allclose(table[:, 1:3], expected.states, rtol=1e-6, atol=1e-9)
 

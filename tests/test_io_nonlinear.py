@@ -175,8 +175,8 @@ def test_spm_integration_from_a_nonlinear_model_file(tmp_path):
     estimator, estimate = io.estimate_from_files(model, log)
     dem = estimator.dem()
     assert (dem.integration, dem.edges) == ("spm", "clamp")
-    direct = NonlinearDEM(dem.system, dem.dt, dem.kernel_width, dem.sensor_precision, dem.process_precision,
-                          embedding_order=6, integration="spm", edges="clamp")
+    direct = NonlinearDEM(dem.system, dem.dt, kernel_width=dem.kernel_width, sensor_precision=dem.sensor_precision,
+                          process_precision=dem.process_precision, embedding_order=6, integration="spm", edges="clamp")
     expected = direct.estimate(log.matrix(["y1", "y2", "y3"]), initial_state=[1.0, 1.0, 24.0])
     np.testing.assert_allclose(estimate.states, expected.states, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(estimate.states[0], [1.0, 1.0, 24.0])  # SPM: row 0 is the start
@@ -193,8 +193,9 @@ def test_path_mode_from_a_nonlinear_model_file(tmp_path, capsys):
     estimator, estimate = io.estimate_from_files(model, log)
     dem = estimator.dem()
     assert dem.states == "path"
-    direct = NonlinearDEM(dem.system, dem.dt, dem.kernel_width, dem.sensor_precision, dem.process_precision,
-                          embedding_order=6, states="path").estimate(log.matrix(["y1", "y2", "y3"]))
+    direct = NonlinearDEM(dem.system, dem.dt, kernel_width=dem.kernel_width, sensor_precision=dem.sensor_precision,
+                          process_precision=dem.process_precision, embedding_order=6,
+                          states="path").estimate(log.matrix(["y1", "y2", "y3"]))
     np.testing.assert_allclose(estimate.states, direct.states, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(estimate.state_std, direct.state_std, rtol=1e-12)
     out = tmp_path / "path.csv"
@@ -213,8 +214,9 @@ def test_the_files_motion_reaches_nonlinear_dem(tmp_path):
         estimator, estimate = io.estimate_from_files(model, log)
         dem = estimator.dem()
         assert dem.motion == motion
-        direct = NonlinearDEM(dem.system, dem.dt, dem.kernel_width, dem.sensor_precision, dem.process_precision,
-                              embedding_order=6, motion=motion).estimate(log.matrix(["y1", "y2", "y3"]))
+        direct = NonlinearDEM(dem.system, dem.dt, kernel_width=dem.kernel_width, sensor_precision=dem.sensor_precision,
+                              process_precision=dem.process_precision, embedding_order=6,
+                              motion=motion).estimate(log.matrix(["y1", "y2", "y3"]))
         np.testing.assert_allclose(estimate.states, direct.states, rtol=1e-12, atol=1e-12)
 
 
@@ -229,8 +231,8 @@ def test_path_mode_takes_the_files_initial_state_as_a_prior(tmp_path):
         model, log = io.read_model(model_path), io.read_log(log_path)
         estimator, estimate = io.estimate_from_files(model, log)
         dem = estimator.dem()
-        direct = NonlinearDEM(dem.system, dem.dt, dem.kernel_width, dem.sensor_precision, dem.process_precision,
-                              embedding_order=6, states="path").estimate(
+        direct = NonlinearDEM(dem.system, dem.dt, kernel_width=dem.kernel_width, sensor_precision=dem.sensor_precision,
+                              process_precision=dem.process_precision, embedding_order=6, states="path").estimate(
             log.matrix(["y1", "y2", "y3"]), initial_state=[1.0, 1.0, 24.0], initial_state_std=std)
         np.testing.assert_allclose(estimate.states, direct.states, rtol=1e-12, atol=1e-12)
 
@@ -565,7 +567,8 @@ def test_the_smoothers_start_widens_a_misfit_d_step_instead_of_warning(tmp_path,
                comments="", fmt="%.17g")
     system = NonlinearSystem(lambda x, v: A @ x + B @ v, lambda x, v: C @ x, 2, 1, 1)
     with pytest.warns(ModelWarning, match="far from DEM's generalised model"):
-        NonlinearDEM(system, dt, 0.25, 1.479e7, 1e10, known_inputs=True).estimate(log.outputs[:28], u[:28])
+        NonlinearDEM(system, dt, kernel_width=0.25, sensor_precision=1.479e7, process_precision=1e10,
+                     known_inputs=True).estimate(log.outputs[:28], u[:28])
     status = main(["estimate", str(tmp_path / "held.toml"), str(tmp_path / "log.csv"), "--out",
                    str(tmp_path / "e.csv")])
     err = capsys.readouterr().err

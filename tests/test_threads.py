@@ -66,7 +66,8 @@ def test_estimators_run_with_one_thread_and_restore(two_threads, monkeypatch):
         return original(x, v)
 
     object.__setattr__(system, "f", spy)
-    dem = NonlinearDEM(system, 0.01, 0.02, 1.0, 1 / 400, embedding_order=2)
+    dem = NonlinearDEM(system, 0.01, kernel_width=0.02, sensor_precision=1.0, process_precision=1 / 400,
+                       embedding_order=2)
     dem.estimate(np.ones((12, 3)))
     assert seen and set(seen) == {(1,) * len(two_threads)}
     assert _threads.blas_threads() == [2] * len(two_threads)

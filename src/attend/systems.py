@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from scipy.linalg import expm
 
 from attend._validation import AttendInputError, as_matrix, positive_scalar, unique_names
 from attend.noise import coloured_noise
@@ -135,6 +134,8 @@ def as_linear_system(system, field: str = "system") -> LinearSystem:
 
 def zero_order_hold(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Ad = expm(A dt), Bd = int_0^dt expm(A t) dt B from one block matrix exponential."""
+    from scipy.linalg import expm  # here: reading a model or a log does not load scipy.linalg
+
     n, r = B.shape
     block = np.zeros((n + r, n + r))
     block[:n, :n] = A

@@ -244,8 +244,8 @@ def test_missing_data_directory_is_a_clear_error(tmp_path):
 def test_published_dem_rejects_known_input_observer(quadrotor_data):
     log = quadrotor.load_flight(quadrotor_data, "exp_21_WW_WM_0")
     piece = quadrotor.prepare_slice(log, 400, 639)
-    observer = quadrotor.DEMObserver(piece.system, quadrotor.DT, 0.006, 1e8, piece.process_precision,
-                                     known_inputs=True)
+    observer = quadrotor.DEMObserver(piece.system, quadrotor.DT, kernel_width=0.006, sensor_precision=1e8,
+                                     process_precision=piece.process_precision, known_inputs=True)
     with pytest.raises(AttendInputError, match="known_inputs=False"):
         quadrotor.published_dem(observer, piece.outputs, piece.inputs)
 

@@ -147,7 +147,8 @@ def test_more_embedding_orders_help_under_coloured_noise():
         log = simulate(system, u, 0.1, kernel_width=0.5, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=seed)
         sse = []
         for p in (0, 3):
-            est = DEMObserver(system, 0.1, 0.5, np.exp(8), np.exp(8), np.exp(-8), p, 2).estimate(log.outputs)
+            est = DEMObserver(system, 0.1, kernel_width=0.5, sensor_precision=np.exp(8), process_precision=np.exp(8),
+                              input_prior_precision=np.exp(-8), embedding_order=p, input_order=2).estimate(log.outputs)
             sse.append(np.sum((est.inputs[8:-8] - u[8:-8]) ** 2))
         wins += sse[1] < sse[0]
     assert wins == 5
@@ -205,7 +206,8 @@ def test_auto_order_is_stable_on_a_bank_of_random_systems():
         system, rng = _random_stable_system(seed)
         dt = 0.05
         s = rng.uniform(0.5, 5.0) * dt
-        observer = DEMObserver(system, dt, s, 1 / 0.05**2, 1 / 0.1**2, 1.0)
+        observer = DEMObserver(system, dt, kernel_width=s, sensor_precision=1 / 0.05**2, process_precision=1 / 0.1**2,
+                               input_prior_precision=1.0)
         analysis = observer.analysis()
         assert analysis.automatic and analysis.embedding_order == observer.embedding_order <= 6
         assert analysis.spectral_radius < 1.0
@@ -294,7 +296,9 @@ def test_no_stability_warning_on_a_fine_observer():
 def test_drifting_observer_is_refused_for_a_short_log():
     """The mass-spring-damper at p = 0 (input orders free of the motion) remembers a start error in
     the input's derivative for ~1e4 s: a 32 s log is fine (it grows only late), a 1e4 s log is not."""
-    observer = DEMObserver(mass_spring_damper(), 0.1, 0.5, np.exp(8), np.exp(8), np.exp(-8), 0, 2)
+    observer = DEMObserver(mass_spring_damper(), 0.1, kernel_width=0.5, sensor_precision=np.exp(8),
+                           process_precision=np.exp(8), input_prior_precision=np.exp(-8), embedding_order=0,
+                           input_order=2)
     assert observer.analysis().start_time_constant > 1000
     observer.estimate(np.zeros((320, 1)))
     with pytest.raises(AttendInputError, match="embedding_order: .* remembers its start"):
@@ -368,8 +372,8 @@ def test_reported_std_is_calibrated_on_simulated_data(known_inputs):
         system, rng = _random_stable_system(seed)
         dt = 0.05
         s = rng.uniform(0.5, 5.0) * dt
-        observer = DEMObserver(system, dt, s, 1 / 0.05**2, 1 / 0.1**2, None if known_inputs else 1.0,
-                               known_inputs=known_inputs)
+        observer = DEMObserver(system, dt, kernel_width=s, sensor_precision=1 / 0.05**2, process_precision=1 / 0.1**2,
+                               input_prior_precision=None if known_inputs else 1.0, known_inputs=known_inputs)
         u = coloured_noise(4000, system.n_inputs, dt, s, 1.0, seed=100 + seed)
         log = simulate(system, u, dt, kernel_width=s, process_std=0.1, measurement_std=0.05, seed=seed)
         estimate = observer.estimate(log.outputs, u if known_inputs else None)
@@ -392,17 +396,20 @@ def test_unobservable_state_gets_nan_std_and_a_warning():
     from attend.problems import quadrotor_roll
 
     with pytest.raises(AttendInputError, match="unstable"):  # the flow has modes exactly at 1
-        DEMObserver(quadrotor_roll(), 1 / 120, 0.006, [0.0], [5.5e5, 247.0], known_inputs=True, embedding_order=2)
+        DEMObserver(quadrotor_roll(), 1 / 120, kernel_width=0.006, sensor_precision=[0.0],
+                    process_precision=[5.5e5, 247.0], known_inputs=True, embedding_order=2)
     with pytest.warns(ModelWarning):
-        observer = DEMObserver(quadrotor_roll(), 1 / 120, 0.006, [0.0], [5.5e5, 247.0], known_inputs=True,
-                               embedding_order=2, allow_unstable=True)
+        observer = DEMObserver(quadrotor_roll(), 1 / 120, kernel_width=0.006, sensor_precision=[0.0],
+                               process_precision=[5.5e5, 247.0], known_inputs=True, embedding_order=2,
+                               allow_unstable=True)
         estimate = observer.estimate(np.zeros((500, 1)), np.zeros((500, 4)))
     assert np.all(np.isnan(estimate.state_std))
     # C = 0 on a stable system: also flagged
     from attend import LinearSystem
 
     blind = LinearSystem([[-1.0, 0.5], [0.0, -2.0]], [[1.0], [0.0]], [[0.0, 0.0]])
-    observer = DEMObserver(blind, 0.1, 0.5, 1e4, 1e4, 1.0, 3)
+    observer = DEMObserver(blind, 0.1, kernel_width=0.5, sensor_precision=1e4, process_precision=1e4,
+                           input_prior_precision=1.0, embedding_order=3)
     assert set(observer.analysis().unobservable) == {"x1", "x2", "u1"}
     assert np.all(np.isnan(observer.analysis().state_std))
     with pytest.warns(ModelWarning, match="x1, x2, u1: not informed by the outputs"):
@@ -422,9 +429,11 @@ def test_python_control_statespace_is_accepted_and_other_types_name_the_converte
     y = np.sin(np.arange(40)[:, None] * 0.1 * np.arange(1, 5))
     np.testing.assert_allclose(converted.estimate(y).states, reference.estimate(y).states)
     with pytest.raises(AttendInputError, match="attend.interop.from_statespace"):
-        DEMObserver((system.A, system.B, system.C), 0.1, 0.5, 1.0, 1.0, 1.0)
+        DEMObserver((system.A, system.B, system.C), 0.1, kernel_width=0.5, sensor_precision=1.0, process_precision=1.0,
+                    input_prior_precision=1.0)
     with pytest.raises(AttendInputError, match="system: statespace: D must be zero"):
-        DEMObserver(control.ss(system.A, system.B, system.C, np.ones((4, 1))), 0.1, 0.5, 1.0, 1.0, 1.0)
+        DEMObserver(control.ss(system.A, system.B, system.C, np.ones((4, 1))), 0.1, kernel_width=0.5,
+                    sensor_precision=1.0, process_precision=1.0, input_prior_precision=1.0)
 
 
 def test_online_step_rejects_text():
@@ -446,7 +455,8 @@ def test_a_dem_estimate_worse_than_the_prior_is_named_in_a_warning():
         system, rng = _random_stable_system(seed)
         dt = 0.05
         s = rng.uniform(0.5, 5.0) * dt
-        observer = DEMObserver(system, dt, s, 1 / 0.05**2, 1 / 0.1**2, 1.0)
+        observer = DEMObserver(system, dt, kernel_width=s, sensor_precision=1 / 0.05**2, process_precision=1 / 0.1**2,
+                               input_prior_precision=1.0)
         log = sim(system, np.zeros((2000, system.n_inputs)), dt, kernel_width=s, process_std=0.1,
                   measurement_std=0.05, seed=seed)
         with warnings.catch_warnings(record=True) as caught:
@@ -486,8 +496,9 @@ def test_authors_quadrotor_settings_run_with_a_note():
     spectral radius 1.00007 (>= 1), growth 1.2x over 2600 samples: it runs, with a warning naming it."""
     sigma_w = np.array([0.08, 0.08, 0.08, 0.1, 0.1, 0.1, 1.0, 1.0, 1.0, 28, 28, 20.0])
     sigma_z = np.array([0.01, 0.01, 0.01, 7e-4, 7e-4, 2e-3])
-    observer = DEMObserver(_hover_quadrotor(), 0.04, 0.04, 1 / sigma_z**2, 1 / sigma_w**2, np.exp(-8), 5, 2,
-                           precision_convention="max")
+    observer = DEMObserver(_hover_quadrotor(), 0.04, kernel_width=0.04, sensor_precision=1 / sigma_z**2,
+                           process_precision=1 / sigma_w**2, input_prior_precision=np.exp(-8), embedding_order=5,
+                           input_order=2, precision_convention="max")
     rho = observer.analysis().spectral_radius
     assert 1.00005 < rho < 1.0001
     y = 0.01 * np.random.default_rng(1).standard_normal((2600, 6))

@@ -13,8 +13,8 @@ DT = 0.1
 
 
 def _observer():
-    return DEMObserver(convolution_model(), DT, 0.5, sensor_precision=np.exp(8), process_precision=np.exp(6),
-                       known_inputs=True, embedding_order=3, input_order=2)
+    return DEMObserver(convolution_model(), DT, kernel_width=0.5, sensor_precision=np.exp(8),
+                       process_precision=np.exp(6), known_inputs=True, embedding_order=3, input_order=2)
 
 
 def _log(n_samples=200):

@@ -393,8 +393,9 @@ def test_readme_learning_section_converges_on_real_flights(flight):
 
     # embedding_order "auto" as `attend estimate` uses: at p = 6 the DEM stability analysis (main) refuses this
     # slice for the PRIOR model too at the learned sensor precision (a start error would outlive the log)
-    observer = DEMObserver(result.system(), DT, 0.006, result.sensor_precision, result.process_precision, None,
-                           "auto", 2, known_inputs=True, precision_convention="max")
+    observer = DEMObserver(result.system(), DT, kernel_width=0.006, sensor_precision=result.sensor_precision,
+                           process_precision=result.process_precision, input_prior_precision=None,
+                           embedding_order="auto", input_order=2, known_inputs=True, precision_convention="max")
     assert np.all(np.isfinite(observer.estimate(y, u).states))
 
 

@@ -131,8 +131,10 @@ def test_flow_in_samples_does_not_depend_on_the_time_unit():
     millis = NonlinearSystem(lambda x, v: lorenz(x, v) / 1000.0, lambda x, v: 1.0 * x, 3, 0, 3)
     log = simulate_nonlinear(seconds, 120, 0.01, kernel_width=0.02, process_std=20.0, measurement_std=1.0,
                              initial_state=[1.0, 1.0, 24.0], seed=0)
-    in_s = NonlinearDEM(seconds, 0.01, 0.02, 1.0, 1 / 400, embedding_order=4).estimate(log.outputs)
-    in_ms = NonlinearDEM(millis, 10.0, 20.0, 1.0, 1e6 / 400, embedding_order=4).estimate(log.outputs)
+    in_s = NonlinearDEM(seconds, 0.01, kernel_width=0.02, sensor_precision=1.0, process_precision=1 / 400,
+                        embedding_order=4).estimate(log.outputs)
+    in_ms = NonlinearDEM(millis, 10.0, kernel_width=20.0, sensor_precision=1.0, process_precision=1e6 / 400,
+                         embedding_order=4).estimate(log.outputs)
     np.testing.assert_allclose(in_ms.states, in_s.states, atol=1e-6)
     np.testing.assert_allclose(in_ms.state_std, in_s.state_std, rtol=1e-6)
 
@@ -148,7 +150,8 @@ def _lorenz_log(seed, n_samples=300):
 
 def test_batch_equals_online_autonomous():
     system, log = _lorenz_log(0, 80)
-    dem = NonlinearDEM(system, 0.01, 0.02, 1.0, 1 / 400, embedding_order=4)
+    dem = NonlinearDEM(system, 0.01, kernel_width=0.02, sensor_precision=1.0, process_precision=1 / 400,
+                       embedding_order=4)
     batch = dem.estimate(log.outputs)
     online = dem.online()
     rows = [row for row in (online.step(y) for y in log.outputs) if row is not None] + online.finish()
@@ -162,7 +165,8 @@ def test_batch_equals_online_with_unknown_input():
     u = np.sin(np.arange(60) * 0.05)[:, None]
     log = simulate_nonlinear(system, u, 0.05, kernel_width=0.1, process_std=0.3, measurement_std=0.05,
                              initial_state=[0.3, 0.0], seed=1)
-    dem = NonlinearDEM(system, 0.05, 0.1, 400.0, 10.0, 0.1, 6, 2)
+    dem = NonlinearDEM(system, 0.05, kernel_width=0.1, sensor_precision=400.0, process_precision=10.0,
+                       input_prior_precision=0.1, embedding_order=6, input_order=2)
     batch = dem.estimate(log.outputs)
     online = dem.online()
     rows = [row for row in (online.step(y, 0.0) for y in log.outputs) if row is not None] + online.finish()
@@ -174,7 +178,8 @@ def test_lorenz_estimates_beat_the_raw_data_and_std_is_calibrated():
     inside, errors, raw = [], [], []
     for seed in range(3):
         system, log = _lorenz_log(seed, 400)
-        estimate = NonlinearDEM(system, 0.01, 0.02, 1.0, 1 / 400, embedding_order=6).estimate(log.outputs)
+        estimate = NonlinearDEM(system, 0.01, kernel_width=0.02, sensor_precision=1.0, process_precision=1 / 400,
+                                embedding_order=6).estimate(log.outputs)
         trim = slice(7, -7)
         error = (estimate.states - log.states)[trim]
         inside.append(np.abs(error) < 2 * estimate.state_std[trim])
@@ -191,7 +196,8 @@ def test_pendulum_input_is_estimated_and_calibrated():
     u = (4 * np.exp(-0.5 * ((time - 5) / 0.7) ** 2) - 3 * np.exp(-0.5 * ((time - 12) / 1.0) ** 2))[:, None]
     log = simulate_nonlinear(system, u, 0.05, kernel_width=0.1, process_std=[0.05, 0.5], measurement_std=0.05,
                              initial_state=[0.5, 0.0], seed=0)
-    estimate = NonlinearDEM(system, 0.05, 0.1, 400.0, [400.0, 4.0], np.exp(-2), 6, 2).estimate(log.outputs)
+    estimate = NonlinearDEM(system, 0.05, kernel_width=0.1, sensor_precision=400.0, process_precision=[400.0, 4.0],
+                            input_prior_precision=np.exp(-2), embedding_order=6, input_order=2).estimate(log.outputs)
     trim = slice(7, -7)
     # the input prior (smoothness of the 0.1 s noise kernel) leaves a rough input estimate: a
     # weak bound; the bumps themselves are found
@@ -232,7 +238,7 @@ def test_ekf_and_ukf_agree_on_a_mildly_nonlinear_pendulum():
     u = 0.2 * np.sin(np.arange(200) * 0.05)[:, None]
     log = simulate_nonlinear(system, u, 0.05, kernel_width=0.05, process_std=0.05, measurement_std=0.05,
                              initial_state=[0.2, 0.0], seed=4)
-    Q, R = white_noise_covariances(system, 0.05, 0.05, 0.05, 0.05)
+    Q, R = white_noise_covariances(system, 0.05, kernel_width=0.05, process_std=0.05, measurement_std=0.05)
     ekf = extended_kalman(system, 0.05, log.outputs, u, process_covariance=Q, measurement_covariance=R,
                           initial_mean=[0.2, 0.0], initial_covariance=1e-2)
     ukf = unscented_kalman(system, 0.05, log.outputs, u, process_covariance=Q, measurement_covariance=R,
@@ -247,7 +253,7 @@ def test_augmented_ukf_estimates_an_unknown_input():
     u = (3 * np.exp(-0.5 * ((time - 5) / 0.7) ** 2))[:, None]
     log = simulate_nonlinear(system, u, 0.05, kernel_width=0.05, process_std=0.1, measurement_std=0.05,
                              initial_state=[0.2, 0.0], seed=5)
-    Q, R = white_noise_covariances(system, 0.05, 0.05, 0.1, 0.05)
+    Q, R = white_noise_covariances(system, 0.05, kernel_width=0.05, process_std=0.1, measurement_std=0.05)
     ukf = unscented_kalman(system, 0.05, log.outputs, process_covariance=Q, measurement_covariance=R,
                            input_variance=0.5, initial_mean=[0.2, 0.0], initial_covariance=1e-2)
     assert np.sum((ukf.inputs - u) ** 2) < 0.3 * np.sum(u**2)
@@ -261,7 +267,7 @@ def test_vectorized_systems_give_the_pointwise_kalman_estimates():
     u = (3 * np.exp(-0.5 * ((time - 3) / 0.7) ** 2))[:, None]
     log = simulate_nonlinear(pointwise, u, 0.05, kernel_width=0.1, process_std=0.1, measurement_std=0.05,
                              initial_state=[0.2, 0.0], seed=7)
-    Q, R = white_noise_covariances(pointwise, 0.05, 0.1, 0.1, 0.05)
+    Q, R = white_noise_covariances(pointwise, 0.05, kernel_width=0.1, process_std=0.1, measurement_std=0.05)
     kalman = dict(process_covariance=Q, measurement_covariance=R, initial_mean=[0.2, 0.0], initial_covariance=1e-2)
     runs = [(unscented_kalman, (log.outputs, u), kalman), (extended_kalman, (log.outputs, u), kalman),
             (unscented_kalman, (log.outputs,), dict(kalman, input_variance=0.5)),
@@ -288,18 +294,21 @@ def test_a_vectorized_f_that_ignores_its_columns_is_named():
 
 def test_white_noise_options_of_dem_precisions():
     Pi_w, Pi_z = np.array([[4.0, 1.0], [1.0, 2.0]]), np.diag([100.0, 400.0])
-    options = white_noise_options(0.05, Pi_w, Pi_z, [0.5, 2.0], 0.1, known_inputs=[True, False], input_mean=[1.0, 0.0])
+    options = white_noise_options(0.05, process_precision=Pi_w, sensor_precision=Pi_z, input_prior_precision=[0.5, 2.0],
+                                  input_kernel_width=0.1, known_inputs=[True, False], input_mean=[1.0, 0.0])
     np.testing.assert_allclose(options["process_covariance"], 0.05**2 * np.linalg.inv(Pi_w), rtol=1e-14)
     np.testing.assert_allclose(options["measurement_covariance"], np.diag([0.01, 0.0025]), rtol=1e-14)
     # one-sample steps of a Gaussian-kernel process of variance 1/P_v: 2 (1 - exp(-dt^2 / (4 s^2))) / P_v
     np.testing.assert_allclose(np.diag(options["input_variance"]), [0.0, 2 * (1 - np.exp(-0.0625)) / 2.0],
                                rtol=1e-14)
     assert options["known_inputs"].tolist() == [True, False] and options["input_mean"] == [1.0, 0.0]
-    assert set(white_noise_options(0.05, Pi_w, Pi_z)) == {"process_covariance", "measurement_covariance"}
+    assert set(white_noise_options(0.05, process_precision=Pi_w,
+                                   sensor_precision=Pi_z)) == {"process_covariance", "measurement_covariance"}
     with pytest.raises(AttendInputError, match="sensor_precision: the white-noise smoother needs a positive definite"):
-        white_noise_options(0.05, Pi_w, np.diag([1.0, 0.0]))
+        white_noise_options(0.05, process_precision=Pi_w, sensor_precision=np.diag([1.0, 0.0]))
     with pytest.raises(AttendInputError, match="input_prior_precision: .* > 0 for every unknown input"):
-        white_noise_options(0.05, Pi_w, Pi_z, [0.0, 0.0], 0.1, known_inputs=[True, False])
+        white_noise_options(0.05, process_precision=Pi_w, sensor_precision=Pi_z, input_prior_precision=[0.0, 0.0],
+                            input_kernel_width=0.1, known_inputs=[True, False])
 
 
 def test_rk4_substeps_follow_the_fastest_mode():
@@ -368,14 +377,18 @@ def test_bad_models_and_settings_raise():
         bad_jacobian.jacobians([0.0, 0.0], [0.0])
     system = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2)
     with pytest.raises(AttendInputError, match="input_prior_precision"):
-        NonlinearDEM(system, 0.05, 0.1, 1.0, 1.0)
+        NonlinearDEM(system, 0.05, kernel_width=0.1, sensor_precision=1.0, process_precision=1.0)
     with pytest.raises(AttendInputError, match="kernel_width"):
-        NonlinearDEM(system, 0.05, -0.1, 1.0, 1.0, 1.0)
+        NonlinearDEM(system, 0.05, kernel_width=-0.1, sensor_precision=1.0, process_precision=1.0,
+                     input_prior_precision=1.0)
     with pytest.raises(AttendInputError, match="flow_time"):
-        NonlinearDEM(system, 0.05, 0.1, 1.0, 1.0, 1.0, flow_time="hours")
+        NonlinearDEM(system, 0.05, kernel_width=0.1, sensor_precision=1.0, process_precision=1.0,
+                     input_prior_precision=1.0, flow_time="hours")
     with pytest.raises(AttendInputError, match="system"):
-        NonlinearDEM(mass_spring_damper(), 0.05, 0.1, 1.0, 1.0, 1.0)
-    dem = NonlinearDEM(system, 0.05, 0.1, 1.0, 1.0, 1.0)
+        NonlinearDEM(mass_spring_damper(), 0.05, kernel_width=0.1, sensor_precision=1.0, process_precision=1.0,
+                     input_prior_precision=1.0)
+    dem = NonlinearDEM(system, 0.05, kernel_width=0.1, sensor_precision=1.0, process_precision=1.0,
+                       input_prior_precision=1.0)
     with pytest.raises(AttendInputError, match="outputs: expected 2 columns"):
         dem.estimate(np.zeros((50, 3)))
     with pytest.raises(AttendInputError, match="outputs: expected finite"):
@@ -384,20 +397,22 @@ def test_bad_models_and_settings_raise():
         dem.estimate(np.zeros((3, 2)))
     with pytest.raises(AttendInputError, match="input_prior"):
         dem.estimate(np.zeros((50, 2)), np.zeros((49, 1)))
-    known = NonlinearDEM(system, 0.05, 0.1, 1.0, 1.0, known_inputs=True)
+    known = NonlinearDEM(system, 0.05, kernel_width=0.1, sensor_precision=1.0, process_precision=1.0, known_inputs=True)
     with pytest.raises(AttendInputError, match="inputs"):
         known.estimate(np.zeros((50, 2)))
 
 
 def test_divergence_stops_with_a_message_naming_the_settings():
     drift = NonlinearSystem(lambda x, v: 0.0 * x, lambda x, v: x, 1, 0, 1)
-    dem = NonlinearDEM(drift, 0.1, 0.2, 100.0, 1.0, embedding_order=2, divergence_limit=20.0)
+    dem = NonlinearDEM(drift, 0.1, kernel_width=0.2, sensor_precision=100.0, process_precision=1.0, embedding_order=2,
+                       divergence_limit=20.0)
     with pytest.raises(AttendInputError, match="diverged at sample .*process_precision"):
         dem.estimate(np.arange(60.0)[:, None])
     undefined = NonlinearSystem(lambda x, v: 0.0 * x, lambda x, v: np.sqrt(3.0 - x) if x[0] < 3 else np.array([np.nan]),
                                 1, 0, 1)
     with pytest.raises(AttendInputError, match="diverged"):
-        NonlinearDEM(undefined, 0.1, 0.2, 100.0, 1.0, embedding_order=2).estimate(-np.arange(60.0)[:, None] / 5)
+        NonlinearDEM(undefined, 0.1, kernel_width=0.2, sensor_precision=100.0, process_precision=1.0,
+                     embedding_order=2).estimate(-np.arange(60.0)[:, None] / 5)
 
 
 def test_path_motion_equals_linearized_on_a_linear_model():
@@ -422,13 +437,17 @@ def test_fixed_lag_ukf_equals_kalman_fixed_lag_on_a_linear_model():
 
 def test_input_kernel_width_sets_the_input_smoothness():
     system = NonlinearSystem(pendulum, pendulum_sensor, 2, 1, 2)
-    same = NonlinearDEM(system, 0.05, 0.1, 400.0, 4.0, 0.1, 6, 2, input_kernel_width=0.1)
-    default = NonlinearDEM(system, 0.05, 0.1, 400.0, 4.0, 0.1, 6, 2)
-    slow = NonlinearDEM(system, 0.05, 0.1, 400.0, 4.0, 0.1, 6, 2, input_kernel_width=0.7)
+    same = NonlinearDEM(system, 0.05, kernel_width=0.1, sensor_precision=400.0, process_precision=4.0,
+                        input_prior_precision=0.1, embedding_order=6, input_order=2, input_kernel_width=0.1)
+    default = NonlinearDEM(system, 0.05, kernel_width=0.1, sensor_precision=400.0, process_precision=4.0,
+                           input_prior_precision=0.1, embedding_order=6, input_order=2)
+    slow = NonlinearDEM(system, 0.05, kernel_width=0.1, sensor_precision=400.0, process_precision=4.0,
+                        input_prior_precision=0.1, embedding_order=6, input_order=2, input_kernel_width=0.7)
     np.testing.assert_allclose(same._matrices["Vv"], default._matrices["Vv"])
     assert slow._matrices["S_d"][2, 2] > 10 * default._matrices["S_d"][2, 2]
     with pytest.raises(AttendInputError, match="input_kernel_width"):
-        NonlinearDEM(system, 0.05, 0.1, 400.0, 4.0, 0.1, input_kernel_width=0.0)
+        NonlinearDEM(system, 0.05, kernel_width=0.1, sensor_precision=400.0, process_precision=4.0,
+                     input_prior_precision=0.1, input_kernel_width=0.0)
 
 
 def test_coloured_noise_models_refuse_a_nonstationary_ar_fit():

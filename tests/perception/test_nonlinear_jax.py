@@ -54,8 +54,10 @@ def _agree(numpy_estimate, jax_estimate, tolerance=1e-8):
 
 
 def test_lorenz_equals_the_numpy_step(lorenz_log):
-    numpy_dem = NonlinearDEM(lorenz.lorenz_system(), 0.01, 0.02, 1.0, 1 / 400)
-    jax_dem = NonlinearDEM(lorenz_jax(), 0.01, 0.02, 1.0, 1 / 400, backend="jax")
+    numpy_dem = NonlinearDEM(lorenz.lorenz_system(), 0.01, kernel_width=0.02, sensor_precision=1.0,
+                             process_precision=1 / 400)
+    jax_dem = NonlinearDEM(lorenz_jax(), 0.01, kernel_width=0.02, sensor_precision=1.0, process_precision=1 / 400,
+                           backend="jax")
     _agree(numpy_dem.estimate(lorenz_log.outputs, keep_generalized=True),
            jax_dem.estimate(lorenz_log.outputs, keep_generalized=True))
     # a second log of another length reuses the compiled chunk (rows past the log are skipped)
@@ -112,7 +114,8 @@ def test_expm_last_column_equals_scipy():
 
 def test_misfit_ratio_equals_the_numpy_check(lorenz_log):
     from attend.perception.nonlinear.misfit import sample_misfit
-    dem = NonlinearDEM(lorenz_jax(), 0.01, 0.02, 1.0, 1 / 400, backend="jax")
+    dem = NonlinearDEM(lorenz_jax(), 0.01, kernel_width=0.02, sensor_precision=1.0, process_precision=1 / 400,
+                       backend="jax")
     with jax_backend._double_precision(jax):
         generalized = dem.estimate(lorenz_log.outputs, keep_generalized=True).generalized
         signals = dem._signals(lorenz_log.outputs, None)
@@ -124,18 +127,21 @@ def test_misfit_ratio_equals_the_numpy_check(lorenz_log):
 
 def test_the_callers_precision_setting_is_kept(lorenz_log):
     before = jax.config.jax_enable_x64
-    NonlinearDEM(lorenz_jax(), 0.01, 0.02, 1.0, 1 / 400, backend="jax").estimate(lorenz_log.outputs[:20])
+    NonlinearDEM(lorenz_jax(), 0.01, kernel_width=0.02, sensor_precision=1.0, process_precision=1 / 400,
+                 backend="jax").estimate(lorenz_log.outputs[:20])
     assert jax.config.jax_enable_x64 == before
 
 
 def test_divergence_is_an_error_naming_the_sample(lorenz_log):
-    dem = NonlinearDEM(lorenz_jax(), 0.01, 0.02, 1.0, 1 / 400, backend="jax", divergence_limit=30.0)
+    dem = NonlinearDEM(lorenz_jax(), 0.01, kernel_width=0.02, sensor_precision=1.0, process_precision=1 / 400,
+                       backend="jax", divergence_limit=30.0)
     with pytest.raises(AttendInputError, match="diverged at sample"):
         dem.estimate(lorenz_log.outputs * 3)
 
 
 def test_numpy_functions_get_an_error_naming_jax_numpy(lorenz_log):
-    dem = NonlinearDEM(lorenz.lorenz_system(), 0.01, 0.02, 1.0, 1 / 400, backend="jax")
+    dem = NonlinearDEM(lorenz.lorenz_system(), 0.01, kernel_width=0.02, sensor_precision=1.0, process_precision=1 / 400,
+                       backend="jax")
     with pytest.raises(AttendInputError, match="jax.numpy"):
         dem.estimate(lorenz_log.outputs[:20])
 
@@ -143,25 +149,28 @@ def test_numpy_functions_get_an_error_naming_jax_numpy(lorenz_log):
 def test_a_wrong_shape_names_the_function(lorenz_log):
     system = NonlinearSystem(lambda x, v: x[:2], lambda x, v: 1.0 * x, 3, 0, 3)
     with pytest.raises(AttendInputError, match=r"f: expected 3 values \(a 1-D array\), got shape \(2,\)"):
-        NonlinearDEM(system, 0.01, 0.02, 1.0, 1 / 400, backend="jax").estimate(lorenz_log.outputs[:20])
+        NonlinearDEM(system, 0.01, kernel_width=0.02, sensor_precision=1.0, process_precision=1 / 400,
+                     backend="jax").estimate(lorenz_log.outputs[:20])
 
 
 @pytest.mark.parametrize("setting", [dict(motion="path"), dict(integration="spm"), dict(states="path")])
 def test_settings_the_compiled_step_does_not_run_are_refused(setting):
     with pytest.raises(AttendInputError, match="backend: 'jax' runs the D-step with"):
-        NonlinearDEM(lorenz_jax(), 0.01, 0.02, 1.0, 1 / 400, backend="jax", **setting)
+        NonlinearDEM(lorenz_jax(), 0.01, kernel_width=0.02, sensor_precision=1.0, process_precision=1 / 400,
+                     backend="jax", **setting)
 
 
 def test_unknown_backend_is_refused():
     with pytest.raises(AttendInputError, match="backend: expected 'numpy' or 'jax'"):
-        NonlinearDEM(lorenz_jax(), 0.01, 0.02, 1.0, 1 / 400, backend="torch")
+        NonlinearDEM(lorenz_jax(), 0.01, kernel_width=0.02, sensor_precision=1.0, process_precision=1 / 400,
+                     backend="torch")
 
 
 def test_missing_jax_says_how_to_install(monkeypatch):
     system = lorenz_jax()
     monkeypatch.setitem(sys.modules, "jax", None)  # import jax now raises ImportError
     with pytest.raises(AttendInputError, match=r"attend\[jax\]"):
-        NonlinearDEM(system, 0.01, 0.02, 1.0, 1 / 400, backend="jax")
+        NonlinearDEM(system, 0.01, kernel_width=0.02, sensor_precision=1.0, process_precision=1 / 400, backend="jax")
 
 
 def test_linear_model_equals_the_linear_observer():
@@ -205,4 +214,5 @@ def test_an_estimate_that_leaves_the_data_is_an_error(lorenz_log, monkeypatch):
     with warnings.catch_warnings(), pytest.raises(AttendInputError, match=r"NonlinearDEM: the estimate left the "
                                                                           r"data: at sample \d+ the predicted y2"):
         warnings.simplefilter("ignore")  # the misfit warning comes first
-        NonlinearDEM(lorenz_jax(), 0.01, 0.02, 1.0, 1 / 400, backend="jax").estimate(lorenz_log.outputs)
+        NonlinearDEM(lorenz_jax(), 0.01, kernel_width=0.02, sensor_precision=1.0, process_precision=1 / 400,
+                     backend="jax").estimate(lorenz_log.outputs)

@@ -18,7 +18,8 @@ def lorenz_case():
     system = lorenz.build_system(cfg)
     log = simulate_nonlinear(system, 200, cfg["dt"], kernel_width=cfg["kernel_width"], process_std=20.0,
                              measurement_std=1.0, initial_state=cfg["initial_state"], seed=5)
-    dem = NonlinearDEM(system, cfg["dt"], cfg["kernel_width"], 1.0, 1 / 400, embedding_order=6)
+    dem = NonlinearDEM(system, cfg["dt"], kernel_width=cfg["kernel_width"], sensor_precision=1.0,
+                       process_precision=1 / 400, embedding_order=6)
     return dem, log
 
 

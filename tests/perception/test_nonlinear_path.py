@@ -29,8 +29,10 @@ def _linear_case(seed: int, ratio: int):
                    initial_state=[0.5, 0.0])
     exact = exact_posterior(linear, dt, log.outputs, u, kernel_width=s, process_std=sw, measurement_std=sz,
                             initial_mean=[0.5, 0.0], initial_std=1e-2)
-    dem = NonlinearDEM(system, dt, s, 1 / sz**2, 1 / sw**2, embedding_order=6, known_inputs=True)
-    path = NonlinearDEM(system, dt, s, 1 / sz**2, 1 / sw**2, embedding_order=6, known_inputs=True, states="path")
+    dem = NonlinearDEM(system, dt, kernel_width=s, sensor_precision=1 / sz**2, process_precision=1 / sw**2,
+                       embedding_order=6, known_inputs=True)
+    path = NonlinearDEM(system, dt, kernel_width=s, sensor_precision=1 / sz**2, process_precision=1 / sw**2,
+                        embedding_order=6, known_inputs=True, states="path")
     return log, exact, dem.estimate(log.outputs, u), path.estimate(log.outputs, u)
 
 
@@ -55,7 +57,8 @@ def test_path_mode_std_is_calibrated_on_lorenz():
     """|error| < 2 std in 93-97 % of the state samples over 4 seeds (measured 0.948 over 6)."""
     cfg = lorenz.SETTINGS
     system = lorenz.build_system(cfg)
-    dem = NonlinearDEM(system, cfg["dt"], cfg["kernel_width"], 1.0, 1 / 400, embedding_order=6, states="path")
+    dem = NonlinearDEM(system, cfg["dt"], kernel_width=cfg["kernel_width"], sensor_precision=1.0,
+                       process_precision=1 / 400, embedding_order=6, states="path")
     inside = []
     for seed in range(4):
         log = simulate_nonlinear(system, 400, cfg["dt"], kernel_width=cfg["kernel_width"], process_std=20.0,
@@ -78,8 +81,10 @@ def test_path_mode_maximises_its_free_energy_and_beats_the_d_step_on_the_pendulu
     settings = dict(input_kernel_width=cfg["input_kernel_width"], embedding_order=6, input_order=2)
     sz, sw = cfg["measurement_std"], np.array(cfg["process_std"])
     prior = np.exp(cfg["input_prior_log_precision"])
-    dstep = NonlinearDEM(system, cfg["dt"], cfg["kernel_width"], 1 / sz**2, 1 / sw**2, prior, **settings)
-    path = NonlinearDEM(system, cfg["dt"], cfg["kernel_width"], 1 / sz**2, 1 / sw**2, prior, states="path", **settings)
+    dstep = NonlinearDEM(system, cfg["dt"], kernel_width=cfg["kernel_width"], sensor_precision=1 / sz**2,
+                         process_precision=1 / sw**2, input_prior_precision=prior, **settings)
+    path = NonlinearDEM(system, cfg["dt"], kernel_width=cfg["kernel_width"], sensor_precision=1 / sz**2,
+                        process_precision=1 / sw**2, input_prior_precision=prior, states="path", **settings)
     start, end = dstep.estimate(log.outputs), path.estimate(log.outputs)
     problem = _Problem(path, log.outputs, np.zeros((n, 1)))
 
@@ -120,8 +125,8 @@ def test_block_tridiagonal_solve_equals_a_dense_solve():
 def test_path_mode_bad_input():
     system = NonlinearSystem(lambda x, v: -x, lambda x, v: x, 1, 0, 1)
     with pytest.raises(AttendInputError, match="states: expected 'sample' or 'path'"):
-        NonlinearDEM(system, 0.1, 0.2, 1.0, 1.0, states="paths")
-    path = NonlinearDEM(system, 0.1, 0.2, 1.0, 1.0, states="path")
+        NonlinearDEM(system, 0.1, kernel_width=0.2, sensor_precision=1.0, process_precision=1.0, states="paths")
+    path = NonlinearDEM(system, 0.1, kernel_width=0.2, sensor_precision=1.0, process_precision=1.0, states="path")
     with pytest.raises(AttendInputError, match="needs the whole log"):
         path.online()
     with pytest.raises(AttendInputError, match="at least 7 samples"):
@@ -143,17 +148,20 @@ def test_a_log_far_from_the_generalised_model_is_named():
     dt, s = 0.05, 0.25
     u = np.sin(2.0 * np.arange(160) * dt)[:, None]
     held = simulate(linear, u, dt, kernel_width=s, process_std=1e-5, measurement_std=2.6e-4, seed=1)
-    dem = NonlinearDEM(system, dt, s, 1 / 2.6e-4**2, 1 / 1e-5**2, known_inputs=True, states="path")
+    dem = NonlinearDEM(system, dt, kernel_width=s, sensor_precision=1 / 2.6e-4**2, process_precision=1 / 1e-5**2,
+                       known_inputs=True, states="path")
     with pytest.warns(ModelWarning, match="far from DEM's generalised model"):
         dem.estimate(held.outputs, u)
-    dstep = NonlinearDEM(system, dt, s, 1 / 2.6e-4**2, 1 / 1e-5**2, known_inputs=True)
+    dstep = NonlinearDEM(system, dt, kernel_width=s, sensor_precision=1 / 2.6e-4**2, process_precision=1 / 1e-5**2,
+                         known_inputs=True)
     with pytest.warns(ModelWarning, match="NonlinearDEM: the log is far from DEM's generalised model"):
         dstep.estimate(held.outputs, u)  # the D-step checks its own estimates the same way
     noisy = simulate(linear, u, dt, kernel_width=s, process_std=0.3, measurement_std=0.05, seed=1)
     with warnings.catch_warnings():
         warnings.simplefilter("error", ModelWarning)
         for states in ("path", "sample"):
-            NonlinearDEM(system, dt, s, 1 / 0.05**2, 1 / 0.3**2, known_inputs=True, states=states).estimate(
+            NonlinearDEM(system, dt, kernel_width=s, sensor_precision=1 / 0.05**2, process_precision=1 / 0.3**2,
+                         known_inputs=True, states=states).estimate(
                 noisy.outputs, u)
 
 
@@ -164,7 +172,8 @@ def test_a_prior_on_the_first_state_pins_a_weakly_observed_start():
     linear = mass_spring_damper()
     A, B, C = linear.A, linear.B, linear.C
     system = NonlinearSystem(lambda x, v: A @ x + B @ v, lambda x, v: C @ x, 2, 1, C.shape[0])
-    path = NonlinearDEM(system, 0.1, 0.2, 1 / 0.05**2, 1 / 0.3**2, known_inputs=True, states="path")
+    path = NonlinearDEM(system, 0.1, kernel_width=0.2, sensor_precision=1 / 0.05**2, process_precision=1 / 0.3**2,
+                        known_inputs=True, states="path")
     u = np.zeros((200, 1))
     free = path.estimate(log.outputs, u, initial_state=[0.5, 0.0])
     pinned = path.estimate(log.outputs, u, initial_state=[0.5, 0.0], initial_state_std=1e-4)
@@ -175,7 +184,8 @@ def test_a_prior_on_the_first_state_pins_a_weakly_observed_start():
         path.estimate(log.outputs, u, initial_state_std=0.1)
     with pytest.raises(AttendInputError, match="initial_state_std: expected finite stds > 0"):
         path.estimate(log.outputs, u, initial_state=[0.5, 0.0], initial_state_std=0.0)
-    sample = NonlinearDEM(system, 0.1, 0.2, 1 / 0.05**2, 1 / 0.3**2, known_inputs=True)
+    sample = NonlinearDEM(system, 0.1, kernel_width=0.2, sensor_precision=1 / 0.05**2, process_precision=1 / 0.3**2,
+                          known_inputs=True)
     with pytest.raises(AttendInputError, match="used by states='path' only"):
         sample.estimate(log.outputs, u, initial_state=[0.5, 0.0], initial_state_std=0.1)
 
@@ -192,8 +202,9 @@ def test_all_windows_at_once_equal_one_window_at_a_time(known, integration):
     log = simulate_nonlinear(system, pendulum.true_input(time), cfg["dt"], kernel_width=cfg["kernel_width"],
                              process_std=cfg["process_std"], measurement_std=cfg["measurement_std"],
                              initial_state=cfg["initial_state"], seed=0)
-    dem = NonlinearDEM(system, cfg["dt"], cfg["kernel_width"], 400.0, [400.0, 4.0], None if known else np.exp(-2.0),
-                       6, 2, known_inputs=known, integration=integration)
+    dem = NonlinearDEM(system, cfg["dt"], kernel_width=cfg["kernel_width"], sensor_precision=400.0,
+                       process_precision=[400.0, 4.0], input_prior_precision=None if known else np.exp(-2.0),
+                       embedding_order=6, input_order=2, known_inputs=known, integration=integration)
     problem = _Problem(dem, log.outputs, log.inputs if known else np.zeros((60, 1)))
     layout = problem.layout
     z = np.random.default_rng(0).normal(size=(problem.padded, layout.q))
@@ -214,8 +225,10 @@ def _pendulum_case():
     log = simulate_nonlinear(system, pendulum.true_input(time + 4.0), cfg["dt"], kernel_width=cfg["kernel_width"],
                              process_std=cfg["process_std"], measurement_std=cfg["measurement_std"],
                              initial_state=cfg["initial_state"], seed=1)
-    dem = NonlinearDEM(system, cfg["dt"], cfg["kernel_width"], 1 / cfg["measurement_std"]**2,
-                       1 / np.asarray(cfg["process_std"])**2, 0.135, 6, 2, input_kernel_width=0.7, states="path")
+    dem = NonlinearDEM(system, cfg["dt"], kernel_width=cfg["kernel_width"],
+                       sensor_precision=1 / cfg["measurement_std"]**2,
+                       process_precision=1 / np.asarray(cfg["process_std"])**2, input_prior_precision=0.135,
+                       embedding_order=6, input_order=2, input_kernel_width=0.7, states="path")
     return dem, log
 
 
@@ -231,7 +244,8 @@ def test_the_smoother_start_is_the_unscented_smoother_with_the_documented_settin
     assert substeps == 2  # dt rho(df/dx) = 0.05 s x sqrt(9.81) rad/s = 0.16: ceil(0.16 / 0.1) RK4 steps
     direct = unscented_kalman(dem.system, dem.dt, log.outputs, process_covariance=dem.dt**2 * np.linalg.inv(
         dem.process_precision), measurement_covariance=np.linalg.inv(dem.sensor_precision),
-        input_variance=np.diag(input_random_walk_variance(np.array([0.135]), 0.7, dem.dt)), input_mean=np.zeros(1),
+        input_variance=np.diag(input_random_walk_variance(np.array([0.135]), kernel_width=0.7,
+                                                          dt=dem.dt)), input_mean=np.zeros(1),
         initial_mean=prior[0], initial_covariance=np.diag(1 / prior[1]), smooth=True, substeps=substeps)
     np.testing.assert_allclose(states, direct.states, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(inputs, direct.inputs, rtol=1e-12, atol=1e-12)
@@ -257,7 +271,8 @@ def test_the_prior_on_x0_is_the_d_steps_start_as_wide_as_its_states_or_its_widen
     u = np.sin(2.0 * np.arange(160) * 0.05)[:, None]
     held = simulate(LinearSystem(A, B, C), u, 0.05, kernel_width=0.25, process_std=1e-5, measurement_std=2.6e-4,
                     seed=1)
-    held_dem = NonlinearDEM(system, 0.05, 0.25, 1 / 2.6e-4**2, 1 / 1e-5**2, known_inputs=True)
+    held_dem = NonlinearDEM(system, 0.05, kernel_width=0.25, sensor_precision=1 / 2.6e-4**2,
+                            process_precision=1 / 1e-5**2, known_inputs=True)
     held_signals = held_dem._signals(held.outputs, u)
     held_start = held_dem._sample_estimate(held_signals, True, None, check=False)
     assert not d_step_basis(held_dem, held_signals, held_start)[1]
@@ -273,8 +288,9 @@ def test_no_smoother_start_without_a_positive_definite_precision():
     from attend.perception.nonlinear.path_starts import smoother_start
 
     dem, log = _pendulum_case()
-    singular = NonlinearDEM(dem.system, dem.dt, dem.kernel_width, dem.sensor_precision, np.diag([400.0, 0.0]),
-                            0.135, 6, 2, input_kernel_width=0.7, states="path")
+    singular = NonlinearDEM(dem.system, dem.dt, kernel_width=dem.kernel_width, sensor_precision=dem.sensor_precision,
+                            process_precision=np.diag([400.0, 0.0]), input_prior_precision=0.135, embedding_order=6,
+                            input_order=2, input_kernel_width=0.7, states="path")
     assert smoother_start(singular, singular._signals(log.outputs, None), None, start=None) is None
 
 
@@ -299,8 +315,9 @@ def test_path_starts_dstep_runs_one_start_and_bad_values_are_refused(monkeypatch
     import attend.perception.nonlinear.path as path_module
 
     dem, log = _pendulum_case()
-    one = NonlinearDEM(dem.system, dem.dt, dem.kernel_width, dem.sensor_precision, dem.process_precision, 0.135, 6, 2,
-                       input_kernel_width=0.7, states="path", path_starts="dstep")
+    one = NonlinearDEM(dem.system, dem.dt, kernel_width=dem.kernel_width, sensor_precision=dem.sensor_precision,
+                       process_precision=dem.process_precision, input_prior_precision=0.135, embedding_order=6,
+                       input_order=2, input_kernel_width=0.7, states="path", path_starts="dstep")
 
     def refuse(*args):
         raise AssertionError("path_starts='dstep' must not run the smoother")
@@ -308,7 +325,8 @@ def test_path_starts_dstep_runs_one_start_and_bad_values_are_refused(monkeypatch
     monkeypatch.setattr(path_module, "smoother_start", refuse)
     assert np.all(np.isfinite(one.estimate(log.outputs).states))
     with pytest.raises(AttendInputError, match="path_starts: expected 'both' or 'dstep'"):
-        NonlinearDEM(dem.system, dem.dt, dem.kernel_width, 1.0, 1.0, 0.135, states="path", path_starts="ukf")
+        NonlinearDEM(dem.system, dem.dt, kernel_width=dem.kernel_width, sensor_precision=1.0, process_precision=1.0,
+                     input_prior_precision=0.135, states="path", path_starts="ukf")
 
 
 # --- all windows' f, g and Jacobians at once (vectorized systems) ------------------------------
@@ -353,8 +371,9 @@ def test_path_mode_of_a_vectorized_system_equals_point_by_point():
     time = np.arange(150) * 0.05
     push = np.sin(0.7 * time)[:, None]
     log = simulate_nonlinear(system, push, 0.05, kernel_width=0.1, process_std=0.3, measurement_std=0.05, seed=2)
-    estimates = [NonlinearDEM(candidate, 0.05, 0.1, 400.0, 1 / 0.09, embedding_order=4, input_order=2,
-                              known_inputs=True, states="path").estimate(log.outputs, push)
+    estimates = [NonlinearDEM(candidate, 0.05, kernel_width=0.1, sensor_precision=400.0, process_precision=1 / 0.09,
+                              embedding_order=4, input_order=2, known_inputs=True,
+                              states="path").estimate(log.outputs, push)
                  for candidate in (system, _saturating(True))]
     np.testing.assert_allclose(estimates[1].states, estimates[0].states, rtol=1e-6, atol=1e-8)
     np.testing.assert_allclose(estimates[1].state_std, estimates[0].state_std, rtol=1e-5)
@@ -367,7 +386,8 @@ def test_several_maxima_of_the_free_energy_are_named():
                              lambda x, v: np.array([np.sin(2.0 * x[0])]), 2, 0, 1)
     log = simulate_nonlinear(system, 150, 0.05, kernel_width=0.1, process_std=[0.1, 1.5], measurement_std=0.1,
                              initial_state=[1.5, 0.0], seed=0)
-    dem = NonlinearDEM(system, 0.05, 0.1, 100.0, np.diag([100.0, 1 / 1.5**2]), embedding_order=4, states="path")
+    dem = NonlinearDEM(system, 0.05, kernel_width=0.1, sensor_precision=100.0,
+                       process_precision=np.diag([100.0, 1 / 1.5**2]), embedding_order=4, states="path")
     with pytest.warns(ModelWarning, match=r"F has more than one maximum on this log: .* ended more than 2 std apart "
                                           r"at \d+% of the samples"):
         dem.estimate(log.outputs, initial_state=[0.0, 0.0], initial_state_std=2.0)
@@ -379,10 +399,12 @@ def test_one_maximum_raises_no_such_warning():
     u = pendulum.true_input(np.arange(200) * cfg["dt"])
     log = simulate_nonlinear(system, u, cfg["dt"], kernel_width=cfg["kernel_width"], process_std=cfg["process_std"],
                              measurement_std=cfg["measurement_std"], initial_state=cfg["initial_state"], seed=1)
-    dem = NonlinearDEM(system, cfg["dt"], cfg["kernel_width"], 1 / cfg["measurement_std"] ** 2,
-                       1 / np.asarray(cfg["process_std"]) ** 2, np.exp(cfg["input_prior_log_precision"]),
-                       cfg["embedding_order"], cfg["input_order"], input_kernel_width=cfg["input_kernel_width"],
-                       states="path")
+    dem = NonlinearDEM(system, cfg["dt"], kernel_width=cfg["kernel_width"],
+                       sensor_precision=1 / cfg["measurement_std"] ** 2,
+                       process_precision=1 / np.asarray(cfg["process_std"]) ** 2,
+                       input_prior_precision=np.exp(cfg["input_prior_log_precision"]),
+                       embedding_order=cfg["embedding_order"], input_order=cfg["input_order"],
+                       input_kernel_width=cfg["input_kernel_width"], states="path")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         dem.estimate(log.outputs)

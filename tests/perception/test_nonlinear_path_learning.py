@@ -31,8 +31,9 @@ def test_with_every_parameter_held_it_is_path_mode_dem():
     held = learn_path(lorenz_model(), log.outputs, None, cfg["dt"], kernel_width=cfg["kernel_width"],
                       sensor_precision=1.0, process_precision=1 / 400, prior_mean=[10.0, 28.0],
                       prior_precision=[np.inf, np.inf], motion="linearized", uncertainty_draws=400)
-    path = NonlinearDEM(lorenz_model().at([10.0, 28.0]), cfg["dt"], cfg["kernel_width"], 1.0, 1 / 400,
-                        embedding_order=6, states="path").estimate(log.outputs)
+    path = NonlinearDEM(lorenz_model().at([10.0, 28.0]), cfg["dt"], kernel_width=cfg["kernel_width"],
+                        sensor_precision=1.0, process_precision=1 / 400, embedding_order=6,
+                        states="path").estimate(log.outputs)
     np.testing.assert_allclose(held.states, path.states, atol=1e-5 * np.abs(path.states).max())
     np.testing.assert_allclose(np.median(held.state_std / path.state_std), 1.0, atol=0.08)
     np.testing.assert_array_equal(held.parameters, [10.0, 28.0])
@@ -76,7 +77,8 @@ def test_pendulum_damping_with_an_unknown_push():
                         input_prior_precision=prior, input_kernel_width=cfg["input_kernel_width"],
                         motion="linearized")
     assert abs(result.parameters[0] - 0.3) < 3 * result.parameter_std[0], (result.parameters, result.parameter_std)
-    dstep = NonlinearDEM(model.at([0.3]), cfg["dt"], cfg["kernel_width"], 1 / sz**2, 1 / sw**2, prior,
+    dstep = NonlinearDEM(model.at([0.3]), cfg["dt"], kernel_width=cfg["kernel_width"], sensor_precision=1 / sz**2,
+                         process_precision=1 / sw**2, input_prior_precision=prior,
                          input_kernel_width=cfg["input_kernel_width"]).estimate(log.outputs)
     trim = slice(7, n - 7)
     sse = lambda inputs: np.sum((inputs - log.inputs)[trim] ** 2)  # noqa: E731

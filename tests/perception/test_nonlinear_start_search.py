@@ -78,8 +78,9 @@ def _double_well(x0, amplitude, samples=64, seed=0):
 
 
 def _options(unknown: bool):
-    return white_noise_options(DT, np.array([[np.exp(16)]]), np.array([[np.exp(2)]]),
-                               np.array([0.125]) if unknown else None, 0.5, input_mean=np.zeros(1) if unknown else None)
+    return white_noise_options(DT, process_precision=np.array([[np.exp(16)]]), sensor_precision=np.array([[np.exp(2)]]),
+                               input_prior_precision=np.array([0.125]) if unknown else None, input_kernel_width=0.5,
+                               input_mean=np.zeros(1) if unknown else None)
 
 
 def test_the_banks_filters_are_the_librarys_unscented_filter():

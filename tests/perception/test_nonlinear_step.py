@@ -11,17 +11,20 @@ from attend.perception.nonlinear._workspace import StepWorkspace
 
 
 def _pendulum(**settings):
-    return NonlinearDEM(pendulum.pendulum_system(), 0.05, 0.1, 1 / 0.05**2, 1 / np.array([0.05, 0.5])**2,
-                        embedding_order=6, input_order=2, **settings)
+    return NonlinearDEM(pendulum.pendulum_system(), 0.05, kernel_width=0.1, sensor_precision=1 / 0.05**2,
+                        process_precision=1 / np.array([0.05, 0.5])**2, embedding_order=6, input_order=2, **settings)
 
 
 CASES = {
-    "lorenz": lambda **kw: NonlinearDEM(lorenz.lorenz_system(), 0.01, 0.02, 1.0, 1 / 400, **kw),
+    "lorenz": lambda **kw: NonlinearDEM(lorenz.lorenz_system(), 0.01, kernel_width=0.02, sensor_precision=1.0,
+                                        process_precision=1 / 400, **kw),
     "pendulum unknown input": lambda **kw: _pendulum(input_prior_precision=0.1, input_kernel_width=0.7, **kw),
     "pendulum known input": lambda **kw: _pendulum(known_inputs=True, **kw),
-    "lorenz p = 0": lambda **kw: NonlinearDEM(lorenz.lorenz_system(), 0.01, 0.02, 1.0, 1 / 400, embedding_order=0, **kw),
-    "pendulum p = 1 < d": lambda **kw: NonlinearDEM(pendulum.pendulum_system(), 0.05, 0.1, 400.0, 4.0, 0.1,
-                                                    embedding_order=1, input_order=3, **kw),
+    "lorenz p = 0": lambda **kw: NonlinearDEM(lorenz.lorenz_system(), 0.01, kernel_width=0.02, sensor_precision=1.0,
+                                              process_precision=1 / 400, embedding_order=0, **kw),
+    "pendulum p = 1 < d": lambda **kw: NonlinearDEM(pendulum.pendulum_system(), 0.05, kernel_width=0.1,
+                                                    sensor_precision=400.0, process_precision=4.0,
+                                                    input_prior_precision=0.1, embedding_order=1, input_order=3, **kw),
 }
 
 

@@ -27,8 +27,9 @@ def test_attend_with_x0_given_is_the_exact_posterior_of_the_checks_model(check, 
     keep = 150
     case = dict(case, x=case["x"][:keep], y=case["y"][:keep], u=case["u"][:keep])
     n, m = case["Ad"].shape[0], case["C"].shape[0]
-    smoother = KalmanEstimator(case["system"], case["dt"], np.eye(m) / case["sigma_z"] ** 2,
-                               np.eye(n) / case["sigma_w"] ** 2, kernel_width=case["s"], initial_state=np.zeros(n))
+    smoother = KalmanEstimator(case["system"], case["dt"], sensor_precision=np.eye(m) / case["sigma_z"] ** 2,
+                               process_precision=np.eye(n) / case["sigma_w"] ** 2, kernel_width=case["s"],
+                               initial_state=np.zeros(n))
     mine = smoother.estimate(case["y"], case["u"]).states
     exact = bench.posterior_operator(case)(case["y"])
     scale = np.sqrt(np.mean((exact - case["x"]) ** 2))  # the posterior's own error size

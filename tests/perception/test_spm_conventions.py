@@ -24,8 +24,10 @@ def bench():
 
 def _lorenz_dem(bench, **settings):
     cfg = bench.lorenz.SETTINGS
-    return NonlinearDEM(bench.lorenz.build_system(cfg), cfg["dt"], cfg["kernel_width"], 1.0 / cfg["measurement_std"] ** 2,
-                        1.0 / cfg["process_std"] ** 2, embedding_order=6, edges="clamp", integration="spm", **settings)
+    return NonlinearDEM(bench.lorenz.build_system(cfg), cfg["dt"], kernel_width=cfg["kernel_width"],
+                        sensor_precision=1.0 / cfg["measurement_std"] ** 2,
+                        process_precision=1.0 / cfg["process_std"] ** 2, embedding_order=6, edges="clamp",
+                        integration="spm", **settings)
 
 
 def _online_rows(estimator, outputs, start=None):
@@ -45,7 +47,9 @@ def test_nonlinear_lorenz_matches_spm_style_flow_and_online(bench):
     np.testing.assert_array_equal(estimate.states[0], data[0, :3])  # row 0: the start, SPM's M(1).x
     online_states, _ = _online_rows(dem, outputs, data[0, :3])
     np.testing.assert_allclose(online_states, estimate.states, rtol=0, atol=1e-12)
-    attend_default = NonlinearDEM(system, *arguments[:4], embedding_order=6, edges="clamp")
+    dt, width, sensor_precision, process_precision = arguments[:4]
+    attend_default = NonlinearDEM(system, dt, kernel_width=width, sensor_precision=sensor_precision,
+                                  process_precision=process_precision, embedding_order=6, edges="clamp")
     assert np.max(np.abs(attend_default.estimate(outputs, initial_state=data[0, :3]).states - expected)) > 1e-3
 
 
@@ -59,8 +63,9 @@ def test_nonlinear_unknown_input_matches_spm_style_flow(bench):
                              initial_state=[0.3, 0.0], seed=2)
     expected_x, expected_v = bench.spm_style_flow(system, log.outputs, dt, 0.1, 400.0, 10.0, [0.3, 0.0], 6,
                                                          0.5, input_order=2)
-    dem = NonlinearDEM(system, dt, 0.1, 400.0, 10.0, 0.5, 6, 2, precision_convention="max", edges="clamp",
-                       integration="spm")
+    dem = NonlinearDEM(system, dt, kernel_width=0.1, sensor_precision=400.0, process_precision=10.0,
+                       input_prior_precision=0.5, embedding_order=6, input_order=2, precision_convention="max",
+                       edges="clamp", integration="spm")
     estimate = dem.estimate(log.outputs, initial_state=[0.3, 0.0])
     np.testing.assert_allclose(estimate.states, expected_x, rtol=0, atol=1e-10)
     np.testing.assert_allclose(estimate.inputs, expected_v, rtol=1e-10, atol=1e-10)  # |v| up to 4
@@ -72,17 +77,20 @@ def test_convolution_model_matches_spm_style_flow_and_online(bench, observer):
     system, outputs, arguments = bench._flow_settings("convolution", data)
     expected_x, expected_v = bench.spm_style_flow(system, outputs, *arguments)
     c = bench.CONVOLUTION
-    precisions = (np.exp(c["log_precision"]), np.exp(c["log_precision"]), np.exp(c["prior_log_precision"]))
+    precisions = dict(sensor_precision=np.exp(c["log_precision"]), process_precision=np.exp(c["log_precision"]),
+                      input_prior_precision=np.exp(c["prior_log_precision"]))
     if observer == "linear":
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ModelWarning)  # p = d = 6 is unstable for attend's own integration
-            estimator = DEMObserver(convolution_model(), c["dt"], c["kernel_width"], *precisions, embedding_order=6,
+            estimator = DEMObserver(convolution_model(), c["dt"], kernel_width=c["kernel_width"], **precisions,
+                                    embedding_order=6,
                                     input_order=6, edges="clamp", initial_state=np.zeros(2), allow_unstable=True,
                                     integration="spm")
             estimate = estimator.estimate(outputs)
         online_x, online_v = _online_rows(estimator, outputs)
     else:
-        estimator = NonlinearDEM(system, c["dt"], c["kernel_width"], *precisions, embedding_order=6, input_order=6,
+        estimator = NonlinearDEM(system, c["dt"], kernel_width=c["kernel_width"], **precisions, embedding_order=6,
+                                 input_order=6,
                                  edges="clamp", integration="spm")
         estimate = estimator.estimate(outputs, initial_state=np.zeros(2))
         online_x, online_v = _online_rows(estimator, outputs, np.zeros(2))
@@ -102,10 +110,11 @@ def test_known_inputs_linear_and_nonlinear_agree():
     u = np.sin(np.arange(120) * dt * 2.0)[:, None]
     log = simulate(linear, u, dt, kernel_width=0.1, process_std=0.1, measurement_std=0.05, seed=4)
     start = np.array([0.1, 0.0])
-    observer = DEMObserver(linear, dt, 0.1, 400.0, 100.0, embedding_order=4, input_order=2, known_inputs=True,
-                           edges="clamp", initial_state=start, integration="spm")
-    dem = NonlinearDEM(system, dt, 0.1, 400.0, 100.0, embedding_order=4, input_order=2, known_inputs=True,
-                       edges="clamp", flow_time="seconds", integration="spm")
+    observer = DEMObserver(linear, dt, kernel_width=0.1, sensor_precision=400.0, process_precision=100.0,
+                           embedding_order=4, input_order=2, known_inputs=True, edges="clamp", initial_state=start,
+                           integration="spm")
+    dem = NonlinearDEM(system, dt, kernel_width=0.1, sensor_precision=400.0, process_precision=100.0, embedding_order=4,
+                       input_order=2, known_inputs=True, edges="clamp", flow_time="seconds", integration="spm")
     expected = dem.estimate(log.outputs, u, initial_state=start)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ModelWarning)  # velocity's DEM error exceeds its small prior spread
@@ -137,8 +146,10 @@ def test_convolution_matches_stored_spm_dem(bench):
     for data, spm, _ in _stored(bench, "convolution"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ModelWarning)
-            estimate = DEMObserver(convolution_model(), c["dt"], c["kernel_width"], np.exp(c["log_precision"]),
-                                   np.exp(c["log_precision"]), np.exp(c["prior_log_precision"]), embedding_order=6,
+            estimate = DEMObserver(convolution_model(), c["dt"], kernel_width=c["kernel_width"],
+                                   sensor_precision=np.exp(c["log_precision"]),
+                                   process_precision=np.exp(c["log_precision"]),
+                                   input_prior_precision=np.exp(c["prior_log_precision"]), embedding_order=6,
                                    input_order=6, edges="clamp", initial_state=np.zeros(2), allow_unstable=True,
                                    integration="spm").estimate(data[:, :4])
         for ours, theirs, truth in ((estimate.states, spm[:, :2], data[:, 4:6]), (estimate.inputs, spm[:, 2:], data[:, 6:])):
@@ -149,9 +160,10 @@ def test_convolution_matches_stored_spm_dem(bench):
 def test_integration_is_checked():
     system = NonlinearSystem(lambda x, v: -x, lambda x, v: x, 1, 0, 1)
     with pytest.raises(AttendInputError, match="integration"):
-        NonlinearDEM(system, 0.1, 0.2, 1.0, 1.0, integration="SPM")
+        NonlinearDEM(system, 0.1, kernel_width=0.2, sensor_precision=1.0, process_precision=1.0, integration="SPM")
     with pytest.raises(AttendInputError, match="integration"):
-        DEMObserver(mass_spring_damper(), 0.1, 0.2, 1.0, 1.0, known_inputs=True, integration="held")
+        DEMObserver(mass_spring_damper(), 0.1, kernel_width=0.2, sensor_precision=1.0, process_precision=1.0,
+                    known_inputs=True, integration="held")
 
 
 def test_linear_std_accounts_for_the_reporting_lag():
@@ -162,8 +174,8 @@ def test_linear_std_accounts_for_the_reporting_lag():
     system, dt, s = convolution_model(), 0.1, 0.2
     u = coloured_noise(4000, system.n_inputs, dt, s, 1.0, seed=3)
     log = simulate(system, u, dt, kernel_width=s, process_std=0.1, measurement_std=0.05, seed=3)
-    observer = DEMObserver(system, dt, s, 1 / 0.05**2, 1 / 0.1**2, 1.0, embedding_order=3,
-                           integration="spm")
+    observer = DEMObserver(system, dt, kernel_width=s, sensor_precision=1 / 0.05**2, process_precision=1 / 0.1**2,
+                           input_prior_precision=1.0, embedding_order=3, integration="spm")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ModelWarning)
         estimate = observer.estimate(log.outputs)

@@ -160,9 +160,11 @@ def _dem(system, cfg: dict, **options) -> NonlinearDEM:
     """The D-step of the reproduction's settings ``cfg`` for ``system`` (options: e.g. backend)."""
     unknown = system.n_inputs > 0
     prior_precision = np.exp(cfg["input_prior_log_precision"])
-    return NonlinearDEM(system, cfg["dt"], cfg["kernel_width"], 1.0 / np.asarray(cfg["measurement_std"], float)**2,
-                        1.0 / np.asarray(cfg["process_std"], float)**2, prior_precision if unknown else None,
-                        cfg["embedding_order"], cfg["input_order"],
+    return NonlinearDEM(system, cfg["dt"], kernel_width=cfg["kernel_width"],
+                        sensor_precision=1.0 / np.asarray(cfg["measurement_std"], float)**2,
+                        process_precision=1.0 / np.asarray(cfg["process_std"], float)**2,
+                        input_prior_precision=prior_precision if unknown else None,
+                        embedding_order=cfg["embedding_order"], input_order=cfg["input_order"],
                         input_kernel_width=(cfg.get("input_kernel_width") or cfg["kernel_width"]) if unknown else None,
                         **options)
 
@@ -173,14 +175,14 @@ def kalman_options(system, cfg: dict) -> dict:
     inputs the random walk whose one-sample steps have the input prior's variance (the same prior
     information; a settings key input_random_walk_variance overrides it)."""
     dt, s = cfg["dt"], cfg["kernel_width"]
-    Q, R = white_noise_covariances(system, dt, s, np.asarray(cfg["process_std"], float),
-                                   np.asarray(cfg["measurement_std"], float))
+    Q, R = white_noise_covariances(system, dt, kernel_width=s, process_std=np.asarray(cfg["process_std"], float),
+                                   measurement_std=np.asarray(cfg["measurement_std"], float))
     options = dict(process_covariance=Q, measurement_covariance=R, initial_mean=cfg["initial_state"],
                    initial_covariance=np.asarray(cfg["initial_std"], float) ** 2)
     if system.n_inputs:
         width = cfg.get("input_kernel_width") or s
         options["input_variance"] = cfg.get("input_random_walk_variance") or float(
-            input_random_walk_variance(np.exp(cfg["input_prior_log_precision"]), width, dt))
+            input_random_walk_variance(np.exp(cfg["input_prior_log_precision"]), kernel_width=width, dt=dt))
     return options
 
 

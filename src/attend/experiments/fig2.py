@@ -64,8 +64,10 @@ def run(quick: bool = True, progress: bool = True, seeds: int | None = None) -> 
     precision = np.exp(cfg["noise_log_precision"])
     trim = slice(cfg["trimmed_orders"] + 1, n_samples - cfg["trimmed_orders"] - 1)
     observers = {
-        p: DEMObserver(system, dt, s, precision, precision, np.exp(cfg["input_prior_log_precision"]), p,
-                       cfg["input_order"], allow_unstable=True)  # the sweep shows every order, stable or not
+        p: DEMObserver(system, dt, kernel_width=s, sensor_precision=precision, process_precision=precision,
+                       input_prior_precision=np.exp(cfg["input_prior_log_precision"]), embedding_order=p,
+                       input_order=cfg["input_order"],
+                       allow_unstable=True)  # the sweep shows every order, stable or not
         for p in cfg["orders"]
     }
     Q, R = simulation_covariances(system, dt, noise_std, noise_std)

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from attend._validation import AttendInputError
 from attend.io.logs import Log
 from attend.io.model import ModelFile
-from attend.perception.dem import DEMEstimate, DEMObserver
 from attend.perception.nonlinear.start_search import AmbiguousStartError
+
+if TYPE_CHECKING:  # only named in annotations: each estimator is imported where the model file picks it
+    from attend.perception.dem import DEMEstimate, DEMObserver
 
 
 def _check_samples(model: ModelFile, log: Log, minimum: int, why: str) -> float:

@@ -6,13 +6,16 @@ import csv
 import io as _text_io
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from attend._validation import LARGEST_MAGNITUDE, AttendInputError, unique_names
 from attend.io.fields import _read_text
-from attend.perception.dem import DEMEstimate
 from attend.systems import LinearSystem
+
+if TYPE_CHECKING:  # only named in annotations: reading a log loads no estimator
+    from attend.perception.dem import DEMEstimate
 
 
 @dataclass(frozen=True)

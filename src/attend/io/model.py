@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from attend._validation import AttendInputError, precision_matrix
-from attend.perception.dem import DEMObserver
-from attend.perception.nonlinear import NonlinearSystem
+from attend.perception.nonlinear.model import NonlinearSystem
 from attend.systems import LinearSystem
+
+if TYPE_CHECKING:  # imported where it is built: a nonlinear model file loads no linear DEM
+    from attend.perception.dem import DEMObserver
 
 
 @dataclass(frozen=True)
@@ -138,13 +141,13 @@ class ModelFile:
         known = [spec.known for spec in self.inputs]
         prior = None if all(known) else np.array([1.0 if s.known else s.prior_precision for s in self.inputs])
         try:
-            return KalmanEstimator(
-                self.system, dt, self.sensor_precision, self.process_precision, kernel_width=self.kernel_width,
-                process_kernel_width=self.process_kernel_width, sensor_kernel_width=self.sensor_kernel_width,
-                input_prior_precision=prior, input_kernel_width=self.input_kernel_width,
-                known_inputs=known if self.inputs else True,
-                initial_state=self.initial_state, initial_state_std=self.initial_state_std,
-            )
+            return KalmanEstimator(self.system, dt, sensor_precision=self.sensor_precision,
+                                   process_precision=self.process_precision, kernel_width=self.kernel_width,
+                                   process_kernel_width=self.process_kernel_width,
+                                   sensor_kernel_width=self.sensor_kernel_width, input_prior_precision=prior,
+                                   input_kernel_width=self.input_kernel_width,
+                                   known_inputs=known if self.inputs else True, initial_state=self.initial_state,
+                                   initial_state_std=self.initial_state_std)
         except AttendInputError as error:
             raise AttendInputError(f"{self.path}: [observer] {error}") from None
 
@@ -154,20 +157,21 @@ class ModelFile:
         All inputs measured: the known-input observer. Otherwise inputs are unknowns; measured
         ones get their measurement as prior mean with precision ``known_input_precision``.
         """
+        from attend.perception.dem import DEMObserver
+
         all_known = all(spec.known for spec in self.inputs)
         prior = None if all_known else np.array(
             [self.known_input_precision if s.known else s.prior_precision for s in self.inputs]
         )
         try:
-            return DEMObserver(
-                self.system, dt, self.kernel_width, self.sensor_precision, self.process_precision,
-                prior, self.embedding_order, self.input_order, known_inputs=all_known,
-                precision_convention=self.precision_convention,
-                process_kernel_width=self.process_kernel_width, sensor_kernel_width=self.sensor_kernel_width,
-                input_kernel_width=self.input_kernel_width,
-                initial_state=None if self.initial_state is None else np.array(self.initial_state),
-                integration=self.integration, edges=self.edges,
-            )
+            return DEMObserver(self.system, dt, kernel_width=self.kernel_width, sensor_precision=self.sensor_precision,
+                               process_precision=self.process_precision, input_prior_precision=prior,
+                               embedding_order=self.embedding_order, input_order=self.input_order,
+                               known_inputs=all_known, precision_convention=self.precision_convention,
+                               process_kernel_width=self.process_kernel_width,
+                               sensor_kernel_width=self.sensor_kernel_width, input_kernel_width=self.input_kernel_width,
+                               initial_state=None if self.initial_state is None else np.array(self.initial_state),
+                               integration=self.integration, edges=self.edges)
         except AttendInputError as error:
             raise AttendInputError(f"{self.path}: [observer] {error}") from None
 
@@ -212,13 +216,14 @@ class NonlinearFileEstimator:
         all_known = bool(known.all())
         prior = None if all_known else np.array(
             [model.known_input_precision if spec.known else spec.prior_precision for spec in model.inputs])
-        return NonlinearDEM(
-            self.system, self.dt, model.kernel_width, model.sensor_precision, model.process_precision, prior,
-            self.embedding_order, model.input_order, known_inputs=all_known,
-            precision_convention=model.precision_convention, input_kernel_width=model.input_kernel_width,
-            integration=model.integration, edges=model.edges, states=model.dem_states, backend=model.dem_backend,
-            motion=model.dem_motion or "linearized",
-        )
+        return NonlinearDEM(self.system, self.dt, kernel_width=model.kernel_width,
+                            sensor_precision=model.sensor_precision, process_precision=model.process_precision,
+                            input_prior_precision=prior, embedding_order=self.embedding_order,
+                            input_order=model.input_order, known_inputs=all_known,
+                            precision_convention=model.precision_convention,
+                            input_kernel_width=model.input_kernel_width, integration=model.integration,
+                            edges=model.edges, states=model.dem_states, backend=model.dem_backend,
+                            motion=model.dem_motion or "linearized")
 
     @property
     def input_kernel_width(self) -> float:
@@ -247,9 +252,10 @@ class NonlinearFileEstimator:
         precisions = np.array([1.0 if spec.known else spec.prior_precision for spec in model.inputs]) if unknown \
             else None
         options = white_noise_options(
-            self.dt, precision_matrix(model.process_precision, n, "process_precision"),
-            precision_matrix(model.sensor_precision, self.system.n_outputs, "sensor_precision"),
-            precisions, self.input_kernel_width, known, signals[0] if unknown else None, who='method "ukf"')
+            self.dt, process_precision=precision_matrix(model.process_precision, n, "process_precision"),
+            sensor_precision=precision_matrix(model.sensor_precision, self.system.n_outputs, "sensor_precision"),
+            input_prior_precision=precisions, input_kernel_width=self.input_kernel_width, known_inputs=known,
+            input_mean=signals[0] if unknown else None, who='method "ukf"')
         inputs = (signals if known.any() else None) if unknown else (signals if r else None)
         mean, std, substeps = self._start(outputs, signals, initial, inputs, options)
         # the std: the smoother's error spread under the file's coloured noise, its exact covariance

@@ -15,10 +15,23 @@ Baselines: :mod:`attend.perception.baselines` (Kalman filters and smoothers, the
 N4SID and EM identification) and :mod:`attend.perception.nonlinear_baselines`.
 """
 
-from attend.perception.dem import DEMEstimate, DEMObserver, OnlineDEM
-from attend.perception.kalman import KalmanEstimator, OnlineKalman, StateEstimate
-from attend.perception.learning import IdentificationResult, identify, learn_batch
-from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem
+from attend._lazy import lazy_exports
+
+#: public name -> the module that defines it, imported at the first use of the name (PEP 562):
+#: `attend estimate` loads the estimator it runs, not the others nor the learners.
+_EXPORTS = {
+    "DEMEstimate": "attend.perception.dem",
+    "DEMObserver": "attend.perception.dem",
+    "OnlineDEM": "attend.perception.dem",
+    "IdentificationResult": "attend.perception.learning",
+    "identify": "attend.perception.learning",
+    "learn_batch": "attend.perception.learning",
+    "KalmanEstimator": "attend.perception.kalman",
+    "OnlineKalman": "attend.perception.kalman",
+    "StateEstimate": "attend.perception.kalman",
+    "NonlinearDEM": "attend.perception.nonlinear",
+    "NonlinearSystem": "attend.perception.nonlinear",
+}
 
 __all__ = [
     "DEMEstimate",
@@ -33,3 +46,5 @@ __all__ = [
     "identify",
     "learn_batch",
 ]
+
+__getattr__, __dir__ = lazy_exports("attend.perception", _EXPORTS, globals())

@@ -34,7 +34,7 @@ or have a mode on the unit circle (to 1e-9: a coordinate the flow does not pull 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import KW_ONLY, dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -165,7 +165,9 @@ class DEMAnalysis(NamedTuple):
 
 @dataclass(frozen=True, eq=False)
 class DEMObserver:
-    """A DEM state (and unknown-input) observer for an LTI system.
+    """A DEM state (and unknown-input) observer for an LTI system:
+    ``DEMObserver(system, dt, *, kernel_width, sensor_precision, process_precision, ...)`` (the
+    system and the sample time first, everything else by keyword).
 
     system: the model (A, B, C; a python-control StateSpace is converted with
     :func:`attend.interop.from_statespace`); dt: sample time [s]; kernel_width: s of the Gaussian noise
@@ -203,6 +205,7 @@ class DEMObserver:
 
     system: LinearSystem
     dt: float
+    _: KW_ONLY
     kernel_width: float | None
     sensor_precision: np.ndarray
     process_precision: np.ndarray

@@ -35,7 +35,7 @@ with jitter every step costs O(dim^3) (dim: the augmented state's size).
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import KW_ONLY, dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -113,7 +113,9 @@ def _channel_model(dt: float, width: float, kind: str, field: str) -> NoiseState
 
 @dataclass(frozen=True, eq=False)
 class KalmanEstimator:
-    """Kalman smoother (batch) and filter (causal, online) for an LTI system under coloured noise.
+    """Kalman smoother (batch) and filter (causal, online) for an LTI system under coloured noise:
+    ``KalmanEstimator(system, dt, *, sensor_precision, process_precision, kernel_width, ...)`` (the
+    system and the sample time first, everything else by keyword).
 
     system: the model (A, B, C) in continuous time [1/s]; dt: sample time [s];
     sensor_precision Pi_z [1/output unit^2] and process_precision Pi_w [s^2/state unit^2], as for
@@ -131,6 +133,7 @@ class KalmanEstimator:
 
     system: LinearSystem
     dt: float
+    _: KW_ONLY
     sensor_precision: np.ndarray
     process_precision: np.ndarray
     kernel_width: float | None = None

@@ -37,24 +37,26 @@ Layout: :mod:`.filters` (Kalman filters and smoothers), :mod:`.exact` (the exact
 :mod:`.identification` (N4SID, EM, error metrics); every public name is re-exported here.
 """
 
-from attend.perception.baselines.exact import ExactPosterior, coloured_noise_correlation, exact_posterior
-from attend.perception.baselines.filters import (
-    KalmanEstimate,
-    augmented_kalman_filter,
-    kalman_filter,
-    kalman_filter_ignoring_input,
-    rts_smoother,
-    simulation_covariances,
-    steady_state_kalman_filter,
-)
-from attend.perception.baselines import identification
-from attend.perception.baselines.identification import (
-    continuous_from_discrete,
-    eigenvalue_error,
-    em_baseline,
-    n4sid_baseline,
-    transfer_function_error,
-)
+from attend._lazy import lazy_exports
+
+#: public name -> the module that defines it, imported at the first use of the name (PEP 562).
+_EXPORTS = {
+    "ExactPosterior": "attend.perception.baselines.exact",
+    "coloured_noise_correlation": "attend.perception.baselines.exact",
+    "exact_posterior": "attend.perception.baselines.exact",
+    "KalmanEstimate": "attend.perception.baselines.filters",
+    "augmented_kalman_filter": "attend.perception.baselines.filters",
+    "kalman_filter": "attend.perception.baselines.filters",
+    "kalman_filter_ignoring_input": "attend.perception.baselines.filters",
+    "rts_smoother": "attend.perception.baselines.filters",
+    "simulation_covariances": "attend.perception.baselines.filters",
+    "steady_state_kalman_filter": "attend.perception.baselines.filters",
+    "n4sid_baseline": "attend.perception.baselines.identification",
+    "em_baseline": "attend.perception.baselines.identification",
+    "continuous_from_discrete": "attend.perception.baselines.identification",
+    "transfer_function_error": "attend.perception.baselines.identification",
+    "eigenvalue_error": "attend.perception.baselines.identification",
+}
 
 __all__ = [
     "KalmanEstimate",
@@ -67,5 +69,11 @@ __all__ = [
     "augmented_kalman_filter",
     "exact_posterior",
     "coloured_noise_correlation",
-    *identification.__all__,
+    "n4sid_baseline",
+    "em_baseline",
+    "continuous_from_discrete",
+    "transfer_function_error",
+    "eigenvalue_error",
 ]
+
+__getattr__, __dir__ = lazy_exports("attend.perception.baselines", _EXPORTS, globals())

@@ -7,7 +7,6 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve, solve_discrete_are
 
 from attend._validation import AttendInputError, as_matrix, positive_scalar, require_finite, symmetric_matrix
 from attend.systems import LinearSystem, as_linear_system
@@ -109,6 +108,8 @@ def _filter_core(F, offsets, Q, H, R, y, m0, P0):
     Returns filtered means/covs (N, d), (N, d, d), predicted means/covs (x[k] | y[0..k-1]) and
     the log-likelihood.
     """
+    from scipy.linalg import cho_factor, cho_solve  # here: the result types load without scipy.linalg
+
     N, d = y.shape[0], F.shape[0]
     mf = np.empty((N, d))
     Pf = np.empty((N, d, d))
@@ -259,6 +260,8 @@ def steady_state_kalman_filter(system, dt, outputs, inputs=None, *, process_cova
     m0, _ = _initial(initial_mean, None, n)
     Ad, Bd = system.discretize(dt)
     C = system.C
+    from scipy.linalg import solve_discrete_are
+
     P = solve_discrete_are(Ad.T, C.T, Q, R)
     S = C @ P @ C.T + R
     K = np.linalg.solve(S, C @ P).T

@@ -36,11 +36,22 @@ Units are attend's: seconds. f is a rate [state unit / s], kernel_width s is in 
 (SPM works in bins: s_bins = s / dt).
 """
 
-from attend.perception.nonlinear.dem import NonlinearDEM
-from attend.perception.nonlinear.learning import NonlinearLearningResult, ParametrisedSystem, learn_nonlinear
-from attend.perception.nonlinear.model import NonlinearSystem, finite_difference_jacobian, simulate_nonlinear
-from attend.perception.nonlinear.online import OnlineNonlinearDEM
-from attend.perception.nonlinear.path_learning import PathLearningResult, learn_path
+from attend._lazy import lazy_exports
+
+#: public name -> the module that defines it, imported at the first use of the name (PEP 562): the
+#: model (NonlinearSystem) loads without the DEM and its linear algebra.
+_EXPORTS = {
+    "NonlinearDEM": "attend.perception.nonlinear.dem",
+    "NonlinearLearningResult": "attend.perception.nonlinear.learning",
+    "ParametrisedSystem": "attend.perception.nonlinear.learning",
+    "learn_nonlinear": "attend.perception.nonlinear.learning",
+    "NonlinearSystem": "attend.perception.nonlinear.model",
+    "finite_difference_jacobian": "attend.perception.nonlinear.model",
+    "simulate_nonlinear": "attend.perception.nonlinear.model",
+    "OnlineNonlinearDEM": "attend.perception.nonlinear.online",
+    "PathLearningResult": "attend.perception.nonlinear.path_learning",
+    "learn_path": "attend.perception.nonlinear.path_learning",
+}
 
 __all__ = [
     "NonlinearSystem",
@@ -54,3 +65,5 @@ __all__ = [
     "PathLearningResult",
     "learn_path",
 ]
+
+__getattr__, __dir__ = lazy_exports("attend.perception.nonlinear", _EXPORTS, globals())

@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import KW_ONLY, dataclass, field
 from math import factorial, isfinite
 
 import numpy as np
@@ -28,7 +28,9 @@ from attend.perception.nonlinear.start import gauss_newton_start
 
 @dataclass(frozen=True, eq=False)
 class NonlinearDEM:
-    """DEM state (and unknown-input) estimation for a :class:`NonlinearSystem` (module docstring).
+    """DEM state (and unknown-input) estimation for a :class:`NonlinearSystem` (module docstring):
+    ``NonlinearDEM(system, dt, *, kernel_width, sensor_precision, process_precision, ...)`` (the
+    system and the sample time first, everything else by keyword).
 
     system: the model; dt: sample time [s]; kernel_width: s of the Gaussian noise kernel [s];
     sensor_precision: Pi_z [1/output unit^2]; process_precision: Pi_w [s^2/state unit^2, as in
@@ -87,6 +89,7 @@ class NonlinearDEM:
 
     system: NonlinearSystem
     dt: float
+    _: KW_ONLY
     kernel_width: float
     sensor_precision: np.ndarray
     process_precision: np.ndarray

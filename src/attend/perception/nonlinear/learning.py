@@ -140,8 +140,9 @@ def _where(problem, theta, iteration, step) -> str:
 
 def _dem(problem: _Problem, theta) -> NonlinearDEM:
     """NonlinearDEM at theta with unit precisions (its errors(); precisions are applied here)."""
-    return NonlinearDEM(problem.model.at(theta), problem.dt, problem.s, sensor_precision=1.0, process_precision=1.0,
-                        embedding_order=problem.p, input_order=problem.p, known_inputs=True, motion=problem.motion)
+    return NonlinearDEM(problem.model.at(theta), problem.dt, kernel_width=problem.s, sensor_precision=1.0,
+                        process_precision=1.0, embedding_order=problem.p, input_order=problem.p, known_inputs=True,
+                        motion=problem.motion)
 
 
 def _errors(problem: _Problem, theta, mu, iteration: int, step: str):
@@ -377,7 +378,7 @@ def _start(problem: _Problem, theta0: np.ndarray, state_iterations: int) -> _Poi
     """The first D-step: NonlinearDEM's estimates at (theta0, eta_lambda), refined per sample; F there."""
     lam = problem.eta_lam.copy()
     system = problem.model.at(theta0)
-    dem = NonlinearDEM(system, problem.dt, problem.s, sensor_precision=np.exp(lam[0]),
+    dem = NonlinearDEM(system, problem.dt, kernel_width=problem.s, sensor_precision=np.exp(lam[0]),
                        process_precision=np.exp(lam[1]), embedding_order=problem.p, input_order=problem.p,
                        known_inputs=True, motion=problem.motion)
     try:

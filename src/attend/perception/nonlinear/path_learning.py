@@ -287,10 +287,11 @@ def learn_path(model, outputs, inputs, dt: float, *, kernel_width: float, sensor
                                "for unknown inputs")
 
     def build(values, motion=motion):
-        return NonlinearDEM(model.at(values), dt, kernel_width, sensor_precision, process_precision,
-                            input_prior_precision if unknown else None, embedding_order, input_order,
-                            known_inputs=not unknown, input_kernel_width=input_kernel_width if unknown else None,
-                            motion=motion)
+        return NonlinearDEM(model.at(values), dt, kernel_width=kernel_width, sensor_precision=sensor_precision,
+                            process_precision=process_precision,
+                            input_prior_precision=input_prior_precision if unknown else None,
+                            embedding_order=embedding_order, input_order=input_order, known_inputs=not unknown,
+                            input_kernel_width=input_kernel_width if unknown else None, motion=motion)
 
     dem = build(theta)
     signals = dem._signals(outputs, inputs)

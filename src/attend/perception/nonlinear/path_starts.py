@@ -31,9 +31,11 @@ def smoother_start(dem, signals: np.ndarray, prior, start) -> tuple[np.ndarray, 
     m, r = dem.system.n_outputs, dem.system.n_inputs
     unknown = bool(r) and not dem.known_inputs
     try:
-        options = white_noise_options(
-            dem.dt, dem.process_precision, dem.sensor_precision, np.diag(dem.input_prior_precision) if unknown else None,
-            dem.input_kernel_width or dem.kernel_width, input_mean=signals[0, m:] if unknown else None)
+        options = white_noise_options(dem.dt, process_precision=dem.process_precision,
+                                      sensor_precision=dem.sensor_precision,
+                                      input_prior_precision=np.diag(dem.input_prior_precision) if unknown else None,
+                                      input_kernel_width=dem.input_kernel_width or dem.kernel_width,
+                                      input_mean=signals[0, m:] if unknown else None)
     except AttendInputError:
         return None
     inputs = signals[:, m:] if r and not unknown else None

@@ -29,15 +29,19 @@ particles' ancestry. Its mean approximates the posterior mean under the coloured
 reference, not an estimator for use.
 """
 
-from attend.perception.nonlinear_baselines.coloured import coloured_unscented_smoother
-from attend.perception.nonlinear_baselines.kalman import (
-    extended_kalman,
-    input_random_walk_variance,
-    unscented_kalman,
-    white_noise_covariances,
-    white_noise_options,
-)
-from attend.perception.nonlinear_baselines.particle import ParticleEstimate, particle_smoother
+from attend._lazy import lazy_exports
+
+#: public name -> the module that defines it, imported at the first use of the name (PEP 562).
+_EXPORTS = {
+    "coloured_unscented_smoother": "attend.perception.nonlinear_baselines.coloured",
+    "extended_kalman": "attend.perception.nonlinear_baselines.kalman",
+    "input_random_walk_variance": "attend.perception.nonlinear_baselines.kalman",
+    "unscented_kalman": "attend.perception.nonlinear_baselines.kalman",
+    "white_noise_covariances": "attend.perception.nonlinear_baselines.kalman",
+    "white_noise_options": "attend.perception.nonlinear_baselines.kalman",
+    "ParticleEstimate": "attend.perception.nonlinear_baselines.particle",
+    "particle_smoother": "attend.perception.nonlinear_baselines.particle",
+}
 
 __all__ = [
     "white_noise_covariances",
@@ -49,3 +53,5 @@ __all__ = [
     "coloured_unscented_smoother",
     "ParticleEstimate",
 ]
+
+__getattr__, __dir__ = lazy_exports("attend.perception.nonlinear_baselines", _EXPORTS, globals())

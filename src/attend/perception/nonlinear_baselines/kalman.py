@@ -14,7 +14,7 @@ from attend.perception.nonlinear import NonlinearSystem, finite_difference_jacob
 from attend.perception.nonlinear.model import _batched
 
 
-def white_noise_covariances(system: NonlinearSystem, dt: float, kernel_width: float, process_std,
+def white_noise_covariances(system: NonlinearSystem, dt: float, *, kernel_width: float, process_std,
                             measurement_std, match: str = "variance") -> tuple[np.ndarray, np.ndarray]:
     """(Q, R) of a white-noise model for coloured noise of kernel width s [s] and standard
     deviations sigma_w [state unit / s], sigma_z [output unit]. R = diag(sigma_z^2);
@@ -38,7 +38,7 @@ def white_noise_covariances(system: NonlinearSystem, dt: float, kernel_width: fl
     return np.diag(dt**2 * sw**2 * power), np.diag(sz**2)
 
 
-def input_random_walk_variance(prior_precision, kernel_width: float, dt: float) -> np.ndarray:
+def input_random_walk_variance(prior_precision, *, kernel_width: float, dt: float) -> np.ndarray:
     """Per-sample variance of the random walk that matches a smooth input prior: the variance of
     the one-sample increments v(t + dt) - v(t) of a Gaussian-kernel process of variance 1/P_v and
     width s_v [s], 2 (1 - rho(dt)) / P_v with rho(dt) = exp(-dt^2 / (4 s_v^2)). The Kalman
@@ -50,7 +50,7 @@ def input_random_walk_variance(prior_precision, kernel_width: float, dt: float) 
     return 2.0 * (1.0 - rho) / np.asarray(prior_precision, dtype=float)
 
 
-def white_noise_options(dt: float, process_precision, sensor_precision, input_prior_precision=None,
+def white_noise_options(dt: float, *, process_precision, sensor_precision, input_prior_precision=None,
                         input_kernel_width: float | None = None, known_inputs=None, input_mean=None,
                         who: str = "the white-noise smoother") -> dict:
     """Keyword arguments of :func:`unscented_kalman` / :func:`extended_kalman` for DEM's noise model
@@ -77,7 +77,7 @@ def white_noise_options(dt: float, process_precision, sensor_precision, input_pr
     if not np.all(precisions[~known] > 0):
         raise AttendInputError(f"input_prior_precision: {who} needs a prior precision > 0 for every unknown input "
                                "(it sets the random walk of the input)")
-    variance = input_random_walk_variance(np.where(known, 1.0, precisions), input_kernel_width, dt)
+    variance = input_random_walk_variance(np.where(known, 1.0, precisions), kernel_width=input_kernel_width, dt=dt)
     options.update(input_variance=np.diag(np.where(known, 0.0, variance)), input_mean=input_mean)
     if known.any():
         options.update(known_inputs=known)
@@ -136,8 +136,11 @@ def _rk4(system: NonlinearSystem, x, u, dt: float, substeps: int, w=None, call=N
     """Integrate dx/dt = f(x, u) (+ w) over dt; x (n,) or (n, P) with a vectorized system;
     call: f of the state (default: the system's f at u, unchecked for columns)."""
     h = dt / substeps
-    if call is None:
-        call = (lambda state: system._call(system.f, state, u)) if x.ndim == 2 else (lambda state: system.flow(state, u))
+    if call is None and x.ndim == 2:
+        call = lambda state: system._call(system.f, state, u)  # noqa: E731
+    elif call is None:  # system.flow(state, u), with x and u converted once instead of at every stage
+        x, v = np.asarray(x, dtype=float), system._inputs(u)
+        call = lambda state: system._value("f", state, v)  # noqa: E731
     extra = 0.0 if w is None else w
     for _ in range(substeps):
         k1 = call(x) + extra

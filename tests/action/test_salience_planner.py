@@ -326,7 +326,35 @@ def test_cached_value_tables_equal_fresh_ones_after_map_changes():
         belief.update(ImageObservation(pose, float(k), 10.0, window, visible, pose[None, :2] + 3.0), model, camera)
         fresh = ExpectedFreeEnergySearchPlanner(model, camera, 10.0, 1.0)
         expected = fresh._value_tables(belief, lattice, 2.0)
-        assert np.allclose(cached._value_tables(belief, lattice, 2.0), expected, rtol=1e-10, atol=1e-9)
+        got = cached._value_tables(belief, lattice, 2.0)
+        for table in range(expected.n_tables + 1):
+            assert np.allclose(got.dense(table), expected.dense(table), rtol=1e-10, atol=1e-9)
+
+
+def test_banded_summed_area_tables_equal_direct_sums_after_updates():
+    """T_t[i, j] = sum V_t[:i, :j] at every corner, for bands that do and do not divide ny, after
+    changes confined to a few rows; the extra table is zero."""
+    from attend.action.planners.salience import BAND_ROWS, BandedSummedAreaTables
+
+    rng = np.random.default_rng(11)
+    for ny in (1, BAND_ROWS - 1, BAND_ROWS, 2 * BAND_ROWS, 2 * BAND_ROWS + 5):
+        values = rng.normal(size=(3, ny, 17))
+        tables = BandedSummedAreaTables(values)
+        for _ in range(3):
+            row0 = int(rng.integers(0, ny))
+            row1 = int(rng.integers(row0 + 1, min(row0 + 7, ny) + 1))
+            values[:, row0:row1] = rng.normal(size=(3, row1 - row0, 17))
+            tables.update(values, {row // BAND_ROWS for row in range(row0, row1)})
+            for t in range(3):
+                direct = np.zeros((ny + 1, 18))
+                direct[1:, 1:] = values[t].cumsum(axis=0).cumsum(axis=1)
+                # partial sums of at most ny x 17 standard normals: rounding of order eps x count
+                np.testing.assert_allclose(tables.dense(t), direct, rtol=0, atol=1e-13 * ny * 17)
+            assert not tables.dense(3).any()
+        r0, r1 = np.array([0, 1, ny - 1]), np.array([ny, ny, ny])
+        c0, c1 = np.array([0, 3, 16]), np.array([17, 9, 17])
+        direct = [values[1, a:b, c:d].sum() for a, b, c, d in zip(r0, r1, c0, c1)]
+        np.testing.assert_allclose(tables.sums(1, r0, r1, c0, c1), direct, rtol=0, atol=1e-13 * ny * 17)
 
 
 def test_footprint_follows_the_heading_when_the_camera_turns_with_the_uav():

@@ -102,6 +102,8 @@ LONG_RANGE_BLOCKS = 4
 SEPARATION_SAMPLES = 24
 #: Side [cells] of the tiles on which value maps are recomputed when the map changed.
 VALUE_TILE_CELLS = 64
+#: Rows per band of the summed-area tables (:class:`BandedSummedAreaTables`).
+BAND_ROWS = 64
 #: Default number of altitude layers.
 DEFAULT_LAYERS = 5
 #: Logit range [-L, L] of the tabulated levels of the value functions (``value_levels``).
@@ -204,6 +206,54 @@ def box_sums(values: np.ndarray, half_width_cells: int) -> np.ndarray:
     r0, r1 = np.maximum(rows - k, 0), np.minimum(rows + k + 1, ny)
     c0, c1 = np.maximum(cols - k, 0), np.minimum(cols + k + 1, nx)
     return (table[np.ix_(r1, c1)] - table[np.ix_(r0, c1)]) - (table[np.ix_(r1, c0)] - table[np.ix_(r0, c0)])
+
+
+class BandedSummedAreaTables:
+    """Summed-area tables T_t (t = 0 .. n - 1) of value maps V_t (ny, nx), stored in bands of
+    ``BAND_ROWS`` rows so that a change in a few rows costs O(band x nx) per table instead of
+    O(ny x nx):
+
+        T_t[i, j] = B_t[i // R, j] + L_t[i, j],   L_t[i, j] = sum V_t[R (i // R) : i, :j],
+        B_t[b, j] = sum V_t[: R b, :j],
+
+    R = ``BAND_ROWS``, i in 0..ny, j in 0..nx (T_t[i, j] = sum V_t[:i, :j]). Table n is zero (the
+    planner's index for "no table"). values: (n, ny, nx)."""
+
+    def __init__(self, values: np.ndarray) -> None:
+        self.n_tables, self.ny, self.nx = values.shape
+        self.n_bands = self.ny // BAND_ROWS + 1
+        self.local = np.zeros((self.n_tables + 1, self.ny + 1, self.nx + 1))
+        self.band_base = np.zeros((self.n_tables + 1, self.n_bands, self.nx + 1))
+        self._band_totals = np.zeros((self.n_tables, self.n_bands, self.nx + 1))
+        self.update(values, range(self.n_bands))
+
+    def update(self, values: np.ndarray, bands) -> None:
+        """Recompute ``bands`` (band indices) from ``values`` (n, ny, nx), then the band bases."""
+        for band in sorted(set(int(b) for b in bands)):
+            top, bottom = band * BAND_ROWS, min((band + 1) * BAND_ROWS, self.ny)
+            if bottom <= top:
+                continue
+            block = self.local[: self.n_tables, top + 1 : bottom + 1, 1:]
+            np.cumsum(values[:, top:bottom, :], axis=2, out=block)  # row prefixes
+            self._band_totals[:, band, 1:] = block.sum(axis=1)
+            np.cumsum(block, axis=1, out=block)
+            if bottom == (band + 1) * BAND_ROWS:  # row `bottom` starts the next band, where L = 0
+                self.local[: self.n_tables, bottom, :] = 0.0
+        np.cumsum(self._band_totals[:, :-1], axis=1, out=self.band_base[: self.n_tables, 1:])
+
+    def sums(self, tables, rows0, rows1, cols0, cols1) -> np.ndarray:
+        """Sums of V_t over rows [rows0, rows1) and columns [cols0, cols1), t = ``tables``
+        (index arrays broadcast; table n gives 0)."""
+        return (self.corner(tables, rows1, cols1) - self.corner(tables, rows0, cols1)
+                - self.corner(tables, rows1, cols0) + self.corner(tables, rows0, cols0))
+
+    def corner(self, tables, rows, cols) -> np.ndarray:
+        """T_t[rows, cols] (index arrays broadcast)."""
+        return self.local[tables, rows, cols] + self.band_base[tables, rows // BAND_ROWS, cols]
+
+    def dense(self, table: int) -> np.ndarray:
+        """T_table (ny + 1, nx + 1) in full."""
+        return self.local[table] + self.band_base[table][np.arange(self.ny + 1) // BAND_ROWS]
 
 
 class _Lattice:
@@ -615,8 +665,8 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
             waypoints += _leg_waypoints(ends[parent], second)
         return np.array(waypoints, dtype=float)
 
-    def _value_tables(self, belief, lattice: _Lattice, radius_m: float) -> np.ndarray:
-        """Summed-area tables (L, ny + 1, nx + 1) of the value maps of ``belief``; the value maps
+    def _value_tables(self, belief, lattice: _Lattice, radius_m: float) -> "BandedSummedAreaTables":
+        """Summed-area tables (:class:`BandedSummedAreaTables`) of the value maps of ``belief``; the value maps
         are kept between calls and recomputed only on the tiles (``VALUE_TILE_CELLS`` square)
         whose cells changed, or that border such a tile (a disc mass reaches k < tile cells)."""
         log_odds = np.asarray(belief.log_odds, dtype=float)
@@ -636,29 +686,23 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
             fresh = len(tiles[0]) * tile * tile > 0.5 * log_odds.size
         if fresh:
             values = self.layer_values(_probability(log_odds, searchable), lattice.cell, radius_m)
-            n_layers, ny, nx = values.shape
             cache = {"grid": belief.grid, "radius": radius_m, "searchable": searchable, "log_odds": log_odds.copy(),
-                     "values": values, "tables": np.zeros((n_layers, ny + 1, nx + 1))}
+                     "values": values, "tables": BandedSummedAreaTables(values)}
             self._cache = cache
-        else:
-            ny, nx = log_odds.shape
-            values = cache["values"]
-            for ty, tx in zip(*tiles):
-                r0, r1, c0, c1 = ty * tile, min((ty + 1) * tile, ny), tx * tile, min((tx + 1) * tile, nx)
-                h0, h1, g0, g1 = max(r0 - k, 0), min(r1 + k, ny), max(c0 - k, 0), min(c1 + k, nx)
-                mask = None if searchable is None else searchable[h0:h1, g0:g1]
-                local = self.layer_values(_probability(log_odds[h0:h1, g0:g1], mask), lattice.cell, radius_m)
-                values[:, r0:r1, c0:c1] = local[:, r0 - h0:r1 - h0, c0 - g0:c1 - g0]
-            np.copyto(cache["log_odds"], log_odds)
-        tables = cache["tables"]
-        first = 0 if fresh else int(min(tiles[0])) * tile  # rows above the first changed tile keep their sums
-        # T[i, j] = sum over rows < i, columns < j: rows i > first are T[first] plus the sums from row first on
-        block = tables[:, first + 1:, 1:]
-        np.cumsum(cache["values"][:, first:, :], axis=1, out=block)
-        np.cumsum(block, axis=2, out=block)
-        if first > 0:
-            block += tables[:, first:first + 1, 1:]
-        return tables
+            return cache["tables"]
+        ny, nx = log_odds.shape
+        values = cache["values"]
+        for ty, tx in zip(*tiles):
+            r0, r1, c0, c1 = ty * tile, min((ty + 1) * tile, ny), tx * tile, min((tx + 1) * tile, nx)
+            h0, h1, g0, g1 = max(r0 - k, 0), min(r1 + k, ny), max(c0 - k, 0), min(c1 + k, nx)
+            mask = None if searchable is None else searchable[h0:h1, g0:g1]
+            local = self.layer_values(_probability(log_odds[h0:h1, g0:g1], mask), lattice.cell, radius_m)
+            values[:, r0:r1, c0:c1] = local[:, r0 - h0:r1 - h0, c0 - g0:c1 - g0]
+        np.copyto(cache["log_odds"], log_odds)
+        bands = {row // BAND_ROWS for start in np.unique(tiles[0]) * tile
+                 for row in range(int(start), min(int(start) + tile, ny))}
+        cache["tables"].update(values, bands)
+        return cache["tables"]
 
     def _booked_images(self, grid, others: list[np.ndarray]):
         """Windows and altitudes of the images the other UAVs will take along their plans."""
@@ -720,8 +764,8 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
             r0 = np.arange(0, lattice.ny, by)
             c0 = np.arange(0, lattice.nx, bx)
             r1, c1 = np.minimum(r0 + by, lattice.ny), np.minimum(c0 + bx, lattice.nx)
-            table = tables[self._table_offset[layer]]  # T_1: the value of a first look
-            block = (table[np.ix_(r1, c1)] - table[np.ix_(r0, c1)]) - (table[np.ix_(r1, c0)] - table[np.ix_(r0, c0)])
+            table = self._table_offset[layer]  # T_1: the value of a first look
+            block = tables.sums(table, r0[:, None], r1[:, None], c0[None, :], c1[None, :])
             cx, _ = lattice.cell_centre(0, (c0 + c1 - 1) / 2)
             _, cy = lattice.cell_centre((r0 + r1 - 1) / 2, 0)
             distance = np.hypot(cx[None, :] - pose[0], cy[:, None] - pose[1])
@@ -917,9 +961,9 @@ def _along_path(path: np.ndarray, distance_m: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(d, cumulative, path[:, axis]) for axis in range(3)], axis=-1)
 
 
-def _table_sums(tables, layers, ranges):
+def _table_sums(tables: BandedSummedAreaTables, layers, ranges):
     r0, r1, c0, c1 = ranges
-    return tables[layers, r1, c1] - tables[layers, r0, c1] - tables[layers, r1, c0] + tables[layers, r0, c0]
+    return tables.sums(layers, r0, r1, c0, c1)
 
 
 def _leg_waypoints(start, end) -> list[np.ndarray]:

@@ -102,8 +102,9 @@ LONG_RANGE_BLOCKS = 4
 SEPARATION_SAMPLES = 24
 #: Side [cells] of the tiles on which value maps are recomputed when the map changed.
 VALUE_TILE_CELLS = 64
-#: Rows per band of the summed-area tables (:class:`BandedSummedAreaTables`).
-BAND_ROWS = 64
+#: Rows per band of the summed-area tables (:class:`BandedSummedAreaTables`): 2^BAND_SHIFT.
+BAND_SHIFT = 6
+BAND_ROWS = 1 << BAND_SHIFT
 #: Default number of altitude layers.
 DEFAULT_LAYERS = 5
 #: Logit range [-L, L] of the tabulated levels of the value functions (``value_levels``).
@@ -249,7 +250,7 @@ class BandedSummedAreaTables:
 
     def corner(self, tables, rows, cols) -> np.ndarray:
         """T_t[rows, cols] (index arrays broadcast)."""
-        return self.local[tables, rows, cols] + self.band_base[tables, rows // BAND_ROWS, cols]
+        return self.local[tables, rows, cols] + self.band_base[tables, rows >> BAND_SHIFT, cols]
 
     def dense(self, table: int) -> np.ndarray:
         """T_table (ny + 1, nx + 1) in full."""
@@ -667,8 +668,9 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
 
     def _value_tables(self, belief, lattice: _Lattice, radius_m: float) -> "BandedSummedAreaTables":
         """Summed-area tables (:class:`BandedSummedAreaTables`) of the value maps of ``belief``; the value maps
-        are kept between calls and recomputed only on the tiles (``VALUE_TILE_CELLS`` square)
-        whose cells changed, or that border such a tile (a disc mass reaches k < tile cells)."""
+        are kept between calls and recomputed only where they depend on a changed cell: per
+        tile (``VALUE_TILE_CELLS`` square) holding changed cells, the bounding box of those cells
+        grown by the disc's reach k (a cell's value depends on the cells within k)."""
         log_odds = np.asarray(belief.log_odds, dtype=float)
         searchable = getattr(belief, "searchable", None)
         k = int(round(radius_m / lattice.cell))
@@ -682,8 +684,8 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
             changed = log_odds != cache["log_odds"]
             if not changed.any():
                 return cache["tables"]
-            tiles = _changed_tiles(changed, tile)
-            fresh = len(tiles[0]) * tile * tile > 0.5 * log_odds.size
+            boxes = _changed_boxes(changed, tile, k)
+            fresh = int(np.sum((boxes[:, 1] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 2]))) > 0.5 * log_odds.size
         if fresh:
             values = self.layer_values(_probability(log_odds, searchable), lattice.cell, radius_m)
             cache = {"grid": belief.grid, "radius": radius_m, "searchable": searchable, "log_odds": log_odds.copy(),
@@ -692,16 +694,13 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
             return cache["tables"]
         ny, nx = log_odds.shape
         values = cache["values"]
-        for ty, tx in zip(*tiles):
-            r0, r1, c0, c1 = ty * tile, min((ty + 1) * tile, ny), tx * tile, min((tx + 1) * tile, nx)
+        for r0, r1, c0, c1 in boxes:
             h0, h1, g0, g1 = max(r0 - k, 0), min(r1 + k, ny), max(c0 - k, 0), min(c1 + k, nx)
             mask = None if searchable is None else searchable[h0:h1, g0:g1]
             local = self.layer_values(_probability(log_odds[h0:h1, g0:g1], mask), lattice.cell, radius_m)
             values[:, r0:r1, c0:c1] = local[:, r0 - h0:r1 - h0, c0 - g0:c1 - g0]
         np.copyto(cache["log_odds"], log_odds)
-        bands = {row // BAND_ROWS for start in np.unique(tiles[0]) * tile
-                 for row in range(int(start), min(int(start) + tile, ny))}
-        cache["tables"].update(values, bands)
+        cache["tables"].update(values, {row // BAND_ROWS for r0, r1, _, _ in boxes for row in range(r0, r1)})
         return cache["tables"]
 
     def _booked_images(self, grid, others: list[np.ndarray]):
@@ -936,18 +935,23 @@ def _probability(log_odds: np.ndarray, searchable: np.ndarray | None) -> np.ndar
     return p if searchable is None else np.where(searchable, p, 0.0)
 
 
-def _changed_tiles(changed: np.ndarray, tile: int) -> tuple[np.ndarray, np.ndarray]:
-    """(tile rows, tile columns) of the tiles holding a changed cell, and of their 8 neighbours."""
+def _changed_boxes(changed: np.ndarray, tile: int, reach: int) -> np.ndarray:
+    """(b, 4) boxes (r0, r1, c0, c1), half-open: per tile of ``tile`` cells holding a changed
+    cell, the bounding box of its changed cells grown by ``reach`` cells, clipped to the map."""
     ny, nx = changed.shape
-    per_row = np.logical_or.reduceat(changed, np.arange(0, ny, tile), axis=0)
-    marked = np.logical_or.reduceat(per_row, np.arange(0, nx, tile), axis=1)
-    grown = marked.copy()
-    grown[1:] |= marked[:-1]
-    grown[:-1] |= marked[1:]
-    wide = grown.copy()
-    wide[:, 1:] |= grown[:, :-1]
-    wide[:, :-1] |= grown[:, 1:]
-    return np.nonzero(wide)
+    rows, cols = np.nonzero(changed)
+    tiles_per_row = (nx + tile - 1) // tile
+    tile_of = (rows // tile) * tiles_per_row + cols // tile
+    order = np.argsort(tile_of, kind="stable")
+    rows, cols, tile_of = rows[order], cols[order], tile_of[order]
+    starts = np.flatnonzero(np.r_[True, np.diff(tile_of) != 0])
+    boxes = np.column_stack([
+        np.maximum(np.minimum.reduceat(rows, starts) - reach, 0),
+        np.minimum(np.maximum.reduceat(rows, starts) + 1 + reach, ny),
+        np.maximum(np.minimum.reduceat(cols, starts) - reach, 0),
+        np.minimum(np.maximum.reduceat(cols, starts) + 1 + reach, nx),
+    ])
+    return boxes.astype(np.intp)
 
 
 def _along_path(path: np.ndarray, distance_m: np.ndarray) -> np.ndarray:

@@ -20,7 +20,7 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
     """Run attend's learning (D, E, M steps) on the log with the model file's [learning] settings.
 
     The model's A, B, C are the prior means; every input must be measured (a column). An
-    [observer] embedding_order of "auto" means p = 6 here (the learning default). model: the
+    [observer] embedding_order of "auto" means :func:`auto_identification_order` here. model: the
     parsed model file; log: the CSV log; progress: show a progress bar over the iterations.
     """
     from attend.perception.learning import identify
@@ -59,12 +59,28 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
         raise AttendInputError(f"{model.path}: [observer] kernel_width: identify needs one kernel width > 0 [s] for "
                                "both noises (separate or white widths are for attend estimate only)")
     try:
+        order = (auto_identification_order(model.kernel_width, dt) if model.embedding_order == "auto"
+                 else model.learning_order)
         return identify(model.system, outputs, inputs, dt, kernel_width=model.kernel_width,
-                        embedding_order=model.learning_order,
+                        embedding_order=order,
                         input_order=model.input_order,
                         precision_convention=model.precision_convention, progress=progress, **options)
     except AttendInputError as error:
         raise AttendInputError(_in_file_terms(str(error), model, log)) from None
+
+
+#: Kernel width in samples (s / dt) from which identify's "auto" embedding order is 2, not 6.
+SMOOTH_KERNEL_SAMPLES = 2.0
+
+
+def auto_identification_order(kernel_width: float, dt: float) -> int:
+    """The embedding order p of identify under "auto": 6, or 2 when the noise kernel spans
+    s / dt >= ``SMOOTH_KERNEL_SAMPLES`` samples. There the smoothness precision weighs the p-th
+    derivative of the prediction errors by about (s / dt)^(2 p): a few samples rougher than the
+    noise model (rounding, white sensor noise, an interpolated gap) dominate, the M-step reads them
+    as noise and the parameters drift (docs/command-line.md, "Where it is fragile"); order 2 learns
+    as accurately on clean logs and is not moved by them. kernel_width: s [s]; dt: sample time [s]."""
+    return 2 if kernel_width / dt >= SMOOTH_KERNEL_SAMPLES else 6
 
 
 _LEARNING_FIELDS = ("free", "prior_precision", "initial", "noise_prior_mean", "noise_prior_precision",

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import signal
 import sys
 from pathlib import Path
 
@@ -69,8 +70,14 @@ class MapPainter:
             raise RuntimeError("the process writing map.png and map.tif ended early") from None
 
     def close(self) -> None:
-        """Stop the child if its results were not collected (an error before the outputs): it
-        sees the pipes close and exits."""
+        """Stop the child if its results were not collected (an error before the outputs): killed
+        at once when nothing was submitted (it has written nothing), else it sees the pipes close
+        and exits."""
+        if self.pid is not None and self._picture_write is not None:  # nothing submitted
+            try:
+                os.kill(self.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
         for name in ("_picture_write", "_result_read"):
             descriptor = getattr(self, name)
             if descriptor is not None:

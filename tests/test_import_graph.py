@@ -79,3 +79,19 @@ def test_no_import_cycles():
     graph = _module_graph()
     assert len(graph) > 100
     assert _cycles(graph) == []
+
+
+def test_no_private_name_is_imported_from_another_package():
+    """A name starting with "_" stays inside its package (attend.X for a top-level X): other
+    packages use the public name. Shared private modules (attend._validation, attend._threads,
+    attend._lazy, ...) hold public names for the whole package and are not counted."""
+    crossings = []
+    for path in PACKAGE.rglob("*.py"):
+        parts = ("attend",) + path.relative_to(PACKAGE).with_suffix("").parts
+        package = parts[1] if len(parts) > 1 else ""
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("attend."):
+                target = node.module.split(".")[1]
+                crossings += [f"{'.'.join(parts)} imports {node.module}.{alias.name}" for alias in node.names
+                              if alias.name.startswith("_") and target.removesuffix(".py") != package]
+    assert not crossings, "\n".join(crossings)

@@ -304,8 +304,10 @@ def _add_search(add_command) -> None:
     search.add_argument("--out", default="search_out", help="output directory (default: %(default)s)")
 
 
-def _output_file(path: str, option: str, example: str) -> Path:
-    """An output file the user named: not a directory; its missing parent folders are created."""
+def output_file(path: str, option: str, example: str) -> Path:
+    """An output file the user named: not a directory; its missing parent folders are created.
+    path: the file; option: the command-line option that named it (for errors); example: a file
+    name to suggest when path is a folder."""
     path = Path(path)
     if path.is_dir():
         raise AttendInputError(f"{option} {path}: is a directory; expected a file name, e.g. {path / example}")
@@ -453,9 +455,9 @@ def _command_estimate(args) -> int:
     log = io.read_log(log_path, model.time_column, gaps=True)
     if not model.nonlinear:
         model.system.check()
-    _output_file(args.out, "--out", "estimates.csv")
+    output_file(args.out, "--out", "estimates.csv")
     if args.plot:
-        _output_file(args.plot, "--plot", "estimates.png")
+        output_file(args.plot, "--plot", "estimates.png")
     started = time.perf_counter()
     gaps = None
     with progress_bars(not args.no_progress and sys.stderr.isatty()):

@@ -12,7 +12,7 @@ def command_identify(args) -> int:
     """`attend identify MODEL LOG`: learn, print the report, write the learned model file (exit 0),
     or say why not (exit 3; args: the parsed command line: model, log, out, no_progress,
     allow_unconverged)."""
-    from attend.cli import _output_file
+    from attend.cli import output_file
 
     import numpy as np
 
@@ -20,7 +20,7 @@ def command_identify(args) -> int:
 
     model = io.read_model(args.model)
     log = io.read_log(args.log, model.time_column)
-    _output_file(args.out, "--out", "learned_model.toml")
+    output_file(args.out, "--out", "learned_model.toml")
     if model.nonlinear:
         return _identify_nonlinear(args, model, log)
     started = time.perf_counter()

@@ -44,3 +44,25 @@ def model_file_text(*sections) -> str:
     tables = [header + "\n" + "".join(f"{key} = {json.dumps(value)}\n" for key, value in table.items())
               for header, table in sections]
     return "\n" + "\n".join(tables)
+
+
+#: A mass-spring-damper model file whose stiffness, damping and gain are learned from a log with
+#: columns t, y, u (prior A[2,1] = A[2,2] = -1, B[2,1] = 1; noise kernel width 0.5 s).
+MASS_SPRING_LEARNING_MODEL = """
+[model]
+A = [[0, 1], [-1.0, -1.0]]
+B = [[0], [1.0]]
+C = [[1, 0]]
+[outputs]
+columns = ["y"]
+[[inputs]]
+name = "force"
+column = "u"
+[observer]
+kernel_width = 0.5
+sensor_precision = 2980.0
+process_precision = 2980.0
+[learning]
+free = ["A[2,1]", "A[2,2]", "B[2,1]"]
+max_iterations = 50
+"""

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from attend.cli import main
+from conftest import MASS_SPRING_LEARNING_MODEL
 
 
 def test_help_explains_units(capsys):
@@ -61,24 +62,7 @@ def test_identify_learns_and_writes_a_usable_model(tmp_path, capsys):
     log = simulate(system, u[:, None], 0.1, kernel_width=0.5, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=1)
     np.savetxt(tmp_path / "log.csv", np.column_stack([t, log.outputs[:, 0], u]), delimiter=",",
                header="t,y,u", comments="")
-    (tmp_path / "model.toml").write_text("""
-[model]
-A = [[0, 1], [-1.0, -1.0]]
-B = [[0], [1.0]]
-C = [[1, 0]]
-[outputs]
-columns = ["y"]
-[[inputs]]
-name = "force"
-column = "u"
-[observer]
-kernel_width = 0.5
-sensor_precision = 2980.0
-process_precision = 2980.0
-[learning]
-free = ["A[2,1]", "A[2,2]", "B[2,1]"]
-max_iterations = 50
-""")
+    (tmp_path / "model.toml").write_text(MASS_SPRING_LEARNING_MODEL)
     out = tmp_path / "learned.toml"
     assert main(["identify", str(tmp_path / "model.toml"), str(tmp_path / "log.csv"), "--out", str(out),
                  "--no-progress"]) == 0

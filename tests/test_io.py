@@ -6,7 +6,7 @@ import pytest
 from attend import io
 from attend._validation import AttendInputError
 from attend.data import demo_paths
-from conftest import model_file_text
+from conftest import MASS_SPRING_LEARNING_MODEL, model_file_text
 
 MODEL = model_file_text(
     ("[model]", {"A": [[-0.25, 1.0], [-0.5, -0.25]], "B": [[1.0], [0.0]], "C": [[0.125, 0.1633], [0.125, -0.1633]],
@@ -239,23 +239,7 @@ def test_identify_auto_order_is_not_moved_by_a_few_rough_samples(tmp_path):
     u = sum(a * np.exp(-0.25 * (t - c) ** 2) for c, a in ((8, 1.0), (22, -1.0), (35, 1.5), (48, -0.7)))
     log = simulate(system, u[:, None], 0.1, kernel_width=0.5, process_std=np.exp(-4), measurement_std=np.exp(-4),
                    seed=1)
-    (tmp_path / "model.toml").write_text("""
-[model]
-A = [[0, 1], [-1.0, -1.0]]
-B = [[0], [1.0]]
-C = [[1, 0]]
-[outputs]
-columns = ["y"]
-[[inputs]]
-name = "force"
-column = "u"
-[observer]
-kernel_width = 0.5
-sensor_precision = 2980.0
-process_precision = 2980.0
-[learning]
-free = ["A[2,1]", "A[2,2]", "B[2,1]"]
-""")
+    (tmp_path / "model.toml").write_text(MASS_SPRING_LEARNING_MODEL)
     model = io.read_model(tmp_path / "model.toml")
     rng = np.random.default_rng(0)
     rough = log.outputs[:, 0].copy()

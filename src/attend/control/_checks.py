@@ -131,3 +131,17 @@ def linear_matrices(A, B, C, D=None, inputs_optional: bool = False):
     k, m = B.shape[1], C.shape[0]
     D = np.zeros((m, k)) if D is None else as_matrix(D, "D", rows=m, cols=k)
     return A, B, C, D
+
+
+def action_limits(value, k: int):
+    """None, or (low, high) of k actions each, low < high elementwise; value: the pair given."""
+    if value is None:
+        return None
+    try:
+        low, high = value
+    except (TypeError, ValueError):
+        raise AttendInputError("action_limits: expected a pair (low, high)") from None
+    low, high = vector(low, k, "action_limits low"), vector(high, k, "action_limits high")
+    if np.any(low >= high):
+        raise AttendInputError(f"action_limits: expected low < high, got {low.tolist()} and {high.tolist()}")
+    return low, high

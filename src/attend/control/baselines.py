@@ -21,6 +21,7 @@ from typing import Callable
 import numpy as np
 
 from attend._validation import AttendInputError, as_matrix, number, positive_scalar
+from attend.control._checks import action_limits as checked_action_limits
 from attend.control._checks import vector
 
 
@@ -30,19 +31,6 @@ def _reference(value) -> Callable:
     number(value, "reference")
     constant = float(value)
     return lambda t: constant
-
-
-def _limits(value, k):
-    if value is None:
-        return None
-    try:
-        low, high = value
-    except (TypeError, ValueError):
-        raise AttendInputError("action_limits: expected a pair (low, high)") from None
-    low, high = vector(low, k, "action_limits low"), vector(high, k, "action_limits high")
-    if np.any(low >= high):
-        raise AttendInputError("action_limits: expected low < high")
-    return low, high
 
 
 class PIDController:
@@ -65,7 +53,7 @@ class PIDController:
         if self.derivative_filter < 0:
             raise AttendInputError("derivative_filter: expected a time constant >= 0 (s)")
         self.n_actions = 1
-        self.action_limits = _limits(action_limits, 1)
+        self.action_limits = checked_action_limits(action_limits, 1)
         self.reset()
 
     def reset(self) -> None:
@@ -155,7 +143,7 @@ class LQGController:
         self._ff = np.linalg.pinv(eq) @ np.concatenate([np.zeros(n), [1.0]])
         self._Ad, self._Bd, self._C, self._D, self._H = Ad, Bd, C, D, H
         self.n_actions = k
-        self.action_limits = _limits(action_limits, k)
+        self.action_limits = checked_action_limits(action_limits, k)
         if reference_state is not None and not callable(reference_state):
             raise AttendInputError("reference_state: expected a function t -> (x_ff, a_ff)")
         self.reference_state = reference_state

@@ -35,6 +35,7 @@ import numpy as np
 
 from attend._validation import AttendInputError, number, positive_scalar, precision_matrix
 from attend.control._checks import ClosedLoopDivergence, count, vector
+from attend.control._checks import action_limits as checked_action_limits
 from attend.control._core import (
     causal_embedding_weights,
     relative_degrees,
@@ -205,15 +206,7 @@ class ActiveInferenceController:
         if not math.isfinite(pa) or pa < 0:
             raise AttendInputError(f"action_prior_precision: expected a finite number >= 0, got {action_prior_precision!r}")
         self.action_prior_precision = pa
-        if action_limits is not None:
-            try:
-                low, high = action_limits
-            except (TypeError, ValueError):
-                raise AttendInputError("action_limits: expected a pair (low, high)") from None
-            low, high = vector(low, k, "action_limits low"), vector(high, k, "action_limits high")
-            if np.any(low >= high):
-                raise AttendInputError(f"action_limits: expected low < high, got {low.tolist()}, {high.tolist()}")
-            action_limits = (low, high)
+        action_limits = checked_action_limits(action_limits, k)
         self.action_limits = action_limits
         self._a0 = np.zeros(k) if initial_action is None else vector(initial_action, k, "initial_action")
         self._multiplier = _schedule(precision_schedule)

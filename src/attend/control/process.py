@@ -24,6 +24,7 @@ from typing import Callable
 import numpy as np
 
 from attend._validation import AttendInputError, kernel_width as _kernel_width, order, positive_scalar
+from attend.control._checks import action_limits as checked_action_limits
 from attend.control._checks import count, evaluated, finite_difference, function, jacobian_pair, linear_matrices, vector
 
 
@@ -82,15 +83,7 @@ class GenerativeProcess:
                            ("jacobian_f", "(x, a) -> (d/dx, d/da)"), ("jacobian_g", "(x, a) -> (d/dx, d/da)")):
             if getattr(self, name) is not None:
                 function(getattr(self, name), name, form)
-        if self.action_limits is not None:
-            try:
-                low, high = self.action_limits
-            except (TypeError, ValueError):
-                raise AttendInputError("action_limits: expected a pair (low, high)") from None
-            low, high = vector(low, k, "action_limits low"), vector(high, k, "action_limits high")
-            if np.any(low >= high):
-                raise AttendInputError(f"action_limits: expected low < high, got {low.tolist()} and {high.tolist()}")
-            object.__setattr__(self, "action_limits", (low, high))
+        object.__setattr__(self, "action_limits", checked_action_limits(self.action_limits, k))
         object.__setattr__(self, "substeps", count(self.substeps, "substeps", 1))
         a0 = np.zeros(k)
         evaluated(self.f(x0, a0), n, "process f(x, a)")

@@ -298,6 +298,26 @@ def test_bad_plan_input_names_the_argument():
         planner.plan(belief, 0, np.array([0.0, 0.0, 30.0]), -1.0)
     with pytest.raises(ActionInputError, match="others"):
         planner.plan(belief, 0, np.array([0.0, 0.0, 30.0]), 100.0, others=[np.zeros((2, 2))])
+    with pytest.raises(ActionInputError, match="allowed_legs"):
+        planner.plan(belief, 0, np.array([0.0, 0.0, 30.0]), 100.0, allowed_legs="north only")
+
+
+def test_allowed_legs_of_one_call_bound_that_call_only():
+    """A call's filter replaces the planner's for that call: with legs allowed only east of the
+    pose every waypoint lies east of it, and the planner keeps its own filter (None) after."""
+    grid = MapGrid.square(300.0, 1.0)
+    belief = ProbabilityMap.uniform(grid, 5.0)
+    planner = ExpectedFreeEnergySearchPlanner(DetectionModel(), Camera(), 10.0, 1.0, seed=2, fly_second_leg=True)
+    pose = np.array([0.0, 0.0, 30.0])
+
+    def east_only(starts, ends):
+        return (ends[:, 0] >= pose[0]) & (starts[:, 0] >= pose[0])
+
+    east = planner.plan(belief, 0, pose, 300.0, allowed_legs=east_only)
+    assert np.all(east[:, 0] >= pose[0])
+    assert planner.allowed_legs is None
+    nothing = planner.plan(belief, 0, pose, 300.0, allowed_legs=lambda starts, ends: np.zeros(len(starts), bool))
+    assert np.array_equal(nothing, pose[None])
 
 
 def test_same_seed_same_plan():

@@ -372,20 +372,17 @@ class Mission:
             after = np.hypot(ends[:, 0] - entry[0], ends[:, 1] - entry[1]) + outside
             return ok & ((before + during + after) / uav.speed_m_s <= budget)
 
-        planner.allowed_legs = allowed  # this call's budget (the planner is shared by UAVs of one kind)
-        try:
-            return self._feasible_leg(k, planner, work, pose, others, budget, left)
-        finally:
-            planner.allowed_legs = area_legs
+        return self._feasible_leg(k, planner, work, pose, others, budget, left, allowed)
 
-    def _feasible_leg(self, k: int, planner, work: ProbabilityMap, pose, others, budget: float, left: float):
-        """The planner's leg from ``pose`` shortened until it and the way home fit ``budget`` [s]
-        (up to 3 tries), or None."""
+    def _feasible_leg(self, k: int, planner, work: ProbabilityMap, pose, others, budget: float, left: float,
+                      allowed):
+        """The planner's leg from ``pose`` among the legs ``allowed`` passes, shortened until it
+        and the way home fit ``budget`` [s] (up to 3 tries), or None."""
         uav = self.config.uavs[k]
         for _ in range(3):
             if left <= uav.image_interval_s:
                 return None
-            leg = np.asarray(planner.plan(work, k, pose, left, others), dtype=float).reshape(-1, 3)
+            leg = np.asarray(planner.plan(work, k, pose, left, others, allowed_legs=allowed), dtype=float).reshape(-1, 3)
             moved = np.hypot(*(leg[:, :2] - pose[:2]).T) + np.abs(leg[:, 2] - pose[2])
             if not np.any(moved > 1e-6):
                 return None

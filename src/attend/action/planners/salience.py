@@ -585,7 +585,8 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
     # planning
 
     def plan(
-        self, belief, uav: int, pose_m: np.ndarray, time_left_s: float, others: Sequence[np.ndarray] = ()
+        self, belief, uav: int, pose_m: np.ndarray, time_left_s: float, others: Sequence[np.ndarray] = (),
+        allowed_legs=None,
     ) -> np.ndarray:
         """Next waypoints (w, 3) [m] for UAV ``uav``: the two legs with the largest expected free
         energy reduction per second (module docstring), an altitude change at the start of a leg
@@ -593,7 +594,10 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
 
         belief: the shared :class:`attend.action.probability_map.ProbabilityMap`; uav: index of
         the UAV; pose_m: its pose (x, y, z) [m]; time_left_s: flight time left [s]; others: per
-        other UAV an array (k, 3) [m], its current pose then its planned waypoints."""
+        other UAV an array (k, 3) [m], its current pose then its planned waypoints; allowed_legs:
+        None (the planner's own ``allowed_legs``) or a function (starts (m, 3), ends (m, 3)) [m]
+        -> (m,) bool that replaces it for this call (e.g. legs after which this UAV still gets
+        home in time)."""
         try:
             pose = np.asarray(pose_m, dtype=float).reshape(3)
         except (TypeError, ValueError):
@@ -608,10 +612,13 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
             if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0 or not np.all(np.isfinite(arr)):
                 raise ActionInputError(f"others[{k}]: expected a finite array (k >= 1, 3) in m, got shape {arr.shape}")
             other_paths.append(arr)
+        if allowed_legs is not None and not callable(allowed_legs):
+            raise ActionInputError(f"allowed_legs: expected None or a function (starts, ends) -> mask, got {allowed_legs!r}")
+        allowed = self.allowed_legs if allowed_legs is None else allowed_legs
         with single_blas_thread():
-            return self._plan(belief, pose, float(time_left_s), other_paths)
+            return self._plan(belief, pose, float(time_left_s), other_paths, allowed)
 
-    def _plan(self, belief, pose: np.ndarray, time_left_s: float, others: list[np.ndarray]) -> np.ndarray:
+    def _plan(self, belief, pose: np.ndarray, time_left_s: float, others: list[np.ndarray], allowed) -> np.ndarray:
         grid = belief.grid
         lattice = _Lattice(grid)
         if self.book_other_plans and any(len(path) > 1 for path in others):
@@ -627,13 +634,13 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
             radius = self._target_radius(lattice.cell)
         tables = self._value_tables(belief, lattice, float(radius))
         # first legs
-        ends, layers = self._first_candidates(pose, lattice, tables, belief)
+        ends, layers = self._first_candidates(pose, lattice, tables, belief, allowed)
         starts = np.broadcast_to(pose, ends.shape)
-        keep = self._feasible(starts, ends, lattice, others)
+        keep = self._feasible(starts, ends, lattice, others, allowed)
         margin = OBSTACLE_MARGIN_M
         if not np.any(keep):  # e.g. started within the margin of a building: only stay out of it
             margin = 0.0
-            keep = self._feasible(starts, ends, lattice, others, margin)
+            keep = self._feasible(starts, ends, lattice, others, allowed, margin)
         if not np.any(keep):
             return pose[None].copy()
         ends, layers, starts = ends[keep], layers[keep], starts[keep]
@@ -650,7 +657,7 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         for parent in order:
             ends2, layers2 = self._second_candidates(ends[parent], layers[parent], lattice)
             starts2 = np.broadcast_to(ends[parent], ends2.shape)
-            ok = self._feasible(starts2, ends2, lattice, others, margin, float(time1[parent]))
+            ok = self._feasible(starts2, ends2, lattice, others, allowed, margin, float(time1[parent]))
             if not np.any(ok):
                 continue
             ends2, layers2, starts2 = ends2[ok], layers2[ok], starts2[ok]
@@ -720,8 +727,8 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
                     altitudes.append(h)
         return windows, altitudes
 
-    def _first_candidates(self, pose, lattice: _Lattice, tables: np.ndarray, belief):
-        """First-leg end points (m, 3) and their layer indices (m,)."""
+    def _first_candidates(self, pose, lattice: _Lattice, tables: np.ndarray, belief, allowed):
+        """First-leg end points (m, 3) and their layer indices (m,); allowed: the legs' filter (or None)."""
         n_layers = len(self.altitude_layers_m)
         smallest = 2 * float(self._half_widths[:, 0].min())
         distances = np.geomspace(max(smallest / 2, lattice.cell), max(self.horizon_m, smallest), FIRST_DISTANCES)
@@ -744,8 +751,8 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         layers = [np.full(len(xy), k) for k in range(n_layers)]
         # straight to the best coarse blocks of the whole area
         far = self._long_range_targets(pose, lattice, tables)
-        if len(far) and self.route_toward is not None and self.allowed_legs is not None:
-            blocked = ~np.asarray(self.allowed_legs(np.broadcast_to(pose, (len(far), 3)), far[:, :3]), dtype=bool)
+        if len(far) and self.route_toward is not None and allowed is not None:
+            blocked = ~np.asarray(allowed(np.broadcast_to(pose, (len(far), 3)), far[:, :3]), dtype=bool)
             for i in np.flatnonzero(blocked):
                 far[i, :2] = self.route_toward(pose.copy(), far[i, :3].copy())
         if len(far):
@@ -792,11 +799,12 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         layers = np.concatenate([np.full(len(xy), k) for k in chosen])
         return ends, layers
 
-    def _feasible(self, starts, ends, lattice: _Lattice, others: list[np.ndarray], margin_m: float = OBSTACLE_MARGIN_M,
-                  delay_s: float = 0.0):
+    def _feasible(self, starts, ends, lattice: _Lattice, others: list[np.ndarray], allowed,
+                  margin_m: float = OBSTACLE_MARGIN_M, delay_s: float = 0.0):
         """(m,) mask of legs inside the map and altitude limits, ``margin_m`` clear of buildings,
-        ending ``min_separation_m`` from the other UAVs' poses and waypoints and kept apart from
-        them in flight (:meth:`_kept_apart`; the leg starts ``delay_s`` [s] from now)."""
+        passed by ``allowed`` (None: every leg), ending ``min_separation_m`` from the other UAVs'
+        poses and waypoints and kept apart from them in flight (:meth:`_kept_apart`; the leg
+        starts ``delay_s`` [s] from now)."""
         x0, x1, y0, y1 = lattice.extent
         low, high = self.altitude_limits_m
         ok = (ends[:, 0] >= x0) & (ends[:, 0] <= x1) & (ends[:, 1] >= y0) & (ends[:, 1] <= y1)
@@ -807,8 +815,8 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
                 bounds = tuple(box.bounds)
                 ok &= ~segments_hit_box(starts, corner, bounds, margin_m)
                 ok &= ~segments_hit_box(corner, ends, bounds, margin_m)
-        if self.allowed_legs is not None and ok.any():
-            ok[ok] &= np.asarray(self.allowed_legs(starts[ok], ends[ok]), dtype=bool)
+        if allowed is not None and ok.any():
+            ok[ok] &= np.asarray(allowed(starts[ok], ends[ok]), dtype=bool)
         if others and self.min_separation_m > 0:
             points = np.vstack(others)
             gap = np.sqrt(((ends[:, None, :] - points[None, :, :]) ** 2).sum(axis=2)).min(axis=1)

@@ -21,11 +21,11 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from attend.perception import baselines as bl  # noqa: E402
+from attend.perception import references as bl  # noqa: E402
 from attend.perception.dem import DEMObserver  # noqa: E402
 from attend.perception.kalman import KalmanEstimator  # noqa: E402
-from attend.problems import convolution_model  # noqa: E402
-from attend.systems import simulate  # noqa: E402
+from attend.models.problems import convolution_model  # noqa: E402
+from attend.models.linear import simulate  # noqa: E402
 
 DT = 0.1
 N_SAMPLES = 320

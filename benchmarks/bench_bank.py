@@ -43,11 +43,11 @@ from dataclasses import dataclass  # noqa: E402
 import numpy as np  # noqa: E402
 
 from attend._validation import AttendInputError  # noqa: E402
-from attend.noise import autocorrelation  # noqa: E402
-from attend.perception import baselines as bl  # noqa: E402
+from attend.models.noise import autocorrelation  # noqa: E402
+from attend.perception import references as bl  # noqa: E402
 from attend.perception.dem import DEMObserver  # noqa: E402
 from attend.perception.kalman import KalmanEstimator  # noqa: E402
-from attend.systems import LinearSystem, ModelWarning, simulate  # noqa: E402
+from attend.models.linear import LinearSystem, ModelWarning, simulate  # noqa: E402
 
 BANK_SEED = 12  # issue 12
 WIDTH_STEPS = (0.0, 0.5, 1.0, 2.0, 5.0, 10.0)  # s / dt (0: white noise)

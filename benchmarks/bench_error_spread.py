@@ -36,15 +36,15 @@ from pathlib import Path
 
 import numpy as np
 
-from attend.perception.nonlinear import NonlinearSystem, simulate_nonlinear
-from attend.perception.nonlinear_baselines import unscented_kalman
+from attend.models import NonlinearSystem, simulate_nonlinear
+from attend.perception.nonlinear_smoothers import unscented_kalman
 
 sys.path.insert(0, os.path.dirname(__file__))
 
 NONLINEAR_TARGET_S, LINEAR_TARGET_S = 1.0, 3.0
 
 #: the previous default of `attend estimate`: the std from 200 noise draws
-DRAWN = ("import sys; import attend.perception.nonlinear_baselines as nb; smoother = nb.unscented_kalman; "
+DRAWN = ("import sys; import attend.perception.nonlinear_smoothers as nb; smoother = nb.unscented_kalman; "
          "nb.unscented_kalman = lambda *a, **k: smoother(*a, **{**k, 'spread_draws': 200}); "
          "from attend.cli import main; sys.exit(main(sys.argv[1:]))")
 
@@ -121,7 +121,7 @@ def _quadrotor_case(folder: Path) -> tuple[Path, Path, np.ndarray]:
     velocities, rates; 6 outputs; thrust and three torques unknown, their prior std and width 0.2 s
     the ones they are drawn from), 2600 samples at 25 Hz; returns the paths and the true states."""
     from attend import LinearSystem, simulate
-    from attend.noise import coloured_noise
+    from attend.models.noise import coloured_noise
 
     A = np.zeros((12, 12))
     A[0:3, 6:9] = A[3:6, 9:12] = np.eye(3)

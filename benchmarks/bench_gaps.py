@@ -52,7 +52,7 @@ from bench_bank import BANK_SEED, Case, draw_case  # noqa: E402
 
 from attend.perception.kalman import KalmanEstimator  # noqa: E402
 from attend.perception.sample_times import sample_grid  # noqa: E402
-from attend.systems import ModelWarning  # noqa: E402
+from attend.models.linear import ModelWarning  # noqa: E402
 
 TARGET = 1.1
 
@@ -116,7 +116,7 @@ def exact_ratio(case: Case, estimator, y, given, stamps, states) -> tuple[float,
     NaN outputs there, the noises' white floor included), computed with two Cholesky jitters
     (1e-14 and 1e-12 of the mean variance); unsettled when their MSEs differ by more than 2 % (both
     noises smooth: the dense covariance is then too ill-conditioned to be an oracle)."""
-    from attend.perception import baselines
+    from attend.perception import references
 
     grid = sample_grid(stamps, case.dt)
     estimate = estimator.estimate(y, given, time=stamps)
@@ -124,7 +124,7 @@ def exact_ratio(case: Case, estimator, y, given, stamps, states) -> tuple[float,
     inputs = np.column_stack([np.interp(grid.time, stamps, column) for column in given.T])
     errors = []
     for jitter in (1e-14, 1e-12):
-        exact = baselines.exact_posterior(
+        exact = references.exact_posterior(
             case.system, case.dt, on_grid, inputs if case.known else None, time=grid.time, white_floor=1e-8,
             process_kernel_width=case.process_width, sensor_kernel_width=case.sensor_width,
             input_kernel_width=case.input_width, process_std=case.process_std, measurement_std=case.sensor_std,

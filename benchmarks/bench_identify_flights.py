@@ -27,8 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from attend.perception.learning import identify, parameter_vector
-from attend.systems import LinearSystem
+from attend.perception.learning import identify
+from attend.models import parameter_vector
+from attend.models.linear import LinearSystem
 
 DATA = Path(os.environ.get("ATTEND_QUADROTOR_DATA", Path(__file__).resolve().parents[2] / "shared" / "data" / "quadrotor-wind"))
 FREE = ["A[2,1]", "A[2,2]", "B[2,1]", "B[2,2]", "B[2,3]", "B[2,4]"]

@@ -28,11 +28,12 @@ import numpy as np  # noqa: E402
 
 from attend.constants import KNOWN_INPUT_PRECISION  # noqa: E402
 from attend.experiments import fig4, fig5  # noqa: E402
-from attend.problems import MSD_FREE as FREE  # noqa: E402
-from attend.problems import identification_system, mass_spring_damper, msd_logs  # noqa: E402
-from attend.problems import msd_random_priors as random_priors  # noqa: E402
+from attend.models.parameters import parameter_vector, system_from_parameters  # noqa: E402
+from attend.models.problems import MSD_FREE as FREE  # noqa: E402
+from attend.models.problems import identification_system, mass_spring_damper, msd_logs  # noqa: E402
+from attend.models.problems import msd_random_priors as random_priors  # noqa: E402
 from attend.perception import learning as L  # noqa: E402
-from attend.systems import simulate  # noqa: E402
+from attend.models.linear import simulate  # noqa: E402
 
 DT, S = 0.1, 0.5
 
@@ -43,7 +44,7 @@ def line(name, value, target):
 
 def msd(seeds: int, embedding_order: int, states: str = "sample"):
     system = mass_spring_damper()
-    theta = L.parameter_vector(system)
+    theta = parameter_vector(system)
     idx = np.arange(seeds)
     std = np.exp(-4.0)
     Y, U = msd_logs(idx, std, std)
@@ -58,7 +59,7 @@ def msd(seeds: int, embedding_order: int, states: str = "sample"):
 def true_state_energy_ratios(embedding_order: int, seeds: int):
     """exp(8) sum_t e' (S x I) e / (n_t (p+1) dim e) for the sensory error y~ - C~ x~ and the motion
     error D x~ - A~ x~ - B~ u~ evaluated at the simulator's TRUE states (embedded like the data)."""
-    from attend.generalized import block_precisions, embed
+    from attend.models.generalized import block_precisions, embed
 
     system = mass_spring_damper()
     P = embedding_order + 1
@@ -106,7 +107,7 @@ def main():
 
     print("2. Entropy 2021 system: A, B free (prior U[-2, 2], P = exp(6)), C known (exp(32)), P_lambda = exp(3)")
     system = identification_system()
-    theta = L.parameter_vector(system)
+    theta = parameter_vector(system)
     free = np.zeros(14, bool)
     free[:6] = True
     t = np.arange(320) * DT
@@ -141,14 +142,14 @@ def main():
     priors = random_priors(np.arange(args.baseline_seeds))
     t_em = 0.0
     for k in range(args.baseline_seeds):
-        models = {"DEM (sample mode)": L.system_from_parameters(res_msd.parameters[k], true),
-                  "DEM (path mode)": L.system_from_parameters(res_path.parameters[k], true)}
+        models = {"DEM (sample mode)": system_from_parameters(res_msd.parameters[k], true),
+                  "DEM (path mode)": system_from_parameters(res_path.parameters[k], true)}
         try:
             models["N4SID (nfoursid)"] = L.n4sid_baseline(Ym[k], Um[k], DT, 2)
         except Exception as error:  # report, do not hide
             print(f"    N4SID failed on seed {k}: {error}")
         t0 = time.perf_counter()
-        models["EM (pykalman, C known)"] = L.em_baseline(Ym[k], Um[k], DT, L.system_from_parameters(priors[k], true), 30)
+        models["EM (pykalman, C known)"] = L.em_baseline(Ym[k], Um[k], DT, system_from_parameters(priors[k], true), 30)
         t_em += time.perf_counter() - t0
         for name, model in models.items():
             errors[name].append(L.transfer_function_error(model, true))
@@ -160,7 +161,7 @@ def main():
 
     print("4. speed")
     log = simulate(true, u, DT, kernel_width=S, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=0)
-    prior = L.system_from_parameters(random_priors([0])[0], true)
+    prior = system_from_parameters(random_priors([0])[0], true)
     L.identify(prior, log.outputs, log.inputs, DT, kernel_width=S, free=FREE, max_iterations=2)
     t0 = time.perf_counter()
     for _ in range(5):

@@ -12,7 +12,7 @@ under ``simulate_nonlinear``'s exact generative model,
     w = sigma_w K e_w,  y = x + z,  z = sigma_z K e_z,  e ~ N(0, I),  x[0] ~ N(m0, s0^2 I)
 
 (K: the valid convolution with the unit-energy Gaussian kernel of width s, exactly as
-:func:`attend.noise.coloured_noise` draws it). The unknowns are the states x[0..N-1] and the process
+:func:`attend.models.noise.coloured_noise` draws it). The unknowns are the states x[0..N-1] and the process
 innovations e_w; the sensor innovations are integrated out (z ~ N(0, sigma_z^2 K K' + (delta
 sigma_z)^2 I), delta = 1e-4: the jitter that makes the near-singular Toeplitz covariance factorable).
 The dynamics enter as defects (x[k] - Phi(x[k-1], w[k-1])) / defect_std with defect_std = 1e-3
@@ -47,9 +47,9 @@ import numpy as np  # noqa: E402
 from scipy.linalg import cholesky, solve_triangular  # noqa: E402
 
 from attend.experiments import _nonlinear, lorenz  # noqa: E402
-from attend.noise import gaussian_kernel  # noqa: E402
-from attend.perception.nonlinear_baselines import unscented_kalman  # noqa: E402
-from attend.perception.nonlinear_baselines.kalman import _rk4  # noqa: E402
+from attend.models.noise import gaussian_kernel  # noqa: E402
+from attend.perception.nonlinear_smoothers import unscented_kalman  # noqa: E402
+from attend.perception.nonlinear_smoothers.kalman import _rk4  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_nonlinear import _paired_log  # noqa: E402

@@ -86,8 +86,9 @@ def _jax_speeds(cfg, logs) -> dict:
 def speed_worker() -> None:
     """Print 'key value' pairs: samples/s of DEM (NumPy, and JAX if installed) and of the UKF smoother
     on a 2 s Lorenz log and of DEM on a 20 s log (best of 5), the online step [us], JAX's first call [s]."""
-    from attend.perception.nonlinear import NonlinearDEM, simulate_nonlinear
-    from attend.perception.nonlinear_baselines import unscented_kalman, white_noise_covariances
+    from attend.perception.nonlinear import NonlinearDEM
+    from attend.models import simulate_nonlinear
+    from attend.perception.nonlinear_smoothers import unscented_kalman, white_noise_covariances
 
     cfg = lorenz.SETTINGS
     system = lorenz.build_system(cfg)
@@ -207,8 +208,8 @@ def part3(seeds: int) -> None:
 def part4(seeds: int, particles: int) -> None:
     print(f"\n== convergence of the particle reference ({seeds} seeds, full settings): state SSE with P/2, P and an "
           f"independent run at P = {particles}")
-    from attend.perception.nonlinear import simulate_nonlinear
-    from attend.perception.nonlinear_baselines import particle_smoother
+    from attend.models import simulate_nonlinear
+    from attend.perception.nonlinear_smoothers import particle_smoother
 
     for module in (lorenz, pendulum):
         cfg = dict(module.SETTINGS)
@@ -244,11 +245,12 @@ def part4(seeds: int, particles: int) -> None:
 def part5(seeds: int) -> None:
     print(f"\n== is DEM's gap inherent? a linear model (mass-spring-damper, dt = 0.1 s) through the nonlinear "
           f"path against the exact posterior ({seeds} seeds, median state SSE ratio over samples 9..192)")
-    from attend.perception.baselines import exact_posterior
-    from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem
-    from attend.perception.nonlinear_baselines import unscented_kalman, white_noise_covariances
-    from attend.problems import mass_spring_damper
-    from attend.systems import simulate
+    from attend.perception.references import exact_posterior
+    from attend.perception.nonlinear import NonlinearDEM
+    from attend.models import NonlinearSystem
+    from attend.perception.nonlinear_smoothers import unscented_kalman, white_noise_covariances
+    from attend.models.problems import mass_spring_damper
+    from attend.models.linear import simulate
 
     linear = mass_spring_damper()
     A, B, C = linear.A, linear.B, linear.C
@@ -283,9 +285,10 @@ def part5(seeds: int) -> None:
 
 def _learning_case(name: str, seed: int):
     """(model, outputs, inputs, learn_path keywords, true theta, active mask) of a part-6 case."""
-    from attend.perception.nonlinear import ParametrisedSystem, simulate_nonlinear
-    from attend.problems import mass_spring_damper
-    from attend.systems import simulate
+    from attend.perception.nonlinear import ParametrisedSystem
+    from attend.models import simulate_nonlinear
+    from attend.models.problems import mass_spring_damper
+    from attend.models.linear import simulate
 
     if name == "lorenz rho":
         cfg = lorenz.SETTINGS
@@ -356,9 +359,10 @@ def part7(cases: int) -> None:
 
     import bench_bank
 
-    from attend.generalized import smoothness_condition
+    from attend.models.generalized import smoothness_condition
     from attend.perception.dem import AUTO_MAX_CONDITION
-    from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem
+    from attend.perception.nonlinear import NonlinearDEM
+    from attend.models import NonlinearSystem
 
     rows, index = [], 0
     while len(rows) < cases and index < 40 * cases:
@@ -412,7 +416,7 @@ def part7(cases: int) -> None:
 
 def _paired_log(module, cfg: dict, seed: int, fine: int):
     """The reproduction's log of ``seed``, simulated ``fine`` times finer and sampled at cfg's dt."""
-    from attend.perception.nonlinear import simulate_nonlinear
+    from attend.models import simulate_nonlinear
 
     name = module.__name__.rsplit(".", 1)[-1]
     system, u, _, n_samples = _nonlinear._setup(name, cfg)
@@ -427,7 +431,7 @@ def _paired_log(module, cfg: dict, seed: int, fine: int):
 
 def part8(seeds: int, fine: int) -> None:
     from scipy.stats import wilcoxon
-    from attend.perception.nonlinear_baselines import unscented_kalman
+    from attend.perception.nonlinear_smoothers import unscented_kalman
 
     print(f"\n== path mode against the UKF smoother, seed by seed ({seeds} seeds, simulated {fine}x finer than dt; "
           "per-seed SSE ratio: median [bootstrap 95 %], seeds where path mode is better, paired Wilcoxon p)")

@@ -32,17 +32,18 @@ import warnings
 
 import numpy as np
 
-from attend.generalized import smoothness_condition
-from attend.noise import coloured_noise
+from attend.models.generalized import smoothness_condition
+from attend.models.noise import coloured_noise
 from attend.perception.dem import AUTO_MAX_CONDITION
-from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem, simulate_nonlinear
-from attend.perception.nonlinear_baselines import (
+from attend.perception.nonlinear import NonlinearDEM
+from attend.models import NonlinearSystem, simulate_nonlinear
+from attend.perception.nonlinear_smoothers import (
     coloured_unscented_smoother,
     input_random_walk_variance,
     unscented_kalman,
     white_noise_covariances,
 )
-from attend.systems import Trajectory
+from attend.models.linear import Trajectory
 
 DT = 0.05  # s
 SAMPLES = 400

@@ -112,7 +112,7 @@ def main() -> None:
     parser.add_argument("--first", type=int, default=0)
     parser.add_argument("--path", action="store_true", help="also run method = \"dem\", states = \"path\"")
     args = parser.parse_args()
-    from attend.perception.nonlinear_baselines import input_random_walk_variance, unscented_kalman, \
+    from attend.perception.nonlinear_smoothers import input_random_walk_variance, unscented_kalman, \
         white_noise_covariances
 
     print(f"== attend estimate (defaults) on {args.cases} random nonlinear model files; state SSE over the library's "

@@ -42,7 +42,7 @@ import numpy as np
 
 from attend.cli import main as cli
 from attend.io import read_model
-from attend.perception.nonlinear import simulate_nonlinear
+from attend.models import simulate_nonlinear
 
 START_UP = 20  # samples left out of the "after start-up" SSE
 

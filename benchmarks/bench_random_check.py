@@ -44,9 +44,9 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.linalg import expm  # noqa: E402
 
-from attend.perception.baselines import kalman_filter  # noqa: E402
-from attend.perception.baselines.exact import _transfer_matrix, coloured_noise_correlation  # noqa: E402
-from attend.systems import LinearSystem  # noqa: E402
+from attend.perception.references import kalman_filter  # noqa: E402
+from attend.perception.references.exact import _transfer_matrix, coloured_noise_correlation  # noqa: E402
+from attend.models.linear import LinearSystem  # noqa: E402
 
 TOOL = Path(os.environ.get("ATTEND_SHARED", Path(__file__).resolve().parents[2] / "shared")) / "tools" / \
     "random_system_check.py"

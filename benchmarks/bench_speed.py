@@ -24,7 +24,7 @@ import warnings  # noqa: E402
 import numpy as np  # noqa: E402
 
 from attend import DEMObserver, LinearSystem, convolution_model  # noqa: E402
-from attend.systems import ModelWarning  # noqa: E402
+from attend.models.linear import ModelWarning  # noqa: E402
 
 warnings.simplefilter("ignore", ModelWarning)  # NaN std / refusals are not what this measures
 

@@ -7,7 +7,7 @@ Two cases, 5 seeds each, data simulated by attend and stored in benchmarks/spm/r
 - lorenz: the Lorenz reproduction's settings (attend.experiments.lorenz: dt = 0.01 s, s = 0.02 s
   = 2 bins, sigma_w = 20, sigma_z = 1, p = 6), 400 samples; lorenz_seed<k>_data.csv holds
   y1..y3 then the true x1..x3; attend's NonlinearDEM against spm_DEM (run_lorenz.m).
-- convolution: SPM's own linear convolution model (attend.problems.convolution_model, one bin =
+- convolution: SPM's own linear convolution model (attend.models.problems.convolution_model, one bin =
   dt = 1 s, s = 0.5, Pi_z = Pi_w = exp(8), P_v = exp(-8), p = d = 6), 64 samples, input a
   Gaussian bump at t = 12; convolution_seed<k>_data.csv holds y1..y4, x1, x2, u; attend's linear
   DEMObserver against spm_DEM (run_convolution.m).
@@ -34,11 +34,12 @@ import numpy as np
 from scipy.linalg import expm
 
 from attend.experiments import lorenz
-from attend.generalized import embed, shift_operator, smoothness_precision
+from attend.models.generalized import embed, shift_operator, smoothness_precision
 from attend.perception.dem import DEMObserver
-from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem, simulate_nonlinear
-from attend.problems import convolution_model
-from attend.systems import simulate
+from attend.perception.nonlinear import NonlinearDEM
+from attend.models import NonlinearSystem, simulate_nonlinear
+from attend.models.problems import convolution_model
+from attend.models.linear import simulate
 
 REFERENCE = Path(__file__).resolve().parent / "spm" / "reference"
 SEEDS = range(5)

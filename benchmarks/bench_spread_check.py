@@ -34,7 +34,7 @@ from attend._validation import AttendInputError  # noqa: E402
 from attend.perception.dem import DEMObserver  # noqa: E402
 from attend.perception.kalman import KalmanEstimator  # noqa: E402
 from attend.perception.spread_check import SPREAD_LIMIT, spread_findings  # noqa: E402
-from attend.systems import ModelWarning, simulate  # noqa: E402
+from attend.models.linear import ModelWarning, simulate  # noqa: E402
 
 
 def mechanical_case(index: int):

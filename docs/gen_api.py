@@ -7,8 +7,9 @@ tests/test_docs.py runs :func:`render` and compares it with docs/api.md, so the 
 drift from the code: after changing a public signature or docstring, rerun this script.
 
 Documented: every name in ``attend.__all__`` and the public functions and classes of
-attend.problems, attend.perception.learning, attend.perception.baselines, attend.io and attend.interop (their
-``__all__`` where they define one, else every public function/class defined in the module).
+attend.models, attend.models.problems, attend.perception.learning, attend.perception.references,
+attend.io and attend.perception.interop (their ``__all__`` where they define one, else every
+public function/class defined in the module).
 """
 
 from __future__ import annotations
@@ -26,21 +27,25 @@ MODULES = [
     ("attend", "attend: the top-level API",
      "`import attend` gives the systems, simulation, noise, generalised coordinates and the DEM "
      "observer. Times are in seconds throughout (`dt`, `kernel_width`, continuous-time `A` in 1/s)."),
-    ("attend.problems", "attend.problems: the paper's reference problems",
+    ("attend.models", "attend.models: systems, noise, generalised coordinates, parameters",
+     "What a system is: linear and nonlinear systems and their simulation, coloured noise, "
+     "generalised coordinates, the parameter vector theta. Imports nothing from the rest of attend."),
+    ("attend.models.problems", "attend.models.problems: the paper's reference problems",
      "The systems of the paper (also at the top level) and the mass-spring-damper identification "
      "bank that the experiments, benchmarks and tests share."),
     ("attend.perception.learning", "attend.perception.learning: parameters and noise precisions",
      "System identification by alternating D (states), E (parameters) and M (noise precisions) "
      "steps; subspace and EM baselines; basis-invariant model errors. See "
      "[Getting started](getting-started.md#identify-the-parameters-of-your-robot)."),
-    ("attend.perception.baselines", "attend.perception.baselines: Kalman filters and the exact posterior",
-     "Baselines on the same data as DEM (Kalman filters and smoothers, the exact posterior) and on "
+    ("attend.perception.references", "attend.perception.references: Kalman filters and the exact posterior",
+     "References on the same data as DEM (Kalman filters and smoothers, the exact posterior) and on "
      "the same logs as `identify` (N4SID, EM, basis-invariant model errors). Arrays are time-major; dt in seconds."),
     ("attend.io", "attend.io: model files, logs and estimate files",
      "The TOML model file and CSV log that `attend estimate` reads, and the CSV it writes. "
      "Format: [Getting started](getting-started.md#the-model-file)."),
-    ("attend.interop", "attend.interop: python-control",
-     "Conversion to and from `control.StateSpace` (needs `pip install control`)."),
+    ("attend.perception.interop", "attend.perception.interop: python-control",
+     "The DEM observer as a `control.StateSpace` (needs `pip install control`); the other way, "
+     "`attend.models.from_statespace`."),
     ("attend.action.mission", "attend.action.mission: a search on your own ground",
      "The mission behind `attend plan`: the area from GeoJSON, KML or a QGroundControl .plan, the "
      "images and detections flown so far, the map, the next plans and the likely people. See "

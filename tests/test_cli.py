@@ -471,8 +471,8 @@ def test_estimate_warns_when_a_state_swings_far_beyond_what_the_data_support(tmp
     """A log in degrees for a model in radians: attend estimate runs and names the state and settings."""
     import numpy as np
 
-    from attend.problems import mass_spring_damper
-    from attend.systems import simulate
+    from attend.models.linear import simulate
+    from attend.models.problems import mass_spring_damper
 
     dt, n_samples = 0.05, 800
     force = np.sin(0.7 * np.arange(n_samples) * dt)[:, None]

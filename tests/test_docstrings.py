@@ -4,8 +4,8 @@ function, or for a class in its class or ``__init__`` docstring; a public method
 the method's docstring. Private arguments (leading underscore), ``self`` and ``*args``/``**kwargs``
 are exempt, as are the fields of NamedTuples (documented with the class).
 
-Covered: every name attend re-exports, and the public modules of perception, action, rhythm,
-io, the experiments with figures, the report and the CLI (MODULES). There are no exemptions.
+Covered: every name attend re-exports, and the public modules of models, perception, action,
+rhythm, io, the experiments with figures, the report and the CLI (MODULES). There are no exemptions.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ MODULES = [
     "attend",
     "attend.perception",
     "attend.perception.learning",
-    "attend.perception.baselines",
+    "attend.perception.references",
     "attend.perception.dem",
     "attend.perception.spread_check",
     "attend.perception.dem_flow",
@@ -37,7 +37,7 @@ MODULES = [
     "attend.perception.nonlinear.start_search",
     "attend.perception.block_tridiagonal",
     "attend.perception.nonlinear._workspace",
-    "attend.perception.nonlinear_baselines",
+    "attend.perception.nonlinear_smoothers",
     "attend.action",
     "attend.action.planners",
     "attend.action.episode",
@@ -59,11 +59,15 @@ MODULES = [
     "attend.experiments.fig5",
     "attend.io",
     "attend.io.learned_nonlinear",
-    "attend.systems",
-    "attend.noise",
-    "attend.generalized",
-    "attend.problems",
-    "attend.interop",
+    "attend.models",
+    "attend.models.linear",
+    "attend.models.nonlinear",
+    "attend.models.noise",
+    "attend.models.generalized",
+    "attend.models.parameters",
+    "attend.models.problems",
+    "attend.perception.interop",
+    "attend.perception.file_estimators",
     "attend.action.belief",
     "attend.action.camera",
     "attend.action.field",
@@ -86,6 +90,7 @@ MODULES = [
     "attend.control.attenuation",
     "attend.control.reaching",
     "attend.control.roll",
+    "attend.control.arm",
     "attend.experiments.quadrotor",
     "attend.experiments.ipp",
     "attend.experiments.rhythm_ipp",

@@ -95,3 +95,39 @@ def test_no_private_name_is_imported_from_another_package():
                 crossings += [f"{'.'.join(parts)} imports {node.module}.{alias.name}" for alias in node.names
                               if alias.name.startswith("_") and target.removesuffix(".py") != package]
     assert not crossings, "\n".join(crossings)
+
+
+#: What attend.models may import: itself, and the shared helpers every layer uses.
+MODELS_MAY_IMPORT = ("attend.models", "attend._validation", "attend._lazy", "attend.constants")
+
+
+def _attend_imports(tree: ast.AST) -> list[str]:
+    """Every attend module or name a file imports, at module level or inside functions."""
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").split(".")[0] == "attend":
+            found += [node.module if node.module != "attend" else f"attend.{a.name}" for a in node.names]
+        elif isinstance(node, ast.Import):
+            found += [a.name for a in node.names if a.name.split(".")[0] == "attend"]
+    return found
+
+
+def test_models_import_nothing_from_the_rest_of_attend():
+    """attend.models (systems, noise, generalised coordinates, theta, the problem bank) is the layer
+    everything else builds on: none of its modules imports perception, action, control, rhythm, io,
+    the experiments or the command line, not even inside a function, and its lazy exports name
+    only its own modules."""
+    outside = []
+    for path in sorted((PACKAGE / "models").rglob("*.py")):
+        for name in _attend_imports(ast.parse(path.read_text(encoding="utf-8"))):
+            if not any(name == allowed or name.startswith(allowed + ".") for allowed in MODELS_MAY_IMPORT):
+                outside.append(f"{path.relative_to(PACKAGE.parent)} imports {name}")
+    assert not outside, "\n".join(outside)
+    import attend.models
+
+    assert all(module.startswith("attend.models.") for module in attend.models._EXPORTS.values())
+
+
+def test_the_models_check_sees_imports_inside_functions():
+    tree = ast.parse("def f():\n    from attend.perception.dem import DEMObserver\nimport attend.io\nfrom attend import rhythm")
+    assert sorted(_attend_imports(tree)) == ["attend.io", "attend.perception.dem", "attend.rhythm"]

@@ -6,7 +6,7 @@ import pytest
 from attend import io
 from attend._validation import AttendInputError
 from attend.cli import main
-from attend.systems import LinearSystem, simulate
+from attend.models.linear import LinearSystem, simulate
 from conftest import model_file_text
 
 SYSTEM = LinearSystem([[-0.25, 1.0], [-0.5, -0.25]], [[1.0], [0.0]], [[0.125, 0.1633], [0.125, -0.1633]])

@@ -75,7 +75,7 @@ process_precision = 0.0025
 
 def _pendulum_files(tmp_path, model=PENDULUM_TOML, code=PENDULUM_PY, samples=200):
     from attend.experiments.pendulum import pendulum_system, true_input
-    from attend.perception.nonlinear import simulate_nonlinear
+    from attend.models import simulate_nonlinear
 
     (tmp_path / "model.py").write_text(code)
     (tmp_path / "model.toml").write_text(model)
@@ -89,7 +89,7 @@ def _pendulum_files(tmp_path, model=PENDULUM_TOML, code=PENDULUM_PY, samples=200
 
 def _lorenz_files(tmp_path, model=LORENZ_TOML, code=LORENZ_PY, samples=120):
     from attend.experiments.lorenz import lorenz_system
-    from attend.perception.nonlinear import simulate_nonlinear
+    from attend.models import simulate_nonlinear
 
     (tmp_path / "lorenz.py").write_text(code)
     (tmp_path / "lorenz.toml").write_text(model)
@@ -135,7 +135,7 @@ def test_the_default_smoothers_std_is_calibrated_under_the_files_coloured_noise(
     |error| < 2 std in ~95 % of the samples of 3 simulated Lorenz logs (the white-noise model's
     own std covered 61-73 %)."""
     from attend.experiments.lorenz import lorenz_system
-    from attend.perception.nonlinear import simulate_nonlinear
+    from attend.models import simulate_nonlinear
 
     (tmp_path / "lorenz.py").write_text(LORENZ_PY)
     (tmp_path / "lorenz.toml").write_text(LORENZ_TOML)
@@ -551,8 +551,9 @@ def test_the_smoothers_start_widens_a_misfit_d_step_instead_of_warning(tmp_path,
     # inputs held over each sample with almost no process noise: DEM's D-step on the first samples is
     # far from its generalised model (it warns when run itself); the unscented smoother only takes x[0]
     # from it, with the std widened by sqrt(misfit), and its own estimate is fine: no warning
-    from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem
-    from attend.systems import LinearSystem, ModelWarning, simulate
+    from attend.models import NonlinearSystem
+    from attend.models.linear import LinearSystem, ModelWarning, simulate
+    from attend.perception.nonlinear import NonlinearDEM
 
     (tmp_path / "held.py").write_text(HELD_PY)
     (tmp_path / "held.toml").write_text(HELD_TOML)
@@ -649,7 +650,7 @@ UNKNOWN = "prior_mean = 0.0\nprior_precision = 0.125"
 
 def _start_files(tmp_path, code, model, x0, samples, kernel_width, measurement_std, amplitude=0.0):
     """model.py, model.toml and log.csv (dt = 1, one SPM bin; process noise exp(-8)); the truth."""
-    from attend.perception.nonlinear import simulate_nonlinear
+    from attend.models import simulate_nonlinear
 
     (tmp_path / "model.py").write_text(code)
     (tmp_path / "model.toml").write_text(model)

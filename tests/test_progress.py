@@ -5,7 +5,7 @@ import numpy as np
 import attend
 from attend._progress import steps
 from attend.experiments.lorenz import lorenz_system
-from attend.perception.nonlinear_baselines import unscented_kalman
+from attend.perception.nonlinear_smoothers import unscented_kalman
 
 
 def test_loops_are_bare_unless_progress_bars_are_asked_for():

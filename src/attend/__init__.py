@@ -2,13 +2,13 @@
 
 Public API (everything else is private):
 
-- systems: :class:`LinearSystem`, :func:`simulate`, presets :func:`mass_spring_damper`,
-  :func:`convolution_model`, :func:`identification_system`, :func:`quadrotor_roll`
-- noise: :func:`coloured_noise`
-- generalised coordinates: :func:`smoothness_precision`, :func:`embed`, :func:`shift_operator`
+- models (:mod:`attend.models`): :class:`LinearSystem`, :func:`simulate`, presets
+  :func:`mass_spring_damper`, :func:`convolution_model`, :func:`identification_system`,
+  :func:`quadrotor_roll`; :class:`NonlinearSystem` (f, g), :func:`simulate_nonlinear`; noise
+  :func:`coloured_noise`; generalised coordinates :func:`smoothness_precision`, :func:`embed`,
+  :func:`shift_operator`
 - perception: :class:`KalmanEstimator` (coloured-noise Kalman smoother/filter, the default of
   ``attend estimate``), :class:`StateEstimate`, :class:`DEMObserver`, :class:`DEMEstimate`
-- nonlinear models: :class:`NonlinearSystem` (f, g), :class:`NonlinearDEM`, :func:`simulate_nonlinear`
 - learning: :func:`identify`, :class:`IdentificationResult`
 - nonlinear perception: :class:`NonlinearDEM` for a :class:`NonlinearSystem`
 - action (UAV search, :mod:`attend.action`): at field scale :func:`make_world`,
@@ -23,7 +23,7 @@ Public API (everything else is private):
 - progress: :func:`progress_bars` (``with attend.progress_bars(): ...`` shows the slower
   estimators' progress on stderr)
 
-The presets also live in :mod:`attend.problems` with the paper's reference problems; named
+The presets also live in :mod:`attend.models.problems` with the paper's reference problems; named
 precisions in :mod:`attend.constants`.
 """
 
@@ -38,29 +38,29 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "ActiveVisionAgent": "attend.rhythm",
     "AttendInputError": "attend._validation",
-    "block_precisions": "attend.generalized",
-    "coloured_noise": "attend.noise",
-    "convolution_model": "attend.problems",
+    "block_precisions": "attend.models.generalized",
+    "coloured_noise": "attend.models.noise",
+    "convolution_model": "attend.models.problems",
     "DEMEstimate": "attend.perception.dem",
     "DEMObserver": "attend.perception.dem",
     "drive": "attend.rhythm",
-    "embed": "attend.generalized",
-    "embedding_weights": "attend.generalized",
+    "embed": "attend.models.generalized",
+    "embedding_weights": "attend.models.generalized",
     "FixedSchedule": "attend.rhythm",
     "fly": "attend.action",
     "fly_search": "attend.action",
-    "identification_system": "attend.problems",
+    "identification_system": "attend.models.problems",
     "IdentificationResult": "attend.perception.learning",
     "identify": "attend.perception.learning",
     "KalmanEstimator": "attend.perception.kalman",
-    "LinearSystem": "attend.systems",
+    "LinearSystem": "attend.models.linear",
     "make_field": "attend.action",
     "make_planner": "attend.action",
     "make_world": "attend.action",
-    "mass_spring_damper": "attend.problems",
-    "ModelWarning": "attend.systems",
+    "mass_spring_damper": "attend.models.problems",
+    "ModelWarning": "attend.models.linear",
     "NonlinearDEM": "attend.perception.nonlinear",
-    "NonlinearSystem": "attend.perception.nonlinear",
+    "NonlinearSystem": "attend.models.nonlinear",
     "OccupancyMap": "attend.action",
     "OnlineDEM": "attend.perception.dem",
     "OnlineKalman": "attend.perception.kalman",
@@ -69,16 +69,16 @@ _EXPORTS = {
     "ProbabilityMap": "attend.action",
     "Mission": "attend.action.mission",
     "progress_bars": "attend._progress",
-    "quadrotor_roll": "attend.problems",
+    "quadrotor_roll": "attend.models.problems",
     "RhythmicSchedule": "attend.rhythm",
     "run_search": "attend.action",
     "SearchField": "attend.action",
-    "shift_operator": "attend.generalized",
-    "simulate": "attend.systems",
-    "simulate_nonlinear": "attend.perception.nonlinear",
-    "smoothness_precision": "attend.generalized",
+    "shift_operator": "attend.models.generalized",
+    "simulate": "attend.models.linear",
+    "simulate_nonlinear": "attend.models.nonlinear",
+    "smoothness_precision": "attend.models.generalized",
     "StateEstimate": "attend.perception.kalman",
-    "Trajectory": "attend.systems",
+    "Trajectory": "attend.models.linear",
 }
 
 __all__ = sorted(_EXPORTS)

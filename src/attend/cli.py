@@ -493,8 +493,8 @@ def _warn_if_spread_implausible(model, log, estimate) -> None:
     model support (:mod:`attend.perception.spread_check`), whatever the estimator."""
     import numpy as np
 
+    from attend.models.linear import ModelWarning
     from attend.perception.spread_check import check_estimate, describe
-    from attend.systems import ModelWarning
 
     with np.errstate(all="ignore"):
         findings = check_estimate(model, log, estimate)
@@ -506,8 +506,8 @@ def _describe_estimator(estimator) -> str:
     """One line: which estimator ran, with its settings."""
     import numpy as np
 
-    from attend.io import NonlinearFileEstimator
     from attend.perception.dem import DEMObserver
+    from attend.perception.file_estimators import NonlinearFileEstimator
 
     if isinstance(estimator, NonlinearFileEstimator):
         model = estimator.model

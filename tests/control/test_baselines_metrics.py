@@ -73,7 +73,7 @@ def test_lqg_kalman_gain_is_the_filter_form():
     """The filter gain equals P C' (C P C' + R)^-1 with P the prediction covariance of SciPy's DARE."""
     from scipy.linalg import solve_discrete_are
 
-    from attend.systems import zero_order_hold
+    from attend.models.linear import zero_order_hold
 
     Ad, _ = zero_order_hold(A, B, 0.01)
     W, V = np.diag([1e-6, 1e-4]), np.array([[1e-3]])

@@ -15,7 +15,7 @@ from attend.control import (
     run,
 )
 from attend.control._core import error_jacobian, joint_system, local_linearisation_step, shift_matrix
-from attend.generalized import smoothness_precision
+from attend.models.generalized import smoothness_precision
 
 MASS, STIFFNESS, DAMPING = 1.4, 0.8, 0.4
 A_MSD = np.array([[0.0, 1.0], [-STIFFNESS / MASS, -DAMPING / MASS]])

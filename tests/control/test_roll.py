@@ -11,7 +11,7 @@ import pytest
 from attend._validation import AttendInputError
 from attend.control import LQGController, run, step_metrics
 from attend.control import roll
-from attend.noise import coloured_noise
+from attend.models.noise import coloured_noise
 
 
 def test_roll_command_is_the_model_files_b_row():
@@ -82,7 +82,7 @@ def test_lqg_on_the_noiseless_roll_plant_matches_the_designed_closed_loop():
     metrics = step_metrics(loop.time, loop.states[:, 0], 0.2, loop.actions, band=0.02)
     assert abs(loop.states[-1, 0] - 0.2) < 1e-4
     assert metrics.settling_time < 2.0
-    from attend.systems import zero_order_hold
+    from attend.models.linear import zero_order_hold
 
     Ad, Bd = zero_order_hold(A, B, 1 / 120)
     Aa = np.block([[Ad, np.zeros((2, 1))], [-np.array([[1.0, 0.0]]) / 120, np.ones((1, 1))]])

@@ -11,7 +11,7 @@ from scipy.linalg import expm
 
 from attend._validation import AttendInputError
 from attend.experiments import quadrotor
-from attend.generalized import embedding_weights
+from attend.models.generalized import embedding_weights
 
 #: 3 significant digits: |reproduced - published| / |published| below this.
 RELATIVE_TOLERANCE = 5e-4

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from attend._validation import AttendInputError
-from attend.generalized import embed
+from attend.models.generalized import embed
+from attend.models.linear import ModelWarning, simulate
+from attend.models.problems import convolution_model, mass_spring_damper
 from attend.perception.dem import DEMObserver
 from attend.perception.recurrence import _sequential, linear_recurrence
-from attend.problems import convolution_model, mass_spring_damper
-from attend.systems import ModelWarning, simulate
 
 
 def _observer(**overrides):
@@ -199,7 +199,7 @@ def _random_stable_system(seed):
 
 def test_auto_order_is_stable_on_a_bank_of_random_systems():
     """20 random stable systems (n 2..6, s/dt 0.5..5): 'auto' never gives a divergent observer."""
-    from attend.systems import simulate as sim
+    from attend.models.linear import simulate as sim
 
     divergent, refused, orders = 0, 0, []
     for seed in range(20):
@@ -348,7 +348,7 @@ def test_separate_widths_equal_to_kernel_width_give_the_same_result():
     np.testing.assert_array_equal(common.state_std, split.state_std)
     other = _observer(embedding_order=4, sensor_kernel_width=0.3)
     mats = other.generalized_matrices()
-    from attend.generalized import smoothness_precision
+    from attend.models.generalized import smoothness_precision
 
     np.testing.assert_allclose(mats["Vy"], np.kron(smoothness_precision(5, 0.3), other.sensor_precision))
     np.testing.assert_allclose(mats["W"], np.kron(smoothness_precision(5, 0.5), other.process_precision))
@@ -365,7 +365,7 @@ def test_white_noise_width_is_refused_with_a_pointer_to_kalman():
 @pytest.mark.parametrize("known_inputs", [False, True])
 def test_reported_std_is_calibrated_on_simulated_data(known_inputs):
     """|error| < 2 std for ~95 % of the middle samples, states and unknown inputs, 4 random systems."""
-    from attend.noise import coloured_noise
+    from attend.models.noise import coloured_noise
 
     inside, total = 0, 0
     for seed in (0, 1, 5, 7):
@@ -393,7 +393,7 @@ def test_reported_std_is_calibrated_on_simulated_data(known_inputs):
 
 def test_unobservable_state_gets_nan_std_and_a_warning():
     """The roll model (double integrator) with sensor precision 0: phi drifts; never std 0."""
-    from attend.problems import quadrotor_roll
+    from attend.models.problems import quadrotor_roll
 
     with pytest.raises(AttendInputError, match="unstable"):  # the flow has modes exactly at 1
         DEMObserver(quadrotor_roll(), 1 / 120, kernel_width=0.006, sensor_precision=[0.0],
@@ -428,7 +428,7 @@ def test_python_control_statespace_is_accepted_and_other_types_name_the_converte
     reference = _observer()
     y = np.sin(np.arange(40)[:, None] * 0.1 * np.arange(1, 5))
     np.testing.assert_allclose(converted.estimate(y).states, reference.estimate(y).states)
-    with pytest.raises(AttendInputError, match="attend.interop.from_statespace"):
+    with pytest.raises(AttendInputError, match="attend.models.from_statespace"):
         DEMObserver((system.A, system.B, system.C), 0.1, kernel_width=0.5, sensor_precision=1.0, process_precision=1.0,
                     input_prior_precision=1.0)
     with pytest.raises(AttendInputError, match="system: statespace: D must be zero"):
@@ -448,7 +448,7 @@ def test_a_dem_estimate_worse_than_the_prior_is_named_in_a_warning():
     """When DEM's own error analysis puts a variable's error above its spread without data, the
     estimate is worse than the prior mean: a ModelWarning names it (and points to the Kalman
     smoother); fine settings stay silent (test_no_stability_warning_on_a_fine_observer)."""
-    from attend.systems import simulate as sim
+    from attend.models.linear import simulate as sim
 
     found = []
     for seed in range(20):

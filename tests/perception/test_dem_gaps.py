@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from attend._validation import AttendInputError
+from attend.models.linear import simulate
+from attend.models.problems import convolution_model
 from attend.perception.dem import DEMObserver
-from attend.problems import convolution_model
-from attend.systems import simulate
 
 DT = 0.1
 

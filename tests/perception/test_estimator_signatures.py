@@ -11,12 +11,13 @@ import inspect
 import numpy as np
 import pytest
 
+from attend.models import NonlinearSystem
+from attend.models.problems import mass_spring_damper
 from attend.perception.dem import DEMObserver
 from attend.perception.kalman import KalmanEstimator
-from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem
-from attend.perception.nonlinear_baselines import input_random_walk_variance, white_noise_covariances, \
+from attend.perception.nonlinear import NonlinearDEM
+from attend.perception.nonlinear_smoothers import input_random_walk_variance, white_noise_covariances, \
     white_noise_options
-from attend.problems import mass_spring_damper
 
 LINEAR = mass_spring_damper()
 NONLINEAR = NonlinearSystem(lambda x, v: np.array([x[1], -np.sin(x[0])]), lambda x, v: x[:1], 2, 0, 1)

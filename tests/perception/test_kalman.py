@@ -5,8 +5,8 @@ import pytest
 
 import attend
 from attend import AttendInputError, ModelWarning
-from attend.perception.baselines import exact_posterior
 from attend.perception.kalman import KalmanEstimator
+from attend.perception.references import exact_posterior
 
 
 def random_system(rng, n, m, r):
@@ -73,8 +73,8 @@ def test_white_noise_smoother_equals_the_rts_smoother():
     estimator = KalmanEstimator(system, dt, sensor_precision=0.05**-2, process_precision=0.1**-2, kernel_width=0.0,
                                 initial_state=np.zeros(3), initial_state_std=0.5)
     ours = estimator.estimate(log.outputs, u)
-    Q, R = attend.perception.baselines.simulation_covariances(system, dt, 0.1, 0.05)
-    reference = attend.perception.baselines.rts_smoother(system, dt, log.outputs, u, process_covariance=Q,
+    Q, R = attend.perception.references.simulation_covariances(system, dt, 0.1, 0.05)
+    reference = attend.perception.references.rts_smoother(system, dt, log.outputs, u, process_covariance=Q,
                                                          measurement_covariance=R, initial_covariance=0.25 * np.eye(3))
     # to rounding where the gains are time-varying; the steady-gain shortcut (gain within 1e-6 of
     # its limit) moves the estimates by ~1e-5 of their scale and the std by ~1e-3 (relative)

@@ -1,7 +1,7 @@
 """Missing samples and jittered time stamps in the coloured-noise Kalman smoother and filter.
 
 Oracles: the exact Gaussian posterior with the missing measurements left out
-(:func:`attend.perception.baselines.exact_posterior` with NaN outputs), the exact posterior of the
+(:func:`attend.perception.references.exact_posterior` with NaN outputs), the exact posterior of the
 irregularly sampled continuous-time model (its ``time=``), and a dense conditioning on the
 Kalman model's own augmented state, which isolates the recursions from the noise fit.
 """
@@ -12,9 +12,9 @@ from scipy.linalg import expm
 
 import attend
 from attend import AttendInputError
-from attend.noise import autocorrelation, continuous_noise_state_space
-from attend.perception.baselines import exact_posterior
+from attend.models.noise import autocorrelation, continuous_noise_state_space
 from attend.perception.kalman import KalmanEstimator
+from attend.perception.references import exact_posterior
 
 from test_kalman import random_system
 

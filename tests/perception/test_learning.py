@@ -7,13 +7,14 @@ import numpy as np
 import pytest
 
 from attend._validation import AttendInputError
+from attend.constants import KNOWN_INPUT_PRECISION, KNOWN_PRIOR_PRECISION
+from attend.models.linear import simulate
+from attend.models.parameters import parameter_names, parameter_vector, system_from_parameters
+from attend.models.problems import identification_system, mass_spring_damper
 from attend.perception import learning as L
 from attend.perception.learning import free_energy as FE
 from attend.perception.learning import path as PP
 from attend.perception.learning import problem as PR
-from attend.constants import KNOWN_INPUT_PRECISION, KNOWN_PRIOR_PRECISION
-from attend.problems import identification_system, mass_spring_damper
-from attend.systems import simulate
 
 DT = 0.1
 FREE_MSD = np.array([False, False, True, True, False, True, False, False])  # theta3, theta4, theta6
@@ -29,7 +30,7 @@ def _msd_log(seed=0, n=320, sigma=np.exp(-4)):
 def _problem(seed=0, p=4, lam=(6.0, 5.0), states="sample"):
     """A small problem with q(X) from one D-step at a perturbed theta."""
     system, log = _msd_log(seed, n=120)
-    theta_true = L.parameter_vector(system)
+    theta_true = parameter_vector(system)
     P_theta = np.where(FREE_MSD, 0.5, 40.0)
     st, Y, U = PR._prepare(log.outputs[None], log.inputs[None], DT, 0.5, p, p, np.isfinite(P_theta), 2, True, "size",
                           states)
@@ -137,10 +138,10 @@ def test_e_step_with_known_states_and_flat_prior_is_least_squares():
 def test_free_energy_never_decreases_and_parameters_are_recovered():
     system, log = _msd_log(seed=4)
     rng = np.random.default_rng(0)
-    theta = L.parameter_vector(system)
+    theta = parameter_vector(system)
     start = theta.copy()
     start[FREE_MSD] = rng.uniform(-2, 2, 3)
-    prior = L.system_from_parameters(start, system)
+    prior = system_from_parameters(start, system)
     result = L.identify(prior, log.outputs, log.inputs, DT, kernel_width=0.5, free=FREE_MSD, max_iterations=40)
     trace = result.settings["free_energy_trace"]
     assert np.all(np.diff(trace) >= 0)
@@ -158,7 +159,7 @@ def test_free_energy_never_decreases_and_parameters_are_recovered():
 def test_batch_equals_single_runs():
     system, log0 = _msd_log(seed=5, n=200)
     _, log1 = _msd_log(seed=6, n=200)
-    theta = L.parameter_vector(system)
+    theta = parameter_vector(system)
     P = np.where(FREE_MSD, 1.0, KNOWN_PRIOR_PRECISION)
     eta = np.stack([theta + 0.5 * FREE_MSD, theta - 0.4 * FREE_MSD])
     kw = dict(n_states=2, kernel_width=0.5, prior_precision=P[None], max_iterations=8, embedding_order=4)
@@ -175,12 +176,12 @@ def test_identification_system_learns_a_and_b():
     t = np.arange(320) * DT
     u = np.exp(-0.25 * (t - 12) ** 2)[:, None]
     log = simulate(system, u, DT, kernel_width=0.5, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=0)
-    theta = L.parameter_vector(system)
+    theta = parameter_vector(system)
     free = np.zeros(14, bool)
     free[:6] = True
     start = theta.copy()
     start[free] = np.random.default_rng(1).uniform(-2, 2, 6)
-    result = L.identify(L.system_from_parameters(start, system), log.outputs, log.inputs, DT, kernel_width=0.5,
+    result = L.identify(system_from_parameters(start, system), log.outputs, log.inputs, DT, kernel_width=0.5,
                         free=free, prior_precision=np.where(free, np.exp(6), KNOWN_INPUT_PRECISION),
                         noise_prior_precision=np.exp(3), max_iterations=20)
     assert np.abs(result.parameters[free] - theta[free]).max() < 0.1
@@ -249,14 +250,14 @@ def test_divergence_stops_with_a_message_and_the_last_accepted_estimate():
             result = L.identify(system, huge, log.inputs, DT, kernel_width=0.5, free=FREE_MSD, max_iterations=5)
     assert "step" in result.message
     assert np.all(np.isfinite(result.parameters))
-    np.testing.assert_allclose(result.parameters, L.parameter_vector(system))
+    np.testing.assert_allclose(result.parameters, parameter_vector(system))
 
 
 @pytest.mark.parametrize("p", [2, 3])
 def test_path_posterior_matches_dense_gaussian(p):
     """Path mode: block-tridiagonal solve and selected inverse equal the dense Gaussian q(x)."""
     system, log = _msd_log(seed=3, n=60)
-    theta = np.tile(L.parameter_vector(system), (2, 1))
+    theta = np.tile(parameter_vector(system), (2, 1))
     st, Y, U = PR._prepare(np.stack([log.outputs] * 2), np.stack([log.inputs] * 2), DT, 0.5, p, p,
                           np.ones(8, bool), 2, True, "size", "path")
     lam = np.array([[0.0, 0.0], [1.0, -1.0]])
@@ -293,10 +294,10 @@ def test_path_mode_free_energy_rises_and_recovers_the_damping():
     """Path mode on the mass-spring-damper (8 seeds, random starts in [-2, 2]): F never decreases,
     lambda_z is learned, and the median relative error of theta3, theta4, theta6 is <= 6 %, the
     damping theta4 at most half of sample mode's (measured: 5 % vs 12.5 %)."""
-    from attend.problems import msd_logs
-    from attend.problems import msd_random_priors as random_priors
+    from attend.models.problems import msd_logs
+    from attend.models.problems import msd_random_priors as random_priors
 
-    theta = L.parameter_vector(mass_spring_damper())
+    theta = parameter_vector(mass_spring_damper())
     seeds = np.arange(8)
     Y, U = msd_logs(seeds, np.exp(-4.0), np.exp(-4.0))
     P = np.where(FREE_MSD, 1.0, L.KNOWN_PRIOR_PRECISION)[None].repeat(len(seeds), 0)
@@ -323,7 +324,7 @@ def test_unknown_states_mode_is_rejected():
 def test_path_posterior_marks_only_the_failing_run():
     """A run whose Pi_path is not positive definite gets F = -inf; the other runs are unaffected."""
     system, log = _msd_log(seed=3, n=60)
-    theta = np.tile(L.parameter_vector(system), (2, 1))
+    theta = np.tile(parameter_vector(system), (2, 1))
     st, Y, U = PR._prepare(np.stack([log.outputs] * 2), np.stack([log.inputs] * 2), DT, 0.5, 2, 2,
                           np.ones(8, bool), 2, True, "size", "path")
     lam = np.array([[0.0, 0.0], [0.0, 0.0]])
@@ -337,7 +338,7 @@ def test_path_posterior_marks_only_the_failing_run():
 
 def test_path_posterior_isolates_a_run_that_is_not_positive_definite(monkeypatch):
     system, log = _msd_log(seed=3, n=60)
-    theta = np.tile(L.parameter_vector(system), (2, 1))
+    theta = np.tile(parameter_vector(system), (2, 1))
     st, Y, U = PR._prepare(np.stack([log.outputs] * 2), np.stack([log.inputs] * 2), DT, 0.5, 2, 2,
                           np.ones(8, bool), 2, True, "size", "path")
     lam = np.zeros((2, 2))
@@ -361,7 +362,7 @@ def test_path_mode_warns_above_order_six():
     system, log = _msd_log(seed=0, n=100)
     with pytest.warns(L.LearningWarning, match="ill-conditioned"):
         L.learn_batch(log.outputs[None], log.inputs[None], DT, n_states=2, kernel_width=0.5,
-                      prior_mean=L.parameter_vector(system)[None], prior_precision=np.where(FREE_MSD, 1.0, KNOWN_PRIOR_PRECISION)[None],
+                      prior_mean=parameter_vector(system)[None], prior_precision=np.where(FREE_MSD, 1.0, KNOWN_PRIOR_PRECISION)[None],
                       embedding_order=8, max_iterations=1, states="path")
 
 
@@ -403,7 +404,7 @@ def test_readme_learning_section_converges_on_real_flights(flight):
 
 def test_top_order_option_is_validated_and_reported():
     system, log = _msd_log(seed=0, n=120)
-    kw = dict(n_states=2, kernel_width=0.5, prior_mean=L.parameter_vector(system)[None],
+    kw = dict(n_states=2, kernel_width=0.5, prior_mean=parameter_vector(system)[None],
               prior_precision=np.where(FREE_MSD, 1.0, KNOWN_PRIOR_PRECISION)[None], max_iterations=3)
     with pytest.raises(AttendInputError, match="top_order"):
         L.learn_batch(log.outputs[None], log.inputs[None], DT, top_order="zero", **kw)
@@ -495,8 +496,8 @@ def test_drifting_known_entries_are_named():
     from bench_identify_flights import DT as DT_FLIGHT, LEARNING, PRIOR
 
     y, u = _bundled_flight()
-    start = L.parameter_vector(PRIOR)
-    start[L.parameter_names(PRIOR).index("C[1,2]")] = 0.02
+    start = parameter_vector(PRIOR)
+    start[parameter_names(PRIOR).index("C[1,2]")] = 0.02
     with pytest.warns(L.IdentifiabilityWarning, match=r"known entries moved .*C\[1,2\]"):
         result = L.identify(PRIOR, y, u, DT_FLIGHT, kernel_width=0.006, embedding_order=6, input_order=2,
                             precision_convention="max", initial=start,

@@ -5,15 +5,12 @@ import numpy as np
 import pytest
 
 from attend._validation import AttendInputError
-from attend.perception.baselines import exact_posterior, kalman_filter, rts_smoother, simulation_covariances
+from attend.models import NonlinearSystem, finite_difference_jacobian, simulate_nonlinear
+from attend.models.linear import simulate
+from attend.models.problems import convolution_model, mass_spring_damper
 from attend.perception.dem import DEMObserver
-from attend.perception.nonlinear import (
-    NonlinearDEM,
-    NonlinearSystem,
-    finite_difference_jacobian,
-    simulate_nonlinear,
-)
-from attend.perception.nonlinear_baselines import (
+from attend.perception.nonlinear import NonlinearDEM
+from attend.perception.nonlinear_smoothers import (
     white_noise_options,
     coloured_unscented_smoother,
     extended_kalman,
@@ -21,8 +18,7 @@ from attend.perception.nonlinear_baselines import (
     unscented_kalman,
     white_noise_covariances,
 )
-from attend.problems import convolution_model, mass_spring_damper
-from attend.systems import simulate
+from attend.perception.references import exact_posterior, kalman_filter, rts_smoother, simulation_covariances
 
 
 def lorenz(x, v):
@@ -312,7 +308,7 @@ def test_white_noise_options_of_dem_precisions():
 
 
 def test_rk4_substeps_follow_the_fastest_mode():
-    from attend.perception.nonlinear_baselines.kalman import rk4_substeps
+    from attend.perception.nonlinear_smoothers.kalman import rk4_substeps
 
     def linear(A):
         return NonlinearSystem(lambda x, v: A @ x, lambda x, v: x[:1], 2, 0, 1)

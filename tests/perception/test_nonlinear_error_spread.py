@@ -1,4 +1,4 @@
-"""The unscented smoother's error spread under coloured noise (nonlinear_baselines.error_spread)."""
+"""The unscented smoother's error spread under coloured noise (nonlinear_smoothers.error_spread)."""
 
 import numpy as np
 import pytest
@@ -6,9 +6,9 @@ import pytest
 from attend._validation import AttendInputError
 from attend.experiments import pendulum
 from attend.experiments._nonlinear import _setup, kalman_options
-from attend.noise import coloured_noise
-from attend.perception.nonlinear import NonlinearSystem, simulate_nonlinear
-from attend.perception.nonlinear_baselines import extended_kalman, unscented_kalman
+from attend.models import NonlinearSystem, simulate_nonlinear
+from attend.models.noise import coloured_noise
+from attend.perception.nonlinear_smoothers import extended_kalman, unscented_kalman
 
 A = np.array([[0.0, 1.0], [-4.0, -0.6]])
 C = np.array([[1.0, 0.0]])
@@ -84,7 +84,7 @@ def test_unknown_inputs_need_their_prior_for_the_spread():
 def test_a_spread_that_overflows_is_an_error_not_a_result(monkeypatch):
     """Error dynamics that grow without bound (forced here through the recorded gains) stop with an
     error naming the field and the sample instead of returning non-finite std."""
-    from attend.perception.nonlinear_baselines import error_spread
+    from attend.perception.nonlinear_smoothers import error_spread
 
     original = error_spread._regressions
 
@@ -117,8 +117,8 @@ def _dense_covariance(model, record, kernel_width, input_prior, smooth):
     """The oracle: every noise of the linearised error written out as unit white noise over the whole
     log (a coloured channel over N samples = its Toeplitz covariance of kernel_autocorrelation, by
     Cholesky), pushed through the error recursion as one column each: Cov(e_k) = T_k T_k'."""
-    from attend.noise import kernel_autocorrelation
-    from attend.perception.nonlinear_baselines import error_spread
+    from attend.models.noise import kernel_autocorrelation
+    from attend.perception.nonlinear_smoothers import error_spread
 
     A, H = error_spread._regressions(record)
     N, d = record["K"].shape[0], record["K"].shape[1]
@@ -167,8 +167,8 @@ def test_the_exact_covariance_equals_the_dense_oracle(smooth, unknown_input):
     the pendulum (s/dt = 2, the push unknown with its prior of width 0.7 s = 7 samples, or measured).
     Both are sums of the same products in another order; the tolerance is the rounding of those sums
     (the Toeplitz factor's 1e-13 jitter is below it)."""
-    from attend.perception.nonlinear_baselines import error_spread
-    from attend.perception.nonlinear_baselines.kalman import _Model, _unscented
+    from attend.perception.nonlinear_smoothers import error_spread
+    from attend.perception.nonlinear_smoothers.kalman import _Model, _unscented
 
     system, cfg, options, prior, log = _pendulum_case(40)
     if not unknown_input:
@@ -218,7 +218,7 @@ def test_with_white_noise_the_exact_spread_is_the_linear_smoothers_own_covarianc
 def test_the_exact_covariance_in_blocks_equals_the_one_pass(monkeypatch):
     """With too little memory for every window X_k, the backward pass recomputes them block by block
     from checkpoints: the same numbers (blocks of 7 samples here)."""
-    from attend.perception.nonlinear_baselines import error_spread
+    from attend.perception.nonlinear_smoothers import error_spread
 
     system, cfg, options, prior, log = _pendulum_case(60)
     common = dict(noise_kernel_width=cfg["kernel_width"], input_prior=prior, spread_draws=None, **options)

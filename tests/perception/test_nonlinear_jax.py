@@ -10,7 +10,8 @@ from scipy.linalg import expm
 
 from attend._validation import AttendInputError
 from attend.experiments import lorenz, pendulum
-from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem, simulate_nonlinear
+from attend.models import NonlinearSystem, simulate_nonlinear
+from attend.perception.nonlinear import NonlinearDEM
 
 jax = pytest.importorskip("jax")
 jnp = jax.numpy
@@ -177,8 +178,8 @@ def test_linear_model_equals_the_linear_observer():
     """A linear model written as f, g in jax.numpy, flow_time="seconds": the linear DEM observer's
     estimates once the two starts have decayed, and its Laplace std (the NumPy step's oracle, in
     tests/perception/test_nonlinear.py)."""
+    from attend.models.linear import LinearSystem, simulate
     from attend.perception.dem import DEMObserver
-    from attend.systems import LinearSystem, simulate
 
     A, B, C = np.array([[0.0, 1.0], [-2.0, -0.7]]), np.array([[0.0], [1.0]]), np.array([[1.0, 0.0]])
     linear = LinearSystem(A, B, C)

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 from attend._validation import AttendInputError
+from attend.models import simulate_nonlinear
 from attend.perception.learning import learn_batch
-from attend.perception.nonlinear import ParametrisedSystem, learn_nonlinear, simulate_nonlinear
+from attend.perception.nonlinear import ParametrisedSystem, learn_nonlinear
 
 # --- a linear model written as f, g: theta = [A[2,1], A[2,2], B[2,1]] ------------------------
 

@@ -8,7 +8,8 @@ import pytest
 
 from attend._validation import AttendInputError
 from attend.experiments import lorenz
-from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem, simulate_nonlinear
+from attend.models import NonlinearSystem, simulate_nonlinear
+from attend.perception.nonlinear import NonlinearDEM
 from attend.perception.nonlinear.misfit import EXCURSION_LIMIT, check_excursion, sample_misfit
 
 

@@ -9,12 +9,13 @@ import pytest
 
 from attend._validation import AttendInputError
 from attend.experiments import lorenz, pendulum
+from attend.models import NonlinearSystem, simulate_nonlinear
+from attend.models.linear import ModelWarning, simulate
+from attend.models.problems import mass_spring_damper
 from attend.perception import block_tridiagonal
-from attend.perception.baselines import exact_posterior
-from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem, simulate_nonlinear
+from attend.perception.nonlinear import NonlinearDEM
 from attend.perception.nonlinear.path import _Problem
-from attend.problems import mass_spring_damper
-from attend.systems import ModelWarning, simulate
+from attend.perception.references import exact_posterior
 
 
 def _linear_case(seed: int, ratio: int):
@@ -139,7 +140,7 @@ def test_a_log_far_from_the_generalised_model_is_named():
     """Inputs held over each sample with almost no process noise (bench_nonlinear part 7's failures):
     the free energy at the estimate is orders above its expected value, and a ModelWarning says so;
     a log from the model itself does not warn."""
-    from attend.systems import LinearSystem
+    from attend.models.linear import LinearSystem
 
     A = np.array([[-0.24, 0.02], [-0.02, -0.18]])
     B, C = np.array([[-0.22], [-0.53]]), np.array([[-0.81, 0.58]])
@@ -234,7 +235,7 @@ def _pendulum_case():
 
 def test_the_smoother_start_is_the_unscented_smoother_with_the_documented_settings():
     from attend.perception.nonlinear.path_starts import d_step_basis, smoother_start, smoother_substeps
-    from attend.perception.nonlinear_baselines import input_random_walk_variance, unscented_kalman
+    from attend.perception.nonlinear_smoothers import input_random_walk_variance, unscented_kalman
 
     dem, log = _pendulum_case()
     signals = dem._signals(log.outputs, None)
@@ -263,7 +264,7 @@ def test_the_prior_on_x0_is_the_d_steps_start_as_wide_as_its_states_or_its_widen
     np.testing.assert_allclose(std, np.std(start.states, axis=0), rtol=1e-6)
     # inputs held over each sample with almost no process noise: the D-step's misfit is far above
     # MISFIT_LIMIT, so its spread means nothing: its std on the first samples, widened by sqrt(misfit)
-    from attend.systems import LinearSystem
+    from attend.models.linear import LinearSystem
 
     A = np.array([[-0.24, 0.02], [-0.02, -0.18]])
     B, C = np.array([[-0.22], [-0.53]]), np.array([[-0.81, 0.58]])
@@ -345,7 +346,7 @@ def _saturating(vectorized: bool, wrong_shape: bool = False):
 
 
 def test_evaluate_many_vectorized_equals_point_by_point():
-    from attend.perception.nonlinear.model import evaluate_many
+    from attend.models.nonlinear import evaluate_many
 
     rng = np.random.default_rng(1)
     x, v = rng.normal(size=(30, 2)), rng.normal(size=(30, 1))
@@ -359,7 +360,7 @@ def test_evaluate_many_vectorized_equals_point_by_point():
 
 
 def test_evaluate_many_names_a_vectorized_function_of_the_wrong_shape():
-    from attend.perception.nonlinear.model import evaluate_many
+    from attend.models.nonlinear import evaluate_many
 
     # 5 points and their 2 x 3 shifts: 35 columns
     with pytest.raises(AttendInputError, match=r"g: with vectorized=True expected \(1, 35\) values for 35 columns"):

@@ -8,7 +8,8 @@ import pytest
 
 from attend._validation import AttendInputError
 from attend.experiments import lorenz, pendulum
-from attend.perception.nonlinear import NonlinearDEM, ParametrisedSystem, learn_path, simulate_nonlinear
+from attend.models import simulate_nonlinear
+from attend.perception.nonlinear import NonlinearDEM, ParametrisedSystem, learn_path
 
 
 def lorenz_model():

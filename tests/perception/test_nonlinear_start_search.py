@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from attend._validation import AttendInputError
-from attend.perception.nonlinear import NonlinearSystem, simulate_nonlinear
+from attend.models import NonlinearSystem, simulate_nonlinear
 from attend.perception.nonlinear import start_search as search
-from attend.perception.nonlinear_baselines import unscented_kalman, white_noise_options
+from attend.perception.nonlinear_smoothers import unscented_kalman, white_noise_options
 
 
 def test_the_prior_is_flat_near_its_centre_and_heavy_tailed():

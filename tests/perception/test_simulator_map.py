@@ -8,8 +8,8 @@ import pytest
 from conftest import load_benchmark
 
 from attend.experiments import lorenz
-from attend.noise import coloured_noise
-from attend.perception.nonlinear import simulate_nonlinear
+from attend.models import simulate_nonlinear
+from attend.models.noise import coloured_noise
 
 
 @pytest.fixture(scope="module")

@@ -11,10 +11,11 @@ import pytest
 from conftest import load_benchmark
 
 from attend._validation import AttendInputError
+from attend.models import NonlinearSystem, simulate_nonlinear
+from attend.models.linear import ModelWarning, simulate
+from attend.models.problems import convolution_model, mass_spring_damper
 from attend.perception.dem import DEMObserver
-from attend.perception.nonlinear import NonlinearDEM, NonlinearSystem, simulate_nonlinear
-from attend.problems import convolution_model, mass_spring_damper
-from attend.systems import ModelWarning, simulate
+from attend.perception.nonlinear import NonlinearDEM
 
 
 @pytest.fixture(scope="module")
@@ -169,7 +170,7 @@ def test_integration_is_checked():
 def test_linear_std_accounts_for_the_reporting_lag():
     """The steady-state std of DEMObserver(integration="spm") describes its reported rows (the
     state one step behind): |error| < 2 std on ~95 % of the middle samples, states and input."""
-    from attend.noise import coloured_noise
+    from attend.models.noise import coloured_noise
 
     system, dt, s = convolution_model(), 0.1, 0.2
     u = coloured_noise(4000, system.n_inputs, dt, s, 1.0, seed=3)

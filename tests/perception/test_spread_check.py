@@ -4,10 +4,10 @@ state and the setting when an estimate swings far beyond its measured proxy or i
 import numpy as np
 import pytest
 
+from attend.models.linear import simulate
+from attend.models.problems import mass_spring_damper
 from attend.perception.kalman import KalmanEstimator
 from attend.perception.spread_check import SPREAD_LIMIT, noise_intensity, spread_findings
-from attend.problems import mass_spring_damper
-from attend.systems import simulate
 
 DT, WIDTH, PROCESS_STD, SENSOR_STD = 0.05, 0.1, 0.3, 0.02
 

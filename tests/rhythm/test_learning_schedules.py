@@ -7,11 +7,13 @@ import numpy as np
 import pytest
 
 from attend._validation import AttendInputError
+from attend.models.linear import simulate
+from attend.models.parameters import parameter_vector
+from attend.models.problems import mass_spring_damper
 from attend.perception import learning as L
 from attend.rhythm import FixedSchedule, RhythmicSchedule
 from attend.rhythm.learning import learn_scheduled, prior_precision_per_entry, prior_precision_sequence
 from attend.rhythm.oscillator import PrecisionOscillator
-from attend.systems import mass_spring_damper, simulate
 
 DT = 0.1
 FREE = np.array([False, False, True, True, False, True, False, False])
@@ -22,7 +24,7 @@ def _logs(seeds=(0, 1), n=150, sigma=np.exp(-3)):
     u = np.exp(-0.25 * (np.arange(n) * DT - 6) ** 2)[:, None]
     logs = [simulate(system, u, DT, kernel_width=0.5, process_std=np.exp(-4), measurement_std=sigma, seed=s)
             for s in seeds]
-    theta = L.parameter_vector(system)
+    theta = parameter_vector(system)
     eta = np.stack([theta * (1 + 0.3 * FREE * (-1) ** k) for k in range(len(seeds))])
     return np.stack([g.outputs for g in logs]), np.stack([g.inputs for g in logs]), eta
 

@@ -143,7 +143,7 @@ def closed_loop_spectral_radius(process: GenerativeProcess, controller: ActiveIn
     else:
         return None
     _, Phi, Gamma_y, _, _, _ = controller._fast_matrices(G)
-    from attend.systems import zero_order_hold
+    from attend.models.linear import zero_order_hold
 
     A, B, C, Dw = process.matrices
     Ad, Bd = zero_order_hold(A, B, controller.dt)

@@ -13,7 +13,7 @@ controller closing the loop) its one-step estimate
 
 holds the wind plus the differentiated noise of the motion-capture rate. Its autocorrelation is
 fitted, on lags from ``min_lag`` samples, by a fraction alpha of smooth noise with a Gaussian
-kernel (rho(tau) = alpha exp(-tau^2 / (4 s^2)), attend.noise's form) and a white remainder;
+kernel (rho(tau) = alpha exp(-tau^2 / (4 s^2)), attend.models.noise's form) and a white remainder;
 the smooth part is the disturbance (std sqrt(alpha) std(d), kernel width s). The command u is
 held for several samples in the logs (the autocorrelation of d oscillates with a 5-sample
 period), so lags below 5 samples are not fitted.

@@ -1,5 +1,5 @@
 """The sweep task of Figs. 4 and 5 (and rhythm-learning): mass-spring-damper runs from the bank of
-:mod:`attend.problems`, cut into self-contained, seeded tasks of one batched learn_batch call each
+:mod:`attend.models.problems`, cut into self-contained, seeded tasks of one batched learn_batch call each
 that run here or on a Dask cluster (:func:`attend.sweep.run_tasks`) with the same numbers."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from attend.constants import KNOWN_PRIOR_PRECISION
+from attend.models.problems import MSD_FREE, msd_logs
 from attend.perception.learning import PAPER_LEARNER, learn_batch
-from attend.problems import MSD_FREE, msd_logs
 from attend.sweep import chunk_slices
 
 

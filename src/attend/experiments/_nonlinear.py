@@ -12,9 +12,10 @@ import numpy as np
 from tqdm import tqdm
 
 from attend.experiments._result import Claim, ExperimentResult
-from attend.perception.nonlinear import NonlinearDEM, simulate_nonlinear
-from attend.systems import ModelWarning
-from attend.perception.nonlinear_baselines import (
+from attend.models.linear import ModelWarning
+from attend.models.nonlinear import simulate_nonlinear
+from attend.perception.nonlinear import NonlinearDEM
+from attend.perception.nonlinear_smoothers import (
     coloured_unscented_smoother,
     extended_kalman,
     input_random_walk_variance,

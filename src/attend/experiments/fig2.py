@@ -25,15 +25,15 @@ import numpy as np
 from tqdm import tqdm
 
 from attend.experiments._result import Claim, ExperimentResult
-from attend.generalized import smoothness_precision
-from attend.perception.baselines import (
+from attend.models.generalized import smoothness_precision
+from attend.models.linear import ModelWarning, simulate
+from attend.models.problems import mass_spring_damper
+from attend.perception.dem import DEMObserver
+from attend.perception.references import (
     augmented_kalman_filter,
     kalman_filter_ignoring_input,
     simulation_covariances,
 )
-from attend.perception.dem import DEMObserver
-from attend.problems import mass_spring_damper
-from attend.systems import ModelWarning, simulate
 
 SETTINGS = dict(
     dt=0.1, duration=32.0, kernel_width=0.5, noise_log_precision=8.0, input_prior_mean=0.0,

@@ -23,10 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from attend.experiments._result import Claim, ExperimentResult
 from attend.constants import KNOWN_PRIOR_PRECISION
-from attend.perception.learning import PAPER_LEARNER, learn_batch, parameter_vector
-from attend.problems import MSD_FREE, MSD_PUBLISHED_THETA, mass_spring_damper, msd_logs, msd_random_priors
+from attend.experiments._result import Claim, ExperimentResult
+from attend.models.parameters import parameter_vector
+from attend.models.problems import MSD_FREE, MSD_PUBLISHED_THETA, mass_spring_damper, msd_logs, msd_random_priors
+from attend.perception.learning import PAPER_LEARNER, learn_batch
 
 SETTINGS = dict(dt=0.1, duration=32.0, kernel_width=0.5, noise_log_precision=8.0, embedding_order=6,
                 free_prior_precision=1.0, known_prior_precision=KNOWN_PRIOR_PRECISION,

@@ -25,15 +25,15 @@ import numpy as np
 from attend.constants import KNOWN_PRIOR_PRECISION
 from attend.experiments._msd_sweep import RUNS_PER_TASK, gather_runs, learn_msd_runs, msd_tasks, task_logs
 from attend.experiments._result import Claim, ExperimentResult
-from attend.perception.learning import parameter_vector
-from attend.problems import MSD_FREE, mass_spring_damper, msd_random_priors
+from attend.models.parameters import parameter_vector
+from attend.models.problems import MSD_FREE, mass_spring_damper, msd_random_priors
 from attend.sweep import run_tasks
 
 SETTINGS = dict(dt=0.1, duration=32.0, kernel_width=0.5, noise_log_precision=8.0, embedding_order=6,
                 prior_range=[-2.0, 2.0], known_prior_precision=KNOWN_PRIOR_PRECISION, iterations=30)
 
 #: the names attend.experiments.rhythm_learning imports from here (the bank now lives in
-#: attend.problems and attend.experiments._msd_sweep)
+#: attend.models.problems and attend.experiments._msd_sweep)
 FREE, KNOWN_PRECISION = MSD_FREE, KNOWN_PRIOR_PRECISION
 __all__ = ["SETTINGS", "run", "plot", "claims", "CAPTIONS", "FREE", "KNOWN_PRECISION", "RUNS_PER_TASK", "task_logs"]
 

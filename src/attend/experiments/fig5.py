@@ -26,8 +26,8 @@ import numpy as np
 
 from attend.experiments._msd_sweep import RUNS_PER_TASK, gather_runs, learn_msd_runs, msd_tasks
 from attend.experiments._result import Claim, ExperimentResult
-from attend.perception.learning import parameter_vector
-from attend.problems import MSD_FREE, mass_spring_damper
+from attend.models.parameters import parameter_vector
+from attend.models.problems import MSD_FREE, mass_spring_damper
 from attend.sweep import run_tasks
 
 SETTINGS = dict(dt=0.1, duration=32.0, kernel_width=0.5, process_log_precision=8.0, embedding_order=6,

@@ -7,7 +7,7 @@ Gaussian kernel of width s. DEM uses the true precisions (Pi_z = 1/sigma_z^2, Pi
 and embedding order p = 6; the Kalman baselines (extended and unscented, filter + RTS smoother)
 assume white noise of the same per-sample variance; the particle smoother models the coloured
 noise by AR processes (a reference for the posterior mean, see
-:func:`attend.perception.nonlinear_baselines.particle_smoother`).
+:func:`attend.perception.nonlinear_smoothers.particle_smoother`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 
 from attend.experiments import _nonlinear
 from attend.experiments._result import Claim, ExperimentResult
-from attend.perception.nonlinear import NonlinearSystem
+from attend.models.nonlinear import NonlinearSystem
 
 SETTINGS = dict(
     dt=0.01, duration=4.0, kernel_width=0.02, process_std=20.0, measurement_std=1.0, embedding_order=6,

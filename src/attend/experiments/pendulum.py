@@ -8,7 +8,7 @@ signals). g/L = 9.81 1/s^2, b = 0.3 1/s. The input u(t) [rad/s^2] is two smooth 
 zero-mean prior of precision exp(input_prior_log_precision) and smoothness input_kernel_width = 0.7 s
 (the pushes' own time scale; the noise's s = 0.1 s would be far rougher), the Kalman baselines a
 random walk whose one-sample steps have that prior's variance
-(:func:`attend.perception.nonlinear_baselines.input_random_walk_variance`), the coloured UKS and
+(:func:`attend.perception.nonlinear_smoothers.input_random_walk_variance`), the coloured UKS and
 the particle smoother the DEM prior as a coloured process.
 """
 
@@ -20,7 +20,7 @@ import numpy as np
 
 from attend.experiments import _nonlinear
 from attend.experiments._result import Claim, ExperimentResult
-from attend.perception.nonlinear import NonlinearSystem
+from attend.models.nonlinear import NonlinearSystem
 
 SETTINGS = dict(
     dt=0.05, duration=20.0, kernel_width=0.1, process_std=[0.05, 0.5], measurement_std=0.05, embedding_order=6,

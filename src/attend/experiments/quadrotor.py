@@ -60,13 +60,13 @@ from attend._validation import AttendInputError
 from attend.constants import KNOWN_INPUT_PRECISION
 from attend.experiments._quadrotor_plots import CAPTIONS, claims, figure_tables, figures
 from attend.experiments._result import ExperimentResult
-from attend.generalized import embedding_weights
 from attend.io import Log, read_log
-from attend.perception.baselines import kalman_filter
+from attend.models.generalized import embedding_weights
+from attend.models.linear import LinearSystem, ModelWarning
+from attend.models.problems import quadrotor_roll
 from attend.perception.dem import DEMObserver
 from attend.perception.recurrence import linear_recurrence
-from attend.problems import quadrotor_roll
-from attend.systems import LinearSystem, ModelWarning
+from attend.perception.references import kalman_filter
 
 __all__ = [
     "PUBLISHED",
@@ -219,7 +219,7 @@ def _published_orders(series: np.ndarray, n_orders: int, rows: np.ndarray, dt: f
     Window of column j (0-based samples): q0 .. q0 + n - 1 with q0 = fix(j - (n + 1)/2)
     (MATLAB ``fix``, i.e. toward zero); the derivatives are taken at sample j - 1, window
     position c = j - 1 - q0 (= ceil((n - 1)/2) for the interior), with E = inv(T),
-    T_ab = ((a - c) dt)^b / b! (:func:`attend.generalized.embedding_weights` with centre c).
+    T_ab = ((a - c) dt)^b / b! (:func:`attend.models.generalized.embedding_weights` with centre c).
     Padding rule: a window sample q (before clamping to the log) is flagged when q < c - 1 or
     q >= N - c; the samples are clamped to [0, N - 1] and the last #flagged orders set to 0.
     Returns (len(rows), n_orders * k), order-major.
@@ -328,7 +328,7 @@ def _state_observer(piece: Slice, embedding_order: int = EMBEDDING_ORDER) -> DEM
 
 def lagged_kalman_filter(system: LinearSystem, dt: float, outputs, inputs, process_covariance,
                          measurement_covariance, initial_covariance=None) -> np.ndarray:
-    """The authors' KF (reproduces the paper's KF baseline), via :func:`baselines.kalman_filter`.
+    """The authors' KF (reproduces the paper's KF baseline), via :func:`attend.perception.references.kalman_filter`.
 
     Their recursion: x[0] = 0 with covariance P0 (default I) and no update; for j >= 1 the
     prediction Ad x[j-1] + Bd u[j-1] is corrected with y[j-1] (one-sample lag). This equals the

@@ -42,12 +42,13 @@ import numpy as np
 
 from attend.experiments._result import Claim, ExperimentResult
 from attend.experiments.fig4 import FREE, KNOWN_PRECISION, RUNS_PER_TASK, task_logs
-from attend.perception.learning import PAPER_LEARNER, learn_batch, parameter_vector
+from attend.models.parameters import parameter_vector
+from attend.models.problems import mass_spring_damper
+from attend.perception.learning import PAPER_LEARNER, learn_batch
 from attend.rhythm.learning import prior_precision_per_entry, prior_precision_sequence
 from attend.rhythm.oscillator import PrecisionOscillator
 from attend.rhythm.schedule import RhythmicSchedule
 from attend.sweep import chunk_slices, run_tasks
-from attend.systems import mass_spring_damper
 
 SETTINGS = dict(dt=0.1, duration=32.0, kernel_width=0.5, process_log_precision=8.0, embedding_order=6,
                 sensor_log_precision_range=[8.0, -2.0], prior_relative_spread=0.2, iterations=30,

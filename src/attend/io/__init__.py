@@ -81,11 +81,11 @@ from attend.io.estimates import estimate_from_files
 from attend.io.learned import LEARNING_EXAMPLE  # noqa: F401
 from attend.io.learned import check_learned_model, identify_from_files, write_learned_model
 from attend.io.logs import Log, read_log, write_estimates
-from attend.io.model import InputSpec, ModelFile, NonlinearFileEstimator
+from attend.io.model import InputSpec, ModelFile
 from attend.io.model_file import NONLINEAR_KNOWN_INPUT_PRECISION, NONLINEAR_METHOD, read_model  # noqa: F401
 
 __all__ = [
-    "InputSpec", "Log", "ModelFile", "NonlinearFileEstimator", "check_learned_model", "estimate_from_files",
+    "InputSpec", "Log", "ModelFile", "check_learned_model", "estimate_from_files",
     "identify_from_files", "read_log", "read_model", "write_estimates", "write_learned_model",
 ]
 

@@ -9,6 +9,7 @@ import numpy as np
 from attend._validation import AttendInputError
 from attend.io.logs import Log
 from attend.io.model import ModelFile
+from attend.perception.file_estimators import file_estimator, file_nonlinear_order
 from attend.perception.nonlinear.start_search import AmbiguousStartError
 
 if TYPE_CHECKING:  # only named in annotations: each estimator is imported where the model file picks it
@@ -29,7 +30,7 @@ def _check_samples(model: ModelFile, log: Log, minimum: int, why: str) -> float:
 
 def _observer_of(model: ModelFile, dt: float) -> DEMObserver:
     try:
-        return model.observer(dt)
+        return file_estimator(model, dt)
     except AttendInputError as error:  # in the file's words: P_v is the [[inputs]] prior_precision
         message = str(error).replace("input_prior_precision", "[[inputs]] prior_precision")
         raise AttendInputError(f"{model.path}: [observer] {message}") from None
@@ -45,7 +46,7 @@ def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEst
         else:
             signals[:, j] = spec.prior_mean
     if model.nonlinear and model.method == "dem":
-        window = max(model.nonlinear_order(log.dt), model.input_order) + 1
+        window = max(file_nonlinear_order(model, log.dt), model.input_order) + 1
         dt = _check_samples(model, log, max(2, window), f"the embedding window of order {window - 1}")
     elif model.nonlinear:
         dt = _check_samples(model, log, 2, "the unscented Kalman smoother")

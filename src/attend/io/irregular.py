@@ -20,7 +20,8 @@ import numpy as np
 from attend._validation import AttendInputError
 from attend.io.logs import Log
 from attend.io.model import ModelFile
-from attend.noise import GAUSSIAN_SPECTRUM_DENOMINATOR
+from attend.models.noise import GAUSSIAN_SPECTRUM_DENOMINATOR
+from attend.perception.file_estimators import file_estimator
 from attend.perception.sample_times import BRIDGED_GAP, SampleGrid, bridge, describe, sample_grid
 
 JITTERED_DT_TOLERANCE = 1e-2
@@ -96,7 +97,7 @@ def estimate_with_gaps(model: ModelFile, log: Log):
     if model.method == "dem":
         bridge(grid, outputs, f"{log.path}: column", list(model.output_columns), labels=log.labels)
     try:
-        observer = model.observer(dt)
+        observer = file_estimator(model, dt)
     except AttendInputError as error:  # as estimate_from_files: P_v is the [[inputs]] prior_precision
         message = str(error).replace("input_prior_precision", "[[inputs]] prior_precision")
         raise AttendInputError(message if message.startswith(str(model.path)) else

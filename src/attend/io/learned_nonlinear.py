@@ -77,6 +77,7 @@ def identify_nonlinear(model, log: Log):
 
     model: the parsed :class:`attend.io.ModelFile` ([model] python); log: the CSV log. Returns
     (names, :class:`attend.perception.nonlinear.PathLearningResult`)."""
+    from attend.perception.file_estimators import file_nonlinear_order
     from attend.perception.nonlinear import ParametrisedSystem, learn_path
 
     learning = dict(model.learning or {})
@@ -87,7 +88,7 @@ def identify_nonlinear(model, log: Log):
     order = 6 if model.embedding_order == "auto" else int(model.embedding_order)
     window = max(order, model.input_order) + 1
     dt = _check_samples(model, log, 3 * window, f"3 embedding windows of order {window - 1}")
-    p = model.nonlinear_order(dt)
+    p = file_nonlinear_order(model, dt)
     outputs = log.matrix(model.output_columns)
     signals = np.zeros((len(log.time), system.n_inputs))
     known = np.array([spec.known for spec in model.inputs], dtype=bool)

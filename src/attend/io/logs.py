@@ -12,7 +12,7 @@ import numpy as np
 
 from attend._validation import LARGEST_MAGNITUDE, AttendInputError, unique_names
 from attend.io.fields import _read_text
-from attend.systems import LinearSystem
+from attend.models.linear import LinearSystem
 
 if TYPE_CHECKING:  # only named in annotations: reading a log loads no estimator
     from attend.perception.dem import DEMEstimate

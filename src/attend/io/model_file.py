@@ -25,7 +25,7 @@ from attend.constants import KNOWN_INPUT_PRECISION
 from attend.io.fields import _check_keys, _file_number, _matrix, _read_text, _text, _text_list
 from attend.io.model import InputSpec, ModelFile
 from attend.io.python_model import _model_size, _probe, _python_model
-from attend.systems import LinearSystem
+from attend.models.linear import LinearSystem
 
 #: Nonlinear DEM's default prior precision of measured inputs beside unknown ones (exp(32) overflows
 #: the linear algebra of its flow; 1e8 pins them to the measurement to ~1e-8 on the pendulum).

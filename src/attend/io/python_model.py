@@ -8,7 +8,7 @@ import numpy as np
 
 from attend._validation import AttendInputError, numeric_array, require_finite
 from attend.io.fields import _read_text, _text
-from attend.perception.nonlinear import NonlinearSystem
+from attend.models.nonlinear import NonlinearSystem
 
 
 def _model_size(model: dict, key: str, path) -> int:

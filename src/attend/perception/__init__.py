@@ -9,10 +9,15 @@ Entry points (re-exported here and from :mod:`attend`):
   (:mod:`attend.perception.kalman`);
 - :func:`identify` and :func:`learn_batch`, results :class:`IdentificationResult`
   (:mod:`attend.perception.learning`);
-- :class:`NonlinearDEM` for a :class:`NonlinearSystem` (:mod:`attend.perception.nonlinear`).
+- :class:`NonlinearDEM` for a :class:`attend.models.NonlinearSystem` (:mod:`attend.perception.nonlinear`).
 
-Baselines: :mod:`attend.perception.baselines` (Kalman filters and smoothers, the exact posterior,
-N4SID and EM identification) and :mod:`attend.perception.nonlinear_baselines`.
+Smoothers for nonlinear models besides DEM (the unscented Kalman smoother, the default of a
+nonlinear model file, and the particle smoother, the nonlinear reference):
+:mod:`attend.perception.nonlinear_smoothers`. References the estimators are compared with on
+linear models: :mod:`attend.perception.references` (Kalman filters and smoothers, the exact
+posterior, N4SID and EM identification). A model file's estimator:
+:mod:`attend.perception.file_estimators`. python-control export of the DEM observer:
+:mod:`attend.perception.interop`.
 """
 
 from attend._lazy import lazy_exports
@@ -30,7 +35,6 @@ _EXPORTS = {
     "OnlineKalman": "attend.perception.kalman",
     "StateEstimate": "attend.perception.kalman",
     "NonlinearDEM": "attend.perception.nonlinear",
-    "NonlinearSystem": "attend.perception.nonlinear",
 }
 
 __all__ = [
@@ -39,7 +43,6 @@ __all__ = [
     "IdentificationResult",
     "KalmanEstimator",
     "NonlinearDEM",
-    "NonlinearSystem",
     "OnlineDEM",
     "OnlineKalman",
     "StateEstimate",

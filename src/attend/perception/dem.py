@@ -48,7 +48,8 @@ from attend._validation import (
     precision_matrix,
     require_finite,
 )
-from attend.generalized import smoothness_condition
+from attend.models.generalized import smoothness_condition
+from attend.models.linear import LinearSystem, ModelWarning, as_linear_system
 from attend.perception.dem_analysis import (
     derivative_scales,
     PINNED_INPUT_PRECISION,
@@ -60,7 +61,6 @@ from attend.perception.dem_analysis import (
 from attend.perception.dem_flow import flow_matrices, known_input_error, start_state
 from attend.perception.dem_online import OnlineDEM
 from attend.perception.recurrence import linear_recurrence
-from attend.systems import LinearSystem, ModelWarning, as_linear_system
 
 
 #: Largest embedding order that embedding_order="auto" considers.
@@ -170,7 +170,7 @@ class DEMObserver:
     system and the sample time first, everything else by keyword).
 
     system: the model (A, B, C; a python-control StateSpace is converted with
-    :func:`attend.interop.from_statespace`); dt: sample time [s]; kernel_width: s of the Gaussian noise
+    :func:`attend.models.from_statespace`); dt: sample time [s]; kernel_width: s of the Gaussian noise
     kernel [s], used for both noises unless process_kernel_width / sensor_kernel_width are
     given (then it may be None); sensor_precision: Pi_z [1/output unit^2]; process_precision:
     Pi_w [s^2/state unit^2 as in dx/dt]; input_prior_precision: P_v [1/input unit^2] (unknown

@@ -9,10 +9,10 @@ so everything it can promise follows from (Phi, G) and the generative model it a
 (simulate()'s discretisation)::
 
     x[k] = Ad x[k-1] + Bd u[k-1] + dt w[k-1]        y[k] = C x[k] + z[k]
-    w, z: white noise convolved with the unit-energy Gaussian kernel of attend.noise
+    w, z: white noise convolved with the unit-energy Gaussian kernel of attend.models.noise
           (covariance per sample inv(Pi_w), inv(Pi_z); widths s_w, s_z)
     unknown inputs: u = eta + a stationary Gaussian process of covariance inv(P_v) and
-          autocorrelation exp(-tau^2 / (4 s_w^2)) (as baselines.exact_posterior models it)
+          autocorrelation exp(-tau^2 / (4 s_w^2)) (as references.exact_posterior models it)
 
 Steady-state error. With z = exp(i w) and the transfer functions P(z) = inv(z I - Ad) of the
 plant and H(z) = inv(I - Phi / z) sum_j G_j z^(o_j) of the filter (H_y: its output columns, R_x,
@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from attend.noise import gaussian_kernel
+from attend.models.noise import gaussian_kernel
 
 #: Base grid sizes of the frequency integral (uniform on [0, pi]; dense at low frequencies).
 UNIFORM_NODES = 2048
@@ -49,7 +49,7 @@ PINNED_INPUT_PRECISION = 1e10
 
 
 def kernel_spectrum(omegas: np.ndarray, dt: float, kernel_width: float) -> np.ndarray:
-    """Power spectrum of attend.noise.coloured_noise at unit variance: |DTFT(h)|^2 for the
+    """Power spectrum of attend.models.noise.coloured_noise at unit variance: |DTFT(h)|^2 for the
     unit-energy kernel h = gaussian_kernel(dt, s); (1/pi) int_0^pi S = 1."""
     h = gaussian_kernel(dt, kernel_width)
     correlation = np.correlate(h, h, mode="full")[len(h) - 1:]  # lags 0, 1, ...
@@ -205,7 +205,7 @@ def steady_state_error_variance(transition, window_gain, offsets, rows_x, rows_v
     is unbounded (a zero precision that reaches the estimate, a plant pole on or outside the unit
     circle that the filter does not cancel). With known inputs the input entries are 0.
     """
-    from attend.systems import zero_order_hold
+    from attend.models.linear import zero_order_hold
 
     n, r = A.shape[0], B.shape[1]
     Ad, Bd = zero_order_hold(A, B, dt)

@@ -7,7 +7,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from attend._validation import AttendInputError
-from attend.generalized import block_precisions, embedding_weights, shift_operator
+from attend.models.generalized import block_precisions, embedding_weights, shift_operator
 from attend.perception.recurrence import linear_recurrence
 
 

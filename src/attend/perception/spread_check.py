@@ -129,7 +129,7 @@ def prior_spread(A: np.ndarray, B: np.ndarray, dt: float, *, process_covariance:
     """
     from scipy.linalg import solve_continuous_lyapunov
 
-    from attend.systems import zero_order_hold
+    from attend.models.linear import zero_order_hold
 
     n = A.shape[0]
     if n == 0 or np.max(np.linalg.eigvals(A).real) >= 0 or not np.all(np.isfinite(process_covariance)):

@@ -98,22 +98,22 @@ All numerics are batched over a leading axis of independent runs (seeds, prior p
 noise levels) sharing one model structure: see :func:`learn_batch`.
 
 Layout of this package (public names are re-exported here):
-:mod:`.parameters` theta <-> (A, B, C); :mod:`.problem` the embedded logs, the structure runs
+:mod:`.problem` the embedded logs, the structure runs
 share, Pi_X; :mod:`.path` path-mode block-tridiagonal algebra; :mod:`.free_energy` F and its
 pieces; :mod:`.steps` the D, E and M steps (and the extra moves); :mod:`.batch` the batched loop
 :func:`learn_batch`; :mod:`.identification` :func:`identify`. The N4SID and EM baselines and the
-basis-invariant error metrics live with the other baselines (:mod:`attend.perception.baselines`).
+basis-invariant error metrics live with the other references (:mod:`attend.perception.references`); theta
+<-> (A, B, C) is the model's (:mod:`attend.models.parameters`).
 """
 
 from attend.constants import KNOWN_PRIOR_PRECISION
-from attend.perception.baselines import identification as _baselines
-from attend.perception.baselines.identification import (  # re-exported: the baselines of identify
-    continuous_from_discrete, eigenvalue_error, em_baseline, n4sid_baseline, transfer_function_error)
 from attend.perception.learning.batch import PAPER_LEARNER, BatchLearningResult, learn_batch
 from attend.perception.learning.identification import KNOWN_DISPLACED_STD, IdentificationResult, identify
-from attend.perception.learning.parameters import parameter_names, parameter_vector, system_from_parameters
 from attend.perception.learning.problem import IdentifiabilityWarning, LearningWarning
 from attend.perception.learning.steps import NEWTON_CREEP
+from attend.perception.references import identification as _baselines
+from attend.perception.references.identification import (  # re-exported: the baselines of identify
+    continuous_from_discrete, eigenvalue_error, em_baseline, n4sid_baseline, transfer_function_error)
 
 __all__ = [
     "PAPER_LEARNER",
@@ -123,8 +123,5 @@ __all__ = [
     "LearningWarning",
     "identify",
     "learn_batch",
-    "parameter_names",
-    "parameter_vector",
-    "system_from_parameters",
     *_baselines.__all__,
 ]

@@ -10,16 +10,16 @@ import numpy as np
 
 from attend._validation import AttendInputError, as_matrix, order, positive_scalar
 from attend.constants import KNOWN_PRIOR_PRECISION
-from attend.perception.learning.batch import BatchLearningResult, learn_batch
-from attend.perception.learning.parameters import (
-    _mask_from,
-    _slice,
+from attend.models.linear import LinearSystem, as_linear_system, observability_rank
+from attend.models.parameters import (
+    parameter_array,
+    parameter_slice,
     parameter_names,
     parameter_vector,
     system_from_parameters,
 )
+from attend.perception.learning.batch import BatchLearningResult, learn_batch
 from attend.perception.learning.problem import IdentifiabilityWarning, LearningWarning
-from attend.systems import LinearSystem, as_linear_system, observability_rank
 
 KNOWN_DISPLACED_STD = 5.0  # identify warns when a known entry ends this many prior std from its mean
 
@@ -231,11 +231,11 @@ def _parameter_prior(system: LinearSystem, free, prior_precision, free_prior_pre
     """The mask of free entries (default: all of A and B) and P_theta per entry."""
     n, r, m = system.n_states, system.n_inputs, system.n_outputs
     names = parameter_names(system)
-    free_mask = _mask_from(free, system, "free", bool,
+    free_mask = parameter_array(free, system, "free", bool,
                            default=np.concatenate([np.ones(n * n + n * r, bool), np.zeros(m * n, bool)]))
     free_mask = np.asarray(free_mask, dtype=bool)
     default_prec = np.where(free_mask, float(free_prior_precision), float(known_prior_precision))
-    prec = np.asarray(_mask_from(prior_precision, system, "prior_precision", float, default=default_prec), dtype=float)
+    prec = np.asarray(parameter_array(prior_precision, system, "prior_precision", float, default=default_prec), dtype=float)
     if np.any(np.isnan(prec)) or np.any(prec < 0):
         raise AttendInputError("prior_precision: expected precisions >= 0 (inf holds an entry fixed)")
     infinite_free = free_mask & np.isinf(prec)
@@ -273,7 +273,7 @@ def _start(system: LinearSystem, y: np.ndarray, initial) -> tuple[np.ndarray, np
             "identified; record a log in which the system moves"
         )
     eta = parameter_vector(system)
-    theta0 = eta.copy() if initial is None else np.asarray(_mask_from(initial, system, "initial", float,
+    theta0 = eta.copy() if initial is None else np.asarray(parameter_array(initial, system, "initial", float,
                                                                        default=eta), dtype=float)
     if not np.all(np.isfinite(theta0)):
         raise AttendInputError("initial: expected finite starting values")
@@ -284,7 +284,7 @@ def _warn_unidentifiable(system: LinearSystem, u: np.ndarray, learn: np.ndarray,
     """IdentifiabilityWarning when the inputs are zero while B is free, when the Markov parameters
     do not determine the learned entries, or when (A, C) is unobservable at the prior."""
     names = parameter_names(system)
-    if learn[_slice(system, "B")].any() and np.all(np.abs(u) == 0):
+    if learn[parameter_slice(system, "B")].any() and np.all(np.abs(u) == 0):
         warnings.warn("inputs: the inputs are identically zero, so the free entries of B are not "
                       "identifiable from this log; they will stay at their prior", IdentifiabilityWarning,
                       stacklevel=3)

@@ -9,8 +9,8 @@ from typing import NamedTuple
 import numpy as np
 
 from attend._validation import AttendInputError
-from attend.generalized import block_precisions, embed, embedding_weights, shift_operator
-from attend.perception.learning.parameters import _internal_order
+from attend.models.generalized import block_precisions, embed, embedding_weights, shift_operator
+from attend.models.parameters import internal_parameter_order
 
 
 class IdentifiabilityWarning(UserWarning):
@@ -143,7 +143,7 @@ def _prepare(outputs, inputs, dt, kernel_width, embedding_order, input_order, ac
 
     Scaled generalised coordinates: order k of every variable is held as sigma^k d^k/dt^k with
     sigma = sqrt(2) s (the kernel's time scale). S = diag(sigma^k) S0 diag(sigma^k) with S0 the
-    O(1) integer-derived core (:mod:`attend.generalized`), so in these coordinates the temporal
+    O(1) integer-derived core (:mod:`attend.models.generalized`), so in these coordinates the temporal
     precision is S0 (cond ~7e4 at p = 6) instead of S (cond ~1.6e29 at s = 0.006 s, p = 6), the
     shift operator is D / sigma, and every quantity the learner forms (Pi_X, the moments K, the
     energies) is a sum of terms of comparable size. F, theta and lambda are unchanged (exact
@@ -188,7 +188,7 @@ def _prepare(outputs, inputs, dt, kernel_width, embedding_order, input_order, ac
         n=n, r=r, m=m, orders=P, S=S_scaled, S_w=S_w, log_det_S_w=log_det_S_w, motion_orders=motion_orders,
         log_det_S=float(np.linalg.slogdet(S_scaled)[1] + 2 * np.sum(np.arange(P) * np.log(sigma))),
         Dx=shift_operator(P, n) / sigma, n_used=int(used.sum()), used=used, active=active,
-        perm=_internal_order(n, r, m), path=path,
+        perm=internal_parameter_order(n, r, m), path=path,
         E=embedding_weights(P, dt) * scale[:P, None] if path else None,
         count=1.0 / P if path else 1.0, time_scale=sigma,
         log_jacobian=float(np.sum(np.arange(P) * np.log(sigma))),

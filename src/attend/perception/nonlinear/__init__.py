@@ -1,6 +1,6 @@
 """Nonlinear DEM: state and input estimation for dx/dt = f(x, v, theta) + w, y = g(x, v, theta) + z.
 
-The generative model is the linear core's with f and g in place of
+The generative model (:class:`attend.models.NonlinearSystem`) is the linear core's with f and g in place of
 (A, B, C): w and z are coloured (white noise convolved with a Gaussian kernel of width s), with
 spatial precisions Pi_w (``process_precision``) and Pi_z (``sensor_precision``); unknown inputs v
 have a prior mean eta (the ``inputs`` argument of :meth:`NonlinearDEM.estimate`) and precision
@@ -38,27 +38,21 @@ Units are attend's: seconds. f is a rate [state unit / s], kernel_width s is in 
 
 from attend._lazy import lazy_exports
 
-#: public name -> the module that defines it, imported at the first use of the name (PEP 562): the
-#: model (NonlinearSystem) loads without the DEM and its linear algebra.
+#: public name -> the module that defines it, imported at the first use of the name (PEP 562). The
+#: model itself (NonlinearSystem, simulate_nonlinear) is in :mod:`attend.models.nonlinear`.
 _EXPORTS = {
     "NonlinearDEM": "attend.perception.nonlinear.dem",
     "NonlinearLearningResult": "attend.perception.nonlinear.learning",
     "ParametrisedSystem": "attend.perception.nonlinear.learning",
     "learn_nonlinear": "attend.perception.nonlinear.learning",
-    "NonlinearSystem": "attend.perception.nonlinear.model",
-    "finite_difference_jacobian": "attend.perception.nonlinear.model",
-    "simulate_nonlinear": "attend.perception.nonlinear.model",
     "OnlineNonlinearDEM": "attend.perception.nonlinear.online",
     "PathLearningResult": "attend.perception.nonlinear.path_learning",
     "learn_path": "attend.perception.nonlinear.path_learning",
 }
 
 __all__ = [
-    "NonlinearSystem",
     "NonlinearDEM",
     "OnlineNonlinearDEM",
-    "simulate_nonlinear",
-    "finite_difference_jacobian",
     "ParametrisedSystem",
     "NonlinearLearningResult",
     "learn_nonlinear",

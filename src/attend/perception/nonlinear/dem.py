@@ -11,13 +11,13 @@ import numpy as np
 from attend._progress import steps
 from attend._threads import single_blas_thread
 from attend._validation import AttendInputError, as_matrix, order, positive_scalar, precision_matrix, require_finite
-from attend.generalized import block_precisions, embedding_weights, shift_operator, smoothness_precision
+from attend.models.generalized import block_precisions, embedding_weights, shift_operator, smoothness_precision
+from attend.models.nonlinear import NonlinearSystem
 from attend.perception.dem import DEMEstimate
 from attend.perception.nonlinear._linalg import (block_diagonal_positions, diagonal_blocks, expm_last_column,
                                                   inverse_diagonals)
 from attend.perception.nonlinear._workspace import StepWorkspace
 from attend.perception.nonlinear.jax_backend import check_backend, estimate_with_jax
-from attend.perception.nonlinear.model import NonlinearSystem
 from attend.perception.nonlinear.misfit import check_excursion, sample_misfit, warn_if_misfit
 from attend.perception.nonlinear.online import OnlineNonlinearDEM
 from attend.perception.nonlinear.path import estimate_path
@@ -37,7 +37,7 @@ class NonlinearDEM:
     dx/dt]; input_prior_precision: P_v [1/input unit^2] (required for unknown inputs);
     embedding_order: p (states/outputs have p + 1 orders); input_order: d; known_inputs: the
     inputs are measured (True) or estimated (False); precision_convention: "size" (SPM) or
-    "max" (invert V at max(p, d), see :func:`attend.generalized.block_precisions`);
+    "max" (invert V at max(p, d), see :func:`attend.models.generalized.block_precisions`);
     edges: "order0" (rows whose embedding window reaches past the log use the sample with zero
     derivatives, attend's default) or "clamp" (end samples repeated, SPM);
     flow_time: how long the gradient flow runs per sample. "samples" (default, SPM's D-step): one

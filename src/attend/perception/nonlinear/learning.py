@@ -41,9 +41,9 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from attend._validation import AttendInputError, positive_scalar
-from attend.generalized import block_precisions, embed
+from attend.models.generalized import block_precisions, embed
+from attend.models.nonlinear import NonlinearSystem
 from attend.perception.nonlinear.dem import NonlinearDEM
-from attend.perception.nonlinear.model import NonlinearSystem
 
 
 @dataclass(frozen=True, eq=False)

@@ -22,7 +22,7 @@ import warnings
 import numpy as np
 
 from attend._validation import AttendInputError
-from attend.systems import ModelWarning
+from attend.models.linear import ModelWarning
 
 #: misfit ratio above which the log is called far from the generalised model
 MISFIT_LIMIT = 20.0

@@ -43,13 +43,13 @@ import numpy as np
 from attend._progress import steps
 from attend._threads import single_blas_thread
 from attend._validation import AttendInputError
-from attend.noise import coloured_noise
 import attend.perception.block_tridiagonal as block_tridiagonal
+from attend.models.linear import ModelWarning
+from attend.models.noise import coloured_noise
+from attend.models.nonlinear import evaluate_many
 from attend.perception.dem import DEMEstimate
 from attend.perception.nonlinear.misfit import check_excursion, warn_if_misfit
-from attend.perception.nonlinear.model import evaluate_many
 from attend.perception.nonlinear.path_starts import smoother_start
-from attend.systems import ModelWarning
 
 CHUNK = 1024  # centres whose Jacobians are held in memory at once
 
@@ -105,7 +105,7 @@ def _block_diagonal(blocks) -> np.ndarray:
 def _linearized_errors(dem, X_all, y_tilde, u_tilde, jacobians: bool):
     """:meth:`NonlinearDEM.errors` of many windows at once for motion="linearized" (the same
     numbers): only f, g and their Jacobians are called per window (all windows in one call of f and
-    one of g for a vectorized system, :func:`attend.perception.nonlinear.model.evaluate_many`).
+    one of g for a vectorized system, :func:`attend.models.nonlinear.evaluate_many`).
     Returns (e (C, n_e), E or None)."""
     mats, system = dem._matrices, dem.system
     n, r, p, d, top = mats["sizes"]

@@ -37,10 +37,10 @@ import numpy as np
 
 from attend._threads import single_blas_thread
 from attend._validation import AttendInputError, positive_scalar
+from attend.models.linear import ModelWarning
 from attend.perception.nonlinear.dem import NonlinearDEM
 from attend.perception.nonlinear.path import (NOISE_BUDGET, _accumulate, _draw_noises, _embedded_noises, _errors,
                                               _fill_unused, _noise_sources, _Problem, _solve, estimate_path)
-from attend.systems import ModelWarning
 
 
 class PathLearningResult(NamedTuple):

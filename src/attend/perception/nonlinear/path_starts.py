@@ -19,14 +19,14 @@ from attend._validation import AttendInputError
 def smoother_start(dem, signals: np.ndarray, prior, start) -> tuple[np.ndarray, np.ndarray] | None:
     """(states (N, n), inputs (N, r)) of the unscented RTS smoother on the white-noise model
     Q = dt^2 inv(Pi_w), R = inv(Pi_z), unknown inputs as random walks with their prior's one-sample
-    steps (:func:`attend.perception.nonlinear_baselines.white_noise_options`), x[0] from
+    steps (:func:`attend.perception.nonlinear_smoothers.white_noise_options`), x[0] from
     ``prior`` (mean, precision) or else from :func:`initial_state_prior`, RK4 sub-steps from
     :func:`smoother_substeps`, both read off :func:`d_step_basis`; None where it does not apply (a precision that is not positive
     definite) or fails.
 
     dem: the NonlinearDEM; signals: (N, m + r) outputs then inputs (measured, or the prior mean
     eta); prior: path mode's prior on x[0] or None; start: the D-step's DEMEstimate of the log."""
-    from attend.perception.nonlinear_baselines import unscented_kalman, white_noise_options
+    from attend.perception.nonlinear_smoothers import unscented_kalman, white_noise_options
 
     m, r = dem.system.n_outputs, dem.system.n_inputs
     unknown = bool(r) and not dem.known_inputs
@@ -114,8 +114,8 @@ def initial_state_prior(dem, signals: np.ndarray, basis) -> tuple[np.ndarray, np
 
 def smoother_substeps(dem, basis) -> int:
     """RK4 sub-steps per sample of the unscented smoother's transition at the D-step's ``basis``
-    (:func:`d_step_basis`; :func:`attend.perception.nonlinear_baselines.kalman.rk4_substeps`).
+    (:func:`d_step_basis`; :func:`attend.perception.nonlinear_smoothers.kalman.rk4_substeps`).
     dem: the NonlinearDEM."""
-    from attend.perception.nonlinear_baselines.kalman import rk4_substeps
+    from attend.perception.nonlinear_smoothers.kalman import rk4_substeps
 
     return rk4_substeps(dem.system, dem.dt, basis[0].states, basis[0].inputs)

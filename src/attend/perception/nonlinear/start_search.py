@@ -194,7 +194,7 @@ def search_start(system, dt: float, outputs, inputs=None, *, process_covariance,
 
     system: the NonlinearSystem; dt: sample time [s]; outputs (N, m); inputs, process_covariance,
     measurement_covariance, input_variance, input_mean, known_inputs, substeps: the smoother's own
-    white-noise model (:func:`attend.perception.nonlinear_baselines.unscented_kalman`); prior_mean:
+    white-noise model (:func:`attend.perception.nonlinear_smoothers.unscented_kalman`); prior_mean:
     mu_0 (n,) (default 0); prior_scale: sigma_0 (n,) or a scalar > 0 (default 1) [state unit];
     prior_dof: the prior's degrees of freedom (1: heavy-tailed, inf: Gaussian; :class:`StartPrior`);
     extra_starts: more (mean (n,), std (n,)) starts for the bank and the anchors (e.g. DEM's).
@@ -253,7 +253,7 @@ def _differ(a: StartMode, b: StartMode) -> bool:
 
 def _smoother(system, dt, outputs, inputs, options, mean, std):
     """The unscented RTS smoother from N(mean, diag(std^2)) (no error spread), or None where it fails."""
-    from attend.perception.nonlinear_baselines import unscented_kalman
+    from attend.perception.nonlinear_smoothers import unscented_kalman
 
     try:
         with np.errstate(all="ignore"):
@@ -342,7 +342,7 @@ def prior_map(information, shift, guess, prior: StartPrior, iterations: int = 50
 
 def _misfit(system, outputs, estimate, measurement_covariance) -> float:
     """mean_k r_k' inv(R) r_k / m with r_k = y_k - g(x_k, v_k) at ``estimate`` (a KalmanEstimate)."""
-    from attend.perception.nonlinear_baselines.kalman import observe_points
+    from attend.perception.nonlinear_smoothers.kalman import observe_points
 
     y = np.asarray(outputs, dtype=float).reshape(len(estimate.states), -1)
     try:
@@ -360,7 +360,7 @@ class _Bank:
     the observation, for all sigma points of all components)."""
 
     def __init__(self, system, dt, outputs, inputs, options, centres, stds, prior: StartPrior):
-        from attend.perception.nonlinear_baselines.kalman import _Model
+        from attend.perception.nonlinear_smoothers.kalman import _Model
 
         self.model = _Model(system, dt, outputs, inputs, options["input_variance"], options["input_mean"],
                             options["process_covariance"], options["measurement_covariance"], None, None,

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from attend._validation import AttendInputError
-from attend.generalized import (
+from attend.models.generalized import (
     block_precisions,
     embed,
     embedding_weights,

@@ -1,5 +1,5 @@
 """Extended and unscented Kalman filters/smoothers for nonlinear models (white noise), the
-discrete model of :mod:`attend.perception.nonlinear_baselines`."""
+discrete model of :mod:`attend.perception.nonlinear_smoothers`."""
 
 from __future__ import annotations
 
@@ -8,10 +8,9 @@ import numpy as np
 from attend._progress import steps
 from attend._threads import with_single_blas_thread
 from attend._validation import AttendInputError, as_matrix, positive_scalar, require_finite, symmetric_matrix
-from attend.noise import autocorrelation
-from attend.perception.baselines import KalmanEstimate
-from attend.perception.nonlinear import NonlinearSystem, finite_difference_jacobian
-from attend.perception.nonlinear.model import _batched
+from attend.models.noise import autocorrelation
+from attend.models.nonlinear import NonlinearSystem, evaluate_columns, finite_difference_jacobian
+from attend.perception.references import KalmanEstimate
 
 
 def white_noise_covariances(system: NonlinearSystem, dt: float, *, kernel_width: float, process_std,
@@ -19,7 +18,7 @@ def white_noise_covariances(system: NonlinearSystem, dt: float, *, kernel_width:
     """(Q, R) of a white-noise model for coloured noise of kernel width s [s] and standard
     deviations sigma_w [state unit / s], sigma_z [output unit]. R = diag(sigma_z^2);
     match "variance": Q = dt^2 diag(sigma_w^2), the same variance per sample (the linear
-    baselines' :func:`attend.perception.baselines.simulation_covariances`); "power":
+    baselines' :func:`attend.perception.references.simulation_covariances`); "power":
     Q = dt^2 diag(sigma_w^2) sum_k rho(k dt), the white noise of the same low-frequency power
     (larger by ~sqrt(4 pi) s / dt). On the Lorenz and pendulum reproductions "variance" gives the
     better Kalman estimates, so it is the default.
@@ -160,7 +159,7 @@ def propagate_points(system: NonlinearSystem, x, u, dt: float, substeps: int, w=
         columns = u.T
 
         def call(state):
-            return _batched(system, "f", np.vstack([state, columns]))
+            return evaluate_columns(system, "f", np.vstack([state, columns]))
 
         return _rk4(system, x.T, columns, dt, substeps, None if w is None else w.T, call).T
     if w is None:
@@ -172,7 +171,7 @@ def observe_points(system: NonlinearSystem, x, u) -> np.ndarray:
     """g of ``system`` (the NonlinearSystem) at the rows x (P, n), u (P, r): a (P, m) array (one
     call of g for a vectorized system)."""
     if system.vectorized:
-        return _batched(system, "g", np.vstack([x.T, u.T])).T
+        return evaluate_columns(system, "g", np.vstack([x.T, u.T])).T
     return np.array([system.observe(row, inputs) for row, inputs in zip(x, u)])
 
 
@@ -413,7 +412,7 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
     the std ~1 / sqrt(2 draws): 5 % at the default 200), or with ``spread_draws=None`` its exact
     covariance, the draws' limit, without draws (what ``attend estimate`` reports; as fast as 200
     draws, and it does not import scipy.signal: 0.6-0.9 s of a 128-sample run)
-    (:mod:`attend.perception.nonlinear_baselines.error_spread`; the estimates are unchanged);
+    (:mod:`attend.perception.nonlinear_smoothers.error_spread`; the estimates are unchanged);
     input_prior: with unknown inputs, (per-sample covariance (r, r) or variances (r,), kernel
     width s_v [s]) of the prior their truth is drawn from there. None (default): the white-noise
     model's own covariance.
@@ -432,7 +431,7 @@ def _error_spread(model, smooth, spread, record: dict, draws: int, seed: int, co
     :func:`_spread_settings`) is given, else the white-noise model's own ``covs``."""
     if spread is None:
         return covs
-    from attend.perception.nonlinear_baselines import error_spread
+    from attend.perception.nonlinear_smoothers import error_spread
 
     if draws is None:  # no draws: the covariance they estimate, exactly
         return error_spread.smoother_error_covariance(model, record, *spread, bool(smooth))

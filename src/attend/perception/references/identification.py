@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from attend.systems import LinearSystem
+from attend.models.linear import LinearSystem
 
-#: The identification baselines and error metrics (re-exported by attend.perception.baselines and
+#: The identification baselines and error metrics (re-exported by attend.perception.references and
 #: attend.perception.learning, in this order).
 __all__ = ["n4sid_baseline", "em_baseline", "continuous_from_discrete", "transfer_function_error", "eigenvalue_error"]
 

@@ -23,7 +23,7 @@ it is the smoother's own std (tests/perception/test_nonlinear_error_spread.py).
 :func:`smoother_error_covariance` computes the same covariance exactly, without draws (what the
 draws' mean converges to; ``spread_draws=None`` in the smoothers, and ``attend estimate``). Each
 coloured channel is a moving average of unit white noise, c_k = sum_i h_i eps_{k-i} over the L
-taps of the kernel (:func:`attend.noise.gaussian_kernel`, the one the draws use), so
+taps of the kernel (:func:`attend.models.noise.gaussian_kernel`, the one the draws use), so
 psi_k = [e^f_k; window_k], window_k = (eps_k, ..., eps_{k-L+1}) of every channel, is a linear
 Markov chain whose window is white (Cov = I). The forward pass carries P_k = Cov(e^f_k) and
 X_k = Cov(e^f_k, window_k) (d x L x channels)::
@@ -51,7 +51,7 @@ from typing import NamedTuple
 import numpy as np
 
 from attend._validation import AttendInputError
-from attend.noise import coloured_noise, gaussian_kernel
+from attend.models.noise import coloured_noise, gaussian_kernel
 
 #: floats held at once by the error draws (N samples x d coordinates x draws x 3 arrays), and by
 #: the exact covariance's windows X_k (samples x d x channels x taps)
@@ -156,7 +156,7 @@ def smoother_error_spread(model, record: dict, kernel_width: float, input_prior,
 
 def _taps(dt: float, kernel_width: float) -> np.ndarray:
     """The kernel h (L,) of the coloured noise of width s (a single tap 1 for white noise, s = 0):
-    the one :func:`attend.noise.coloured_noise` convolves unit white noise with."""
+    the one :func:`attend.models.noise.coloured_noise` convolves unit white noise with."""
     return np.ones(1) if kernel_width == 0 else gaussian_kernel(dt, kernel_width)
 
 

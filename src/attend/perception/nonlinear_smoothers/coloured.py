@@ -16,10 +16,10 @@ from scipy.linalg import solve_toeplitz
 
 from attend._threads import with_single_blas_thread
 from attend._validation import AttendInputError, as_matrix, positive_scalar
-from attend.noise import autocorrelation
-from attend.perception.baselines import KalmanEstimate
-from attend.perception.nonlinear import NonlinearSystem
-from attend.perception.nonlinear_baselines.kalman import _unscented, observe_points, propagate_points
+from attend.models.noise import autocorrelation
+from attend.models.nonlinear import NonlinearSystem
+from attend.perception.nonlinear_smoothers.kalman import _unscented, observe_points, propagate_points
+from attend.perception.references import KalmanEstimate
 
 
 def _yule_walker(rho: np.ndarray, q: int):

@@ -10,8 +10,8 @@ from typing import Callable
 import numpy as np
 
 from attend._validation import AttendInputError, as_matrix, positive_scalar, require_finite
-from attend.noise import coloured_noise
-from attend.systems import Trajectory
+from attend.models.linear import Trajectory
+from attend.models.noise import coloured_noise
 
 _EPS = np.finfo(float).eps
 
@@ -159,7 +159,7 @@ class NonlinearSystem:
             else:
                 function = self.f if which == "f" else self.g
                 if self.vectorized:  # columns, shape-checked; complex steps keep their dtype
-                    joint = lambda z, w=which: _batched(self, w, z, dtype=None)  # noqa: E731
+                    joint = lambda z, w=which: evaluate_columns(self, w, z, dtype=None)  # noqa: E731
                 elif self.jacobian_method == "complex":
                     joint = lambda z, fn=function: np.asarray(self._call(fn, z[:n], z[n:]))  # noqa: E731
                 else:
@@ -172,9 +172,9 @@ class NonlinearSystem:
         return fx, fv, gx, gv
 
 
-def _batched(system: "NonlinearSystem", which: str, z: np.ndarray, dtype=float) -> np.ndarray:
-    """f or g of a vectorized system at the columns of z ((n + r), K): a (size, K) array (of
-    ``dtype``; None keeps the function's, e.g. complex steps)."""
+def evaluate_columns(system: "NonlinearSystem", which: str, z: np.ndarray, dtype=float) -> np.ndarray:
+    """f (``which`` "f") or g ("g") of a vectorized ``system`` at the columns of z ((n + r), K): a
+    (size, K) array (of ``dtype``; None keeps the function's, e.g. complex steps)."""
     n = system.n_states
     function, size = (system.f, n) if which == "f" else (system.g, system.n_outputs)
     try:
@@ -211,7 +211,7 @@ def evaluate_many(system: "NonlinearSystem", x, v):
     points = np.concatenate([z, (z[:, None] + shifts).reshape(-1, k), (z[:, None] - shifts).reshape(-1, k)])
     out = []
     for which in ("f", "g"):
-        values = _batched(system, which, points.T).T  # (C (1 + 2k), size)
+        values = evaluate_columns(system, which, points.T).T  # (C (1 + 2k), size)
         centre = values[:C]
         plus, minus = values[C: C * (1 + k)].reshape(C, k, -1), values[C * (1 + k):].reshape(C, k, -1)
         jacobian = np.swapaxes((plus - minus) / (2 * h[:, :, None]), 1, 2)  # (C, size, k)
@@ -236,7 +236,7 @@ def simulate_nonlinear(system: NonlinearSystem, inputs, dt: float, *, kernel_wid
     sub-steps, u and w held over the sample: the zero-order hold of the linear simulate()),
     y[k] = g(x[k], u[k]) + z[k]; w, z: white noise convolved with the Gaussian kernel of width
     kernel_width [s], standard deviations process_std [state unit / s] and measurement_std per
-    sample. Returns an :class:`attend.systems.Trajectory`.
+    sample. Returns an :class:`attend.models.linear.Trajectory`.
     """
     if not isinstance(system, NonlinearSystem):
         raise AttendInputError("system: expected an attend NonlinearSystem")

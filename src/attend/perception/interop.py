@@ -1,8 +1,8 @@
-"""Interoperability with python-control (`pip install control`).
+"""The DEM observer as a python-control system (`pip install control`).
 
-- :func:`from_statespace`: an attend :class:`~attend.systems.LinearSystem` from a continuous-time
-  ``control.StateSpace`` (D must be zero: DEM's output model is y = C x + z).
 - :func:`observer_to_statespace`: a DEM observer as a causal discrete-time ``control.StateSpace``.
+  (The other way, a ``control.StateSpace`` as an attend model, is
+  :func:`attend.models.from_statespace`.)
 
 The observer's estimate of sample k needs the samples up to k + delay (its embedding window),
 so as a causal system it runs ``delay`` samples behind: its state stacks the generalised
@@ -21,7 +21,6 @@ import numpy as np
 
 from attend._validation import AttendInputError
 from attend.perception.dem import DEMObserver
-from attend.systems import LinearSystem
 
 
 def _control():
@@ -30,27 +29,6 @@ def _control():
     except ImportError:  # pragma: no cover - exercised only without the optional dependency
         raise AttendInputError("python-control is not installed: pip install control") from None
     return control
-
-
-def from_statespace(statespace, *, state_names=(), input_names=(), output_names=()) -> LinearSystem:
-    """LinearSystem (A, B, C) of a continuous-time control.StateSpace with D = 0.
-
-    statespace: the python-control system (dt = 0, D = 0); state_names (n,), input_names (r,),
-    output_names (m,): labels for the columns of logs and results (default x1.., u1.., y1..)."""
-    control = _control()
-    if not isinstance(statespace, control.StateSpace):
-        raise AttendInputError("statespace: expected a control.StateSpace")
-    if not statespace.isctime():
-        raise AttendInputError(
-            f"statespace: expected a continuous-time system (dt = 0), got dt = {statespace.dt}; "
-            "attend models are continuous and discretised by zero-order hold"
-        )
-    D = np.asarray(statespace.D, dtype=float)
-    if np.any(D != 0):
-        raise AttendInputError("statespace: D must be zero (attend's output model is y = C x + z)")
-    return LinearSystem(np.asarray(statespace.A), np.asarray(statespace.B), np.asarray(statespace.C),
-                        state_names=tuple(state_names), input_names=tuple(input_names),
-                        output_names=tuple(output_names))
 
 
 def observer_to_statespace(observer: DEMObserver):

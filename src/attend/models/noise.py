@@ -5,7 +5,7 @@ noise with it keeps unit variance per sample. The resulting autocorrelation is
 
     rho(tau) = exp(-tau^2 / (4 s^2)),
 
-the one assumed by the smoothness precision S (see :mod:`attend.generalized`).
+the one assumed by the smoothness precision S (see :mod:`attend.models.generalized`).
 """
 
 from __future__ import annotations

@@ -5,14 +5,8 @@ import pytest
 from scipy.signal import cont2discrete
 
 from attend._validation import AttendInputError
-from attend.systems import (
-    LinearSystem,
-    ModelWarning,
-    convolution_model,
-    mass_spring_damper,
-    quadrotor_roll,
-    simulate,
-)
+from attend.models.linear import LinearSystem, ModelWarning, simulate
+from attend.models.problems import convolution_model, mass_spring_damper, quadrotor_roll
 
 
 def test_zero_order_hold_matches_scipy():
@@ -82,5 +76,5 @@ def test_simulate_accepts_a_python_control_statespace():
     direct = simulate(system, u, 0.1, kernel_width=0.2)
     converted = simulate(control.ss(system.A, system.B, system.C, 0), u, 0.1, kernel_width=0.2)
     np.testing.assert_allclose(converted.outputs, direct.outputs)
-    with pytest.raises(AttendInputError, match="attend.interop.from_statespace"):
+    with pytest.raises(AttendInputError, match="attend.models.from_statespace"):
         simulate("mass-spring-damper", u, 0.1, kernel_width=0.2)

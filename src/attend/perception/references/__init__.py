@@ -1,6 +1,7 @@
-"""Baselines on the same data as DEM: Kalman filters/smoothers and the exact Gaussian posterior.
+"""Reference estimators on the same data as DEM (what DEM is compared with): Kalman
+filters/smoothers and the exact Gaussian posterior.
 
-All functions work on the discrete zero-order-hold model that :func:`attend.systems.simulate`
+All functions work on the discrete zero-order-hold model that :func:`attend.models.simulate`
 samples (time index k = 0..N-1, time k dt [s])::
 
     x[k] = Ad x[k-1] + Bd u[k-1] + q[k-1],   q ~ N(0, Q)        (Q = process_covariance)
@@ -33,6 +34,9 @@ Identification baselines on the same logs as :func:`attend.perception.learning.i
 (EM for a linear-Gaussian state-space model), and the basis-invariant errors
 :func:`transfer_function_error` and :func:`eigenvalue_error`.
 
+The reference for nonlinear models, the particle smoother, is
+:func:`attend.perception.nonlinear_smoothers.particle_smoother`.
+
 Layout: :mod:`.filters` (Kalman filters and smoothers), :mod:`.exact` (the exact posterior),
 :mod:`.identification` (N4SID, EM, error metrics); every public name is re-exported here.
 """
@@ -41,21 +45,21 @@ from attend._lazy import lazy_exports
 
 #: public name -> the module that defines it, imported at the first use of the name (PEP 562).
 _EXPORTS = {
-    "ExactPosterior": "attend.perception.baselines.exact",
-    "coloured_noise_correlation": "attend.perception.baselines.exact",
-    "exact_posterior": "attend.perception.baselines.exact",
-    "KalmanEstimate": "attend.perception.baselines.filters",
-    "augmented_kalman_filter": "attend.perception.baselines.filters",
-    "kalman_filter": "attend.perception.baselines.filters",
-    "kalman_filter_ignoring_input": "attend.perception.baselines.filters",
-    "rts_smoother": "attend.perception.baselines.filters",
-    "simulation_covariances": "attend.perception.baselines.filters",
-    "steady_state_kalman_filter": "attend.perception.baselines.filters",
-    "n4sid_baseline": "attend.perception.baselines.identification",
-    "em_baseline": "attend.perception.baselines.identification",
-    "continuous_from_discrete": "attend.perception.baselines.identification",
-    "transfer_function_error": "attend.perception.baselines.identification",
-    "eigenvalue_error": "attend.perception.baselines.identification",
+    "ExactPosterior": "attend.perception.references.exact",
+    "coloured_noise_correlation": "attend.perception.references.exact",
+    "exact_posterior": "attend.perception.references.exact",
+    "KalmanEstimate": "attend.perception.references.filters",
+    "augmented_kalman_filter": "attend.perception.references.filters",
+    "kalman_filter": "attend.perception.references.filters",
+    "kalman_filter_ignoring_input": "attend.perception.references.filters",
+    "rts_smoother": "attend.perception.references.filters",
+    "simulation_covariances": "attend.perception.references.filters",
+    "steady_state_kalman_filter": "attend.perception.references.filters",
+    "n4sid_baseline": "attend.perception.references.identification",
+    "em_baseline": "attend.perception.references.identification",
+    "continuous_from_discrete": "attend.perception.references.identification",
+    "transfer_function_error": "attend.perception.references.identification",
+    "eigenvalue_error": "attend.perception.references.identification",
 }
 
 __all__ = [
@@ -76,4 +80,4 @@ __all__ = [
     "eigenvalue_error",
 ]
 
-__getattr__, __dir__ = lazy_exports("attend.perception.baselines", _EXPORTS, globals())
+__getattr__, __dir__ = lazy_exports("attend.perception.references", _EXPORTS, globals())

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from attend._validation import AttendInputError
-from attend.noise import autocorrelation, coloured_noise, gaussian_kernel
+from attend.models.noise import autocorrelation, coloured_noise, gaussian_kernel
 
 
 def test_kernel_has_unit_energy():
@@ -41,7 +41,7 @@ def test_bad_noise_arguments():
 @pytest.mark.parametrize("ratio", [0.5, 1.0, 2.0, 5.0, 10.0])
 def test_noise_state_space_reproduces_the_kernel_autocorrelation(ratio):
     """The finite model's autocorrelation H T^l Sigma H' equals the kernel's self-correlation."""
-    from attend.noise import kernel_autocorrelation, noise_state_space
+    from attend.models.noise import kernel_autocorrelation, noise_state_space
 
     target = kernel_autocorrelation(1.0, ratio)
     model = noise_state_space(target)
@@ -56,7 +56,7 @@ def test_noise_state_space_reproduces_the_kernel_autocorrelation(ratio):
 
 
 def test_white_noise_has_an_order_zero_model_and_simulates_white():
-    from attend.noise import noise_state_space
+    from attend.models.noise import noise_state_space
 
     assert noise_state_space([1.0, 0.0, 0.0]).order == 0
     noise = coloured_noise(50_000, 1, 0.1, 0.0, std=2.0, seed=0)

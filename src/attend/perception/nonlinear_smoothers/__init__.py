@@ -1,8 +1,10 @@
-"""Baselines for nonlinear models: extended and unscented Kalman filters/smoothers, and a particle
-smoother under (a finite model of) the true coloured noise.
+"""Smoothers for nonlinear models besides DEM: extended and unscented Kalman filters/smoothers (the
+unscented smoother is the default estimator of a nonlinear model file), the unscented smoother
+under a finite model of the coloured noise, the smoothers' error spread under coloured noise, and
+the particle smoother (the slow reference they are compared with).
 
-Kalman-type baselines (white noise) work on the discrete model that
-:func:`attend.perception.nonlinear.simulate_nonlinear` samples without noise::
+The Kalman-type smoothers (white noise) work on the discrete model that
+:func:`attend.models.simulate_nonlinear` samples without noise::
 
     x[k] = F(x[k-1], u[k-1]) + q[k-1],  q ~ N(0, Q)        (Q = process_covariance)
     y[k] = g(x[k], u[k]) + r[k],        r ~ N(0, R)        (R = measurement_covariance)
@@ -14,10 +16,10 @@ u[k] = u[k-1] + e, e ~ N(0, input_variance) (a random walk), started at ``input_
 :func:`white_noise_covariances` gives the Q, R matching coloured noise (same variance per sample,
 or same low-frequency power).
 
-Results are :class:`attend.perception.baselines.KalmanEstimate` (time, states, inputs, state_std,
+Results are :class:`attend.perception.references.KalmanEstimate` (time, states, inputs, state_std,
 input_std first, as :class:`attend.perception.dem.DEMEstimate`). With ``noise_kernel_width``, the
 unscented filter's or smoother's std is its error spread under coloured noise of that width
-(:mod:`attend.perception.nonlinear_baselines.error_spread`) instead of the white-noise model's own
+(:mod:`attend.perception.nonlinear_smoothers.error_spread`) instead of the white-noise model's own
 covariance, which is too small there.
 
 :func:`particle_smoother`: a bootstrap particle filter whose state carries the coloured noises
@@ -27,20 +29,25 @@ particle's path, z is known up to its AR innovation), and fixed-lag smoothing by
 particles' ancestry. Its mean approximates the posterior mean under the coloured-noise model
 (exact as the number of particles grows, up to the AR(q) fit of rho and the lag): a slow
 reference, not an estimator for use.
+
+Layout: :mod:`.kalman` (extended and unscented filters and smoothers, white-noise models),
+:mod:`.coloured` (the finite model of the coloured noises and the unscented smoother under it),
+:mod:`.particle` (the particle smoother), :mod:`.error_spread` (the smoothers' error covariance
+under coloured noise).
 """
 
 from attend._lazy import lazy_exports
 
 #: public name -> the module that defines it, imported at the first use of the name (PEP 562).
 _EXPORTS = {
-    "coloured_unscented_smoother": "attend.perception.nonlinear_baselines.coloured",
-    "extended_kalman": "attend.perception.nonlinear_baselines.kalman",
-    "input_random_walk_variance": "attend.perception.nonlinear_baselines.kalman",
-    "unscented_kalman": "attend.perception.nonlinear_baselines.kalman",
-    "white_noise_covariances": "attend.perception.nonlinear_baselines.kalman",
-    "white_noise_options": "attend.perception.nonlinear_baselines.kalman",
-    "ParticleEstimate": "attend.perception.nonlinear_baselines.particle",
-    "particle_smoother": "attend.perception.nonlinear_baselines.particle",
+    "coloured_unscented_smoother": "attend.perception.nonlinear_smoothers.coloured",
+    "extended_kalman": "attend.perception.nonlinear_smoothers.kalman",
+    "input_random_walk_variance": "attend.perception.nonlinear_smoothers.kalman",
+    "unscented_kalman": "attend.perception.nonlinear_smoothers.kalman",
+    "white_noise_covariances": "attend.perception.nonlinear_smoothers.kalman",
+    "white_noise_options": "attend.perception.nonlinear_smoothers.kalman",
+    "ParticleEstimate": "attend.perception.nonlinear_smoothers.particle",
+    "particle_smoother": "attend.perception.nonlinear_smoothers.particle",
 }
 
 __all__ = [
@@ -54,4 +61,4 @@ __all__ = [
     "ParticleEstimate",
 ]
 
-__getattr__, __dir__ = lazy_exports("attend.perception.nonlinear_baselines", _EXPORTS, globals())
+__getattr__, __dir__ = lazy_exports("attend.perception.nonlinear_smoothers", _EXPORTS, globals())

@@ -1,5 +1,5 @@
 """A particle smoother under (a finite model of) the true coloured noise: the reference for the
-posterior mean of the nonlinear reproductions (see :mod:`attend.perception.nonlinear_baselines`)."""
+posterior mean of the nonlinear reproductions (see :mod:`attend.perception.nonlinear_smoothers`)."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import numpy as np
 
 from attend._threads import with_single_blas_thread
 from attend._validation import AttendInputError
-from attend.perception.nonlinear import NonlinearSystem
-from attend.perception.nonlinear_baselines.coloured import _noise_model, _yule_walker
-from attend.perception.nonlinear_baselines.kalman import _rk4
+from attend.models.nonlinear import NonlinearSystem
+from attend.perception.nonlinear_smoothers.coloured import _noise_model, _yule_walker
+from attend.perception.nonlinear_smoothers.kalman import _rk4
 
 
 class ParticleEstimate(NamedTuple):
@@ -71,7 +71,7 @@ def particle_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, 
                       input_kernel_width: float | None = None) -> ParticleEstimate:
     """Bootstrap particle filter + fixed-lag ancestry smoother under AR(q) coloured noise.
 
-    The generative model is :func:`attend.perception.nonlinear.simulate_nonlinear`'s: w, z (and,
+    The generative model is :func:`attend.models.simulate_nonlinear`'s: w, z (and,
     for unknown inputs, v with mean input_prior_mean and standard deviation input_prior_std, the
     DEM input prior) are Gaussian-kernel coloured noises of width kernel_width [s], each channel
     approximated by an AR(ar_order) process with the autocorrelation of the true noise at lags

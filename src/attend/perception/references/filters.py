@@ -1,5 +1,5 @@
 """Kalman filters and smoothers on the discrete zero-order-hold model of simulate() (see
-:mod:`attend.perception.baselines` for the model and the conventions), and the validation
+:mod:`attend.perception.references` for the model and the conventions), and the validation
 helpers the baselines share."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from typing import NamedTuple
 import numpy as np
 
 from attend._validation import AttendInputError, as_matrix, positive_scalar, require_finite, symmetric_matrix
-from attend.systems import LinearSystem, as_linear_system
+from attend.models.linear import LinearSystem, as_linear_system
 
 
 class KalmanEstimate(NamedTuple):

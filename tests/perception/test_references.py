@@ -6,10 +6,10 @@ import pytest
 from pykalman import KalmanFilter
 
 from attend._validation import AttendInputError
-from attend.noise import autocorrelation, coloured_noise
-from attend.perception import baselines as bl
-from attend.problems import convolution_model
-from attend.systems import LinearSystem, simulate
+from attend.models.linear import LinearSystem, simulate
+from attend.models.noise import autocorrelation, coloured_noise
+from attend.models.problems import convolution_model
+from attend.perception import references as bl
 
 DT = 0.1
 SEEDS = 60
@@ -322,5 +322,5 @@ def test_baselines_accept_a_python_control_statespace(problem):
     ours = bl.kalman_filter(system, DT, problem["y"], problem["u"], **_kw(problem))
     converted = bl.kalman_filter(statespace, DT, problem["y"], problem["u"], **_kw(problem))
     np.testing.assert_allclose(converted.states, ours.states)
-    with pytest.raises(AttendInputError, match="attend.interop.from_statespace"):
+    with pytest.raises(AttendInputError, match="attend.models.from_statespace"):
         bl.kalman_filter((system.A, system.B, system.C), DT, problem["y"], problem["u"], **_kw(problem))

@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 
 from attend._validation import positive_scalar
-from attend.perception.learning.parameters import parameter_vector
-from attend.systems import LinearSystem, simulate
+from attend.models.linear import LinearSystem, simulate
+from attend.models.parameters import parameter_vector
 
 __all__ = [
     "MSD_FREE",

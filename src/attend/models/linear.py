@@ -5,8 +5,8 @@ Continuous-time model (paper eq. 1)::
     dx/dt = A x + B u + w        y = C x + z
 
 x in R^n (states), u in R^r (inputs, "causes" v), y in R^m (outputs); w and z are coloured
-noises (see :mod:`attend.noise`). Time is in seconds everywhere. The paper's systems (presets)
-are in :mod:`attend.problems`.
+noises (see :mod:`attend.models.noise`). Time is in seconds everywhere. The paper's systems (presets)
+are in :mod:`attend.models.problems`.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 from attend._validation import AttendInputError, as_matrix, positive_scalar, unique_names
-from attend.noise import coloured_noise
+from attend.models.noise import coloured_noise
 
 
 class ModelWarning(UserWarning):
@@ -115,21 +115,44 @@ class LinearSystem:
 
 def as_linear_system(system, field: str = "system") -> LinearSystem:
     """``system`` as a LinearSystem: a python-control ``StateSpace`` (continuous time, D = 0) is
-    converted with :func:`attend.interop.from_statespace`; anything else is an error naming
+    converted with :func:`attend.models.from_statespace`; anything else is an error naming
     ``field``, the argument's name in the caller's API."""
     if isinstance(system, LinearSystem):
         return system
     if type(system).__name__ == "StateSpace" and type(system).__module__.split(".")[0] == "control":
-        from attend.interop import from_statespace
-
         try:
             return from_statespace(system)
         except AttendInputError as error:
             raise AttendInputError(f"{field}: {error}") from None
     raise AttendInputError(
         f"{field}: expected an attend.LinearSystem (or a python-control StateSpace, converted with "
-        f"attend.interop.from_statespace), got {type(system).__name__}"
+        f"attend.models.from_statespace), got {type(system).__name__}"
     )
+
+
+def from_statespace(statespace, *, state_names=(), input_names=(), output_names=()) -> LinearSystem:
+    """LinearSystem (A, B, C) of a continuous-time python-control ``StateSpace`` with D = 0
+    (``pip install control``; D must be zero: the output model is y = C x + z).
+
+    statespace: the python-control system (dt = 0, D = 0); state_names (n,), input_names (r,),
+    output_names (m,): labels for the columns of logs and results (default x1.., u1.., y1..)."""
+    try:
+        import control
+    except ImportError:  # pragma: no cover - exercised only without the optional dependency
+        raise AttendInputError("python-control is not installed: pip install control") from None
+    if not isinstance(statespace, control.StateSpace):
+        raise AttendInputError("statespace: expected a control.StateSpace")
+    if not statespace.isctime():
+        raise AttendInputError(
+            f"statespace: expected a continuous-time system (dt = 0), got dt = {statespace.dt}; "
+            "attend models are continuous and discretised by zero-order hold"
+        )
+    D = np.asarray(statespace.D, dtype=float)
+    if np.any(D != 0):
+        raise AttendInputError("statespace: D must be zero (attend's output model is y = C x + z)")
+    return LinearSystem(np.asarray(statespace.A), np.asarray(statespace.B), np.asarray(statespace.C),
+                        state_names=tuple(state_names), input_names=tuple(input_names),
+                        output_names=tuple(output_names))
 
 
 def zero_order_hold(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -196,7 +219,7 @@ def simulate(
     scalars or per channel). ``process_kernel_width`` / ``sensor_kernel_width`` [s] set the widths
     of w and z separately (0: white noise); each defaults to ``kernel_width``.
     ``system`` may also be a python-control StateSpace (converted with
-    :func:`attend.interop.from_statespace`). inputs: (N, r) u at every sample; initial_state: x[0]
+    :func:`attend.models.from_statespace`). inputs: (N, r) u at every sample; initial_state: x[0]
     (default 0); seed: an int or a numpy Generator (the noises are reproducible).
     """
     system = as_linear_system(system)
@@ -223,15 +246,3 @@ def simulate(
     y = x @ system.C.T + z
     return Trajectory(np.arange(n_samples) * dt, x, u, y, w, z)
 
-
-_MOVED_TO_PROBLEMS = ("mass_spring_damper", "convolution_model", "identification_system", "quadrotor_roll", "PRESETS")
-
-
-def __getattr__(name: str):
-    """The presets moved to :mod:`attend.problems`; ``from attend.systems import mass_spring_damper``
-    keeps working (imported on first use: attend.problems builds on this module)."""
-    if name in _MOVED_TO_PROBLEMS:
-        from attend import problems
-
-        return getattr(problems, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

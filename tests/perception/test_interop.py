@@ -7,7 +7,8 @@ control = pytest.importorskip("control")
 
 from attend import DEMObserver, convolution_model  # noqa: E402
 from attend._validation import AttendInputError  # noqa: E402
-from attend.interop import from_statespace, observer_to_statespace  # noqa: E402
+from attend.models import from_statespace  # noqa: E402
+from attend.perception.interop import observer_to_statespace  # noqa: E402
 
 
 def test_from_statespace_round_trip():

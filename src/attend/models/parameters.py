@@ -8,7 +8,7 @@ from typing import Iterable
 import numpy as np
 
 from attend._validation import AttendInputError
-from attend.systems import LinearSystem
+from attend.models.linear import LinearSystem
 
 
 def parameter_names(system: LinearSystem) -> tuple[str, ...]:
@@ -41,8 +41,9 @@ def system_from_parameters(theta, like: LinearSystem) -> LinearSystem:
     )
 
 
-def _internal_order(n: int, r: int, m: int) -> np.ndarray:
-    """Index map public theta -> internal [vec([A B]); vec(C)] (row-major over [A B])."""
+def internal_parameter_order(n: int, r: int, m: int) -> np.ndarray:
+    """Index map public theta -> internal [vec([A B]); vec(C)] (row-major over [A B]) for n states,
+    r inputs and m outputs."""
     index = []
     for a in range(n):
         index += [a * n + b for b in range(n)]
@@ -51,9 +52,11 @@ def _internal_order(n: int, r: int, m: int) -> np.ndarray:
     return np.array(index, dtype=int)
 
 
-def _mask_from(value, system: LinearSystem, field_name: str, dtype=bool, default=None) -> np.ndarray:
-    """A per-entry array over theta from None, a vector, a dict {"A": ..., "B": ..., "C": ...},
-    or (for masks) an iterable of parameter names."""
+def parameter_array(value, system: LinearSystem, field_name: str, dtype=bool, default=None) -> np.ndarray:
+    """A per-entry array over theta of ``system`` from ``value``: None (gives ``default``), a
+    vector, a dict {"A": ..., "B": ..., "C": ...} (missing matrices from ``default``), or (for
+    masks, dtype bool) an iterable of parameter names. field_name: the argument's name in errors;
+    dtype: bool for masks, float for values."""
     names = parameter_names(system)
     size = len(names)
     if value is None:
@@ -67,7 +70,7 @@ def _mask_from(value, system: LinearSystem, field_name: str, dtype=bool, default
             if label in value:
                 part = np.broadcast_to(np.asarray(value[label], dtype=dtype), matrix.shape)
             else:
-                part = np.broadcast_to(default.reshape(-1)[_slice(system, label)].reshape(matrix.shape), matrix.shape)
+                part = np.broadcast_to(default.reshape(-1)[parameter_slice(system, label)].reshape(matrix.shape), matrix.shape)
             parts.append(np.asarray(part, dtype=dtype).ravel())
         return np.concatenate(parts)
     if dtype is bool and not isinstance(value, np.ndarray) and isinstance(value, Iterable) \
@@ -89,6 +92,7 @@ def _mask_from(value, system: LinearSystem, field_name: str, dtype=bool, default
     return array
 
 
-def _slice(system: LinearSystem, label: str) -> slice:
+def parameter_slice(system: LinearSystem, label: str) -> slice:
+    """The slice of theta holding the entries of matrix ``label`` ("A", "B" or "C") of ``system``."""
     n, r, m = system.n_states, system.n_inputs, system.n_outputs
     return {"A": slice(0, n * n), "B": slice(n * n, n * n + n * r), "C": slice(n * n + n * r, n * n + n * r + m * n)}[label]

@@ -3,6 +3,7 @@ Gaussian-process prior on the inputs): the minimum-mean-square-error limit no es
 
 from __future__ import annotations
 
+import warnings
 from typing import NamedTuple
 
 import numpy as np
@@ -10,8 +11,36 @@ from scipy.linalg import solve_triangular
 
 from attend._validation import AttendInputError, positive_scalar, require_finite
 from attend._validation import kernel_width as checked_width
-from attend.noise import autocorrelation, gaussian_kernel
-from attend.perception.baselines.filters import _inputs, _std_vector, _system
+from attend.models.noise import autocorrelation, gaussian_kernel
+from attend.perception.references.filters import _inputs, _std_vector, _system
+
+
+class ConditioningWarning(UserWarning):
+    """exact_posterior's float64 covariance form is not trustworthy on this model: its Cholesky
+    jitter moves the mean, or rounding swallows the posterior variance (see :class:`PosteriorAccuracy`)."""
+
+
+class PosteriorAccuracy(NamedTuple):
+    """exact_posterior's own estimate of how far its float64 result may be from the model's posterior.
+
+    jitter_shift: max over states and inputs of |the mean's first-order change were the Cholesky
+    jitter removed| / posterior std: j |S_zy inv(S + j I)^2 (y - m_y)| (a lower bound of the
+    whole change; j = jitter * mean(diag S_yy), the white variance the jitter adds to every output);
+    jitter_share: j over the smallest per-sample sensor variance (the jitter read as extra sensor
+    noise); std_rounding: max of eps prior variance / posterior variance / 2, the relative error
+    of a std computed as prior variance minus explained variance (inf where that difference
+    rounds to 0 or below)."""
+
+    jitter_shift: float
+    jitter_share: float
+    std_rounding: float
+
+
+JITTER_SHIFT_LIMIT = 0.1
+"""exact_posterior warns (ConditioningWarning) when its jitter moves the mean by more than this
+many posterior std (first order), or when rounding leaves its std uncertain by more than
+STD_ROUNDING_LIMIT (relative)."""
+STD_ROUNDING_LIMIT = 0.01
 
 
 class ExactPosterior(NamedTuple):
@@ -34,9 +63,10 @@ class ExactPosterior(NamedTuple):
     log_likelihood: float
     causal_states: np.ndarray | None = None
     causal_inputs: np.ndarray | None = None
+    accuracy: PosteriorAccuracy | None = None
 
 def coloured_noise_correlation(n_samples: int, dt: float, kernel_width: float) -> np.ndarray:
-    """(N, N) correlation matrix of n_samples = N samples of attend.noise.coloured_noise.
+    """(N, N) correlation matrix of n_samples = N samples of attend.models.noise.coloured_noise.
 
     The noise is white noise convolved with the unit-energy kernel h = gaussian_kernel(dt, s), so
     Corr(e[i], e[j]) = sum_l h[l] h[l + |i - j|] (the kernel's discrete self-correlation,
@@ -121,6 +151,16 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
     continuous-time: K_ij = rho(t_i - t_j) (w, z, the inputs' prior). white_floor f: coloured noises
     get a white part, K -> (1 - f) K + f I (the Kalman smoother's noise models have f = 1e-8).
     Cost O((N min(m, n))^3) time, O((N (n + m + r))^2) memory: for logs up to a few thousand samples.
+
+    Conditioning: on models whose outputs are much more precise than their prior spread (tiny
+    sensor noise, broad input priors or x[0], integrators, long windows) the jitter, scaled by the
+    outputs' mean prior variance, can exceed the sensor noise, and the variances are differences
+    of numbers 1e14 apart. The result carries its own estimate (``accuracy``) and a
+    ConditioningWarning is raised when the jitter moves the mean by more than JITTER_SHIFT_LIMIT
+    posterior std or the std is uncertain by more than STD_ROUNDING_LIMIT; then use
+    :func:`attend.perception.references.exact_oracle.oracle_posterior` (square-root form, checked
+    in double-double) on a short window, or the Kalman smoother (benchmarks/bench_unknown_inputs.py:
+    both at the posterior where this form is off by up to 0.8 std).
     """
     system = _system(system)
     dt = positive_scalar(dt, "dt", "s")
@@ -139,8 +179,8 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
     x_mean, x_cov, LB, input_cov, K = _state_prior(system, dt, N, m0, s0, sw, u_mean, su, s_w, s_u, known, times,
                                                    white_floor)
     K_z = K if s_z == s_w else _correlation(N, dt, s_z, times, white_floor)
-    chol, white, xy_cov, Cbig, q, log_likelihood = _condition_on_outputs(system, y, sz, x_mean, x_cov, K_z, jitter,
-                                                                          observed)
+    chol, white, xy_cov, Cbig, q, log_likelihood, added = _condition_on_outputs(system, y, sz, x_mean, x_cov, K_z,
+                                                                                 jitter, observed)
     # latent z = [x; u] (u only when unknown)
     if known:
         z_mean, zy_cov, z_var = x_mean, xy_cov, np.diag(x_cov)
@@ -151,7 +191,9 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
         z_var = np.concatenate([np.diag(x_cov), np.diag(input_cov)])
     G = solve_triangular(chol, zy_cov.T, lower=True)  # inv(chol) S_yz
     post_mean = z_mean + G.T @ white
-    post_var = np.clip(z_var - np.sum(G**2, axis=0), 0, None)
+    explained = np.sum(G**2, axis=0)
+    post_var = np.clip(z_var - explained, 0, None)
+    accuracy = _accuracy(chol, white, zy_cov, z_var, post_var, added, _smallest_noise_variance(system, sz, q, observed))
     covariance = _posterior_covariance(x_cov, LB, input_cov, G) if return_covariance else None
     causal_states = causal_inputs = None
     if causal:
@@ -164,7 +206,43 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
         est_inputs = post_mean[N * n:].reshape(N, r)
         input_std = np.sqrt(post_var[N * n:]).reshape(N, r)
     return ExactPosterior(np.arange(N) * dt if times is None else times, states, est_inputs, state_std, input_std,
-                          covariance, float(log_likelihood), causal_states, causal_inputs)
+                          covariance, float(log_likelihood), causal_states, causal_inputs, accuracy)
+
+
+def _smallest_noise_variance(system, sz, q, observed) -> float:
+    """The smallest per-sample sensor variance of the channels conditioned on (the rotated
+    channels of the reduction to range(C) have unit variance)."""
+    if q < system.n_outputs and (observed is None or observed.all()):
+        return 1.0
+    positive = sz[sz > 0]
+    return float(np.min(positive) ** 2) if positive.size else 0.0
+
+
+def _accuracy(chol, white, zy_cov, z_var, post_var, added, noise_variance) -> PosteriorAccuracy:
+    """:class:`PosteriorAccuracy` of the covariance form, and a ConditioningWarning when it is poor.
+    The jitter's first-order effect on the mean: d/dj of S_zy inv(S + j I) r is -S_zy inv(S + j I)^2 r,
+    from two more triangular solves of the same factor."""
+    std = np.sqrt(post_var)
+    spread = std > 0
+    shift = 0.0
+    if added > 0 and spread.any():
+        alpha = solve_triangular(chol, white, lower=True, trans="T")  # inv(S) r
+        beta = solve_triangular(chol, solve_triangular(chol, alpha, lower=True), lower=True, trans="T")
+        shift = float(np.max(np.abs(added * (zy_cov @ beta))[spread] / std[spread]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rounding = np.where(post_var > 0, 0.5 * np.finfo(float).eps * z_var / post_var, np.inf)
+    informative = z_var > 0
+    std_rounding = float(np.max(rounding[informative])) if informative.any() else 0.0
+    share = added / noise_variance if noise_variance > 0 else np.inf
+    accuracy = PosteriorAccuracy(shift, float(share), std_rounding)
+    if shift > JITTER_SHIFT_LIMIT or std_rounding > STD_ROUNDING_LIMIT:
+        warnings.warn(
+            f"exact_posterior: the float64 covariance form is not trustworthy on this model: its Cholesky jitter "
+            f"(white output noise of variance {added:.2g}, {share:.2g} x the smallest sensor variance) moves the "
+            f"mean by >= {shift:.2g} posterior std, and rounding leaves the std uncertain by up to "
+            f"{min(std_rounding, 1e300):.2g} (relative); use exact_oracle.oracle_posterior on a short window, or the "
+            "Kalman smoother", ConditioningWarning, stacklevel=3)
+    return accuracy
 
 
 def _input_prior(system, inputs, input_prior_mean, input_prior_std, N):
@@ -294,7 +372,8 @@ def _condition_on_outputs(system, y, sz, x_mean, x_cov, K_z, jitter, observed=No
     channel_cov = (transform[:q] * sz**2) @ transform[:q].T
     y_cov = Cbig @ xy_cov + np.kron(K_z, channel_cov)
     y_cov = 0.5 * (y_cov + y_cov.T)
-    y_cov[np.diag_indices_from(y_cov)] += jitter * np.mean(np.diag(y_cov))
+    added = jitter * np.mean(np.diag(y_cov))
+    y_cov[np.diag_indices_from(y_cov)] += added
     try:
         chol = np.linalg.cholesky(y_cov)
         chol_noise = np.linalg.cholesky(K_z + jitter * np.eye(N)) if q < m else None
@@ -309,7 +388,7 @@ def _condition_on_outputs(system, y, sz, x_mean, x_cov, K_z, jitter, observed=No
         noise = solve_triangular(chol_noise, rotated[:, q:], lower=True)
         log_likelihood += -0.5 * np.sum(noise**2) - (m - q) * np.sum(np.log(np.diag(chol_noise)))
         log_likelihood -= N * np.sum(np.log(sz))
-    return chol, white, xy_cov, Cbig, q, log_likelihood
+    return chol, white, xy_cov, Cbig, q, log_likelihood, float(added)
 
 
 def _condition_on_measured(system, y, sz, x_mean, x_cov, K_z, jitter, observed):
@@ -321,7 +400,8 @@ def _condition_on_measured(system, y, sz, x_mean, x_cov, K_z, jitter, observed):
     noise_cov = np.kron(K_z, np.diag(sz**2))[np.ix_(keep, keep)]
     y_cov = Cbig @ xy_cov + noise_cov
     y_cov = 0.5 * (y_cov + y_cov.T)
-    y_cov[np.diag_indices_from(y_cov)] += jitter * np.mean(np.diag(y_cov))
+    added = jitter * np.mean(np.diag(y_cov))
+    y_cov[np.diag_indices_from(y_cov)] += added
     try:
         chol = np.linalg.cholesky(y_cov)
     except np.linalg.LinAlgError:
@@ -330,7 +410,7 @@ def _condition_on_measured(system, y, sz, x_mean, x_cov, K_z, jitter, observed):
         ) from None
     white = solve_triangular(chol, y.reshape(-1)[keep] - Cbig @ x_mean, lower=True)
     log_likelihood = -0.5 * (white @ white) - np.sum(np.log(np.diag(chol))) - 0.5 * keep.sum() * np.log(2 * np.pi)
-    return chol, white, xy_cov, Cbig, m, log_likelihood
+    return chol, white, xy_cov, Cbig, m, log_likelihood, float(added)
 
 
 def _posterior_covariance(x_cov, LB, input_cov, G):

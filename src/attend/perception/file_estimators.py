@@ -1,0 +1,256 @@
+"""The estimator a model file describes (``[observer]`` of an ``attend estimate`` model file): the
+coloured-noise Kalman smoother, the DEM observer, or for a nonlinear model (``[model] python``) a
+:class:`NonlinearFileEstimator` (the unscented Kalman smoother, or nonlinear DEM). The model file
+itself is read and checked by :mod:`attend.io.model`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from attend._validation import AttendInputError, precision_matrix
+
+if TYPE_CHECKING:  # imported where it is built: a nonlinear model file loads no linear DEM
+    from attend.io.model import ModelFile
+    from attend.models.nonlinear import NonlinearSystem
+    from attend.perception.dem import DEMObserver
+
+
+def file_estimator(model: ModelFile, dt: float):
+    """The estimator the model file describes (``[observer] method``), for logs sampled every ``dt``
+    s: :func:`file_nonlinear_estimator` for a nonlinear model, else :func:`file_kalman_estimator`
+    or :func:`file_dem_observer`. model: the parsed :class:`attend.io.model.ModelFile`."""
+    if model.nonlinear:
+        return file_nonlinear_estimator(model, dt)
+    if model.method == "kalman":
+        return file_kalman_estimator(model, dt)
+    return file_dem_observer(model, dt)
+
+
+def file_nonlinear_order(model: ModelFile, dt: float) -> int:
+    """The DEM embedding order of a nonlinear model: the file's, or under "auto" the largest
+    p <= 6 whose S(s) stays well conditioned (cond <= 1e8 in sample units; the stability check
+    of the linear "auto" needs A, B, C). model: the parsed model file; dt: the log's sample time [s]."""
+    from attend.models.generalized import smoothness_condition
+    from attend.perception.dem import AUTO_MAX_CONDITION, AUTO_MAX_ORDER
+
+    if model.embedding_order != "auto":
+        return int(model.embedding_order)
+    for p in range(AUTO_MAX_ORDER, 0, -1):
+        if smoothness_condition(p + 1, model.kernel_width, dt) <= AUTO_MAX_CONDITION:
+            return p
+    return 0
+
+
+def file_nonlinear_estimator(model: ModelFile, dt: float) -> NonlinearFileEstimator:
+    """The estimator of a nonlinear model file ``model`` (see :class:`NonlinearFileEstimator`), for
+    logs sampled every ``dt`` s."""
+    estimator = NonlinearFileEstimator(model, dt, model.method, file_nonlinear_order(model, dt),
+                                       model.embedding_order == "auto")
+    try:
+        estimator.dem()  # the settings are checked here, whichever method runs
+    except AttendInputError as error:
+        raise AttendInputError(f"{model.path}: [observer] {error}") from None
+    return estimator
+
+
+def file_kalman_estimator(model: ModelFile, dt: float):
+    """The coloured-noise Kalman smoother of the model file ``model``, for logs sampled every ``dt``
+    s: measured inputs drive the model, the others are estimated."""
+    from attend.perception.kalman import KalmanEstimator
+
+    known = [spec.known for spec in model.inputs]
+    prior = None if all(known) else np.array([1.0 if s.known else s.prior_precision for s in model.inputs])
+    try:
+        return KalmanEstimator(model.system, dt, sensor_precision=model.sensor_precision,
+                               process_precision=model.process_precision, kernel_width=model.kernel_width,
+                               process_kernel_width=model.process_kernel_width,
+                               sensor_kernel_width=model.sensor_kernel_width, input_prior_precision=prior,
+                               input_kernel_width=model.input_kernel_width,
+                               known_inputs=known if model.inputs else True, initial_state=model.initial_state,
+                               initial_state_std=model.initial_state_std)
+    except AttendInputError as error:
+        raise AttendInputError(f"{model.path}: [observer] {error}") from None
+
+
+def file_dem_observer(model: ModelFile, dt: float) -> DEMObserver:
+    """The DEM observer the model file ``model`` describes, for logs sampled every ``dt`` seconds.
+
+    All inputs measured: the known-input observer. Otherwise inputs are unknowns; measured
+    ones get their measurement as prior mean with precision ``known_input_precision``.
+    """
+    from attend.perception.dem import DEMObserver
+
+    all_known = all(spec.known for spec in model.inputs)
+    prior = None if all_known else np.array(
+        [model.known_input_precision if s.known else s.prior_precision for s in model.inputs]
+    )
+    try:
+        return DEMObserver(model.system, dt, kernel_width=model.kernel_width, sensor_precision=model.sensor_precision,
+                           process_precision=model.process_precision, input_prior_precision=prior,
+                           embedding_order=model.embedding_order, input_order=model.input_order,
+                           known_inputs=all_known, precision_convention=model.precision_convention,
+                           process_kernel_width=model.process_kernel_width,
+                           sensor_kernel_width=model.sensor_kernel_width, input_kernel_width=model.input_kernel_width,
+                           initial_state=None if model.initial_state is None else np.array(model.initial_state),
+                           integration=model.integration, edges=model.edges)
+    except AttendInputError as error:
+        raise AttendInputError(f"{model.path}: [observer] {error}") from None
+
+
+@dataclass(frozen=True)
+class NonlinearFileEstimator:
+    """The estimator of a nonlinear model file ([model] python), for logs sampled every ``dt`` s.
+
+    method "ukf": the unscented Kalman (RTS) smoother on a white-noise model with the coloured
+    noises' per-sample variance (Q = dt^2 inv(Pi_w), R = inv(Pi_z)); unknown inputs ride in the
+    state as random walks whose one-sample increments have the variance of their prior's
+    (:func:`attend.perception.nonlinear_smoothers.input_random_walk_variance`), started at the prior mean; measured inputs drive f and g.
+    Without [observer] initial_state the smoother starts from the best start of a global search over
+    x[0] (:mod:`attend.perception.nonlinear.start_search`; an error naming initial_state where two
+    starts fit the log about equally well and lead to different estimates; :meth:`_start`). method "dem": :class:`attend.perception.nonlinear.NonlinearDEM` (measured inputs,
+    when some are unknown, get their measurement as prior mean with precision known_input_precision).
+
+    model: the parsed :class:`ModelFile`; dt: sample time [s]; method: "ukf" or "dem";
+    embedding_order: p, resolved to an int (:func:`file_nonlinear_order`); automatic_order:
+    True when the file said "auto" and p was chosen here.
+    """
+
+    model: ModelFile
+    dt: float
+    method: str
+    embedding_order: int
+    automatic_order: bool
+
+    @property
+    def system(self) -> NonlinearSystem:
+        return self.model.system
+
+    @property
+    def known(self) -> np.ndarray:
+        return np.array([spec.known for spec in self.model.inputs], dtype=bool)
+
+    def dem(self):
+        """The NonlinearDEM of the file's settings."""
+        from attend.perception.nonlinear import NonlinearDEM
+
+        model, known = self.model, self.known
+        all_known = bool(known.all())
+        prior = None if all_known else np.array(
+            [model.known_input_precision if spec.known else spec.prior_precision for spec in model.inputs])
+        return NonlinearDEM(self.system, self.dt, kernel_width=model.kernel_width,
+                            sensor_precision=model.sensor_precision, process_precision=model.process_precision,
+                            input_prior_precision=prior, embedding_order=self.embedding_order,
+                            input_order=model.input_order, known_inputs=all_known,
+                            precision_convention=model.precision_convention,
+                            input_kernel_width=model.input_kernel_width, integration=model.integration,
+                            edges=model.edges, states=model.dem_states, backend=model.dem_backend,
+                            motion=model.dem_motion or "linearized")
+
+    @property
+    def input_kernel_width(self) -> float:
+        return self.model.input_kernel_width or self.model.kernel_width
+
+    def estimate(self, outputs, signals):
+        """Estimates (time, states, inputs, state_std, input_std, ...) on outputs (N, m); signals
+        (N, r): measured inputs (operating point removed) or the prior means of the unknown ones."""
+        model = self.model
+        initial = None if model.initial_state is None else np.array(model.initial_state)
+        if self.method == "dem":
+            dem = self.dem()
+            return dem.estimate(outputs, signals, initial_state=initial,
+                                initial_state_std=_path_prior_std(model) if dem.states == "path" else None)
+        from attend.perception.nonlinear_smoothers import unscented_kalman, white_noise_options
+
+        n, r = self.system.n_states, self.system.n_inputs
+        known = self.known
+        unknown = bool(r) and not known.all()
+        if unknown:
+            bad = [spec.name for spec in model.inputs if not spec.known and not spec.prior_precision > 0]
+            if bad:
+                raise AttendInputError(f"[[inputs]] {', '.join(map(repr, bad))} prior_precision: method \"ukf\" "
+                                       "needs a prior precision > 0 (it sets the random walk of the input)")
+        # the unknown inputs' prior precisions (1 in the places of the measured ones, which are masked)
+        precisions = np.array([1.0 if spec.known else spec.prior_precision for spec in model.inputs]) if unknown \
+            else None
+        options = white_noise_options(
+            self.dt, process_precision=precision_matrix(model.process_precision, n, "process_precision"),
+            sensor_precision=precision_matrix(model.sensor_precision, self.system.n_outputs, "sensor_precision"),
+            input_prior_precision=precisions, input_kernel_width=self.input_kernel_width, known_inputs=known,
+            input_mean=signals[0] if unknown else None, who='method "ukf"')
+        inputs = (signals if known.any() else None) if unknown else (signals if r else None)
+        mean, std, substeps = self._start(outputs, signals, initial, inputs, options)
+        # the std: the smoother's error spread under the file's coloured noise, its exact covariance
+        # through the smoother's linearisation (error_spread.smoother_error_covariance: no draws)
+        prior = (1.0 / precisions, self.input_kernel_width) if unknown else None
+        return unscented_kalman(self.system, self.dt, outputs, inputs, initial_mean=mean,
+                                initial_covariance=np.diag(np.asarray(std, dtype=float) ** 2), substeps=substeps,
+                                noise_kernel_width=model.kernel_width, input_prior=prior, spread_draws=None,
+                                **options)
+
+    def _start(self, outputs, signals, initial, inputs, options):
+        """(x[0], its std, RK4 sub-steps) of the smoother. With the file's initial_state: it and
+        initial_state_std. Without: the best start of a global search over x[0]
+        (:func:`attend.perception.nonlinear.start_search.search_start`) under a Gaussian prior about
+        DEM's start as wide as its states' spread where DEM's D-step follows the whole log
+        (:func:`attend.perception.nonlinear.path_starts.initial_state_prior`), else a Student t (one
+        degree of freedom) about 0 with scale the file's initial_state_std or 1; DEM's start, where
+        DEM gives one, is also one of the search's starts. An
+        :class:`~attend.perception.nonlinear.start_search.AmbiguousStartError` where two starts fit
+        the log about equally well and lead to different estimates; a ModelWarning naming
+        initial_state where the best start's estimate does not follow the log. Sub-steps:
+        :func:`attend.perception.nonlinear.path_starts.smoother_substeps` on DEM's D-step (10 where
+        it fails), then, without initial_state, ``rk4_substeps`` along the chosen start's estimate.
+        initial: the file's initial_state or None; inputs, options: the smoother's (measured inputs,
+        white-noise model)."""
+        import warnings
+
+        from attend.models.linear import ModelWarning
+        from attend.perception.nonlinear.path_starts import d_step_basis, initial_state_prior, smoother_substeps
+        from attend.perception.nonlinear.start_search import MISFIT_LIMIT, AmbiguousStartError, search_start
+        from attend.perception.nonlinear_smoothers.kalman import rk4_substeps
+
+        dem, n = self.dem(), self.system.n_states
+        dem_start, dem_followed = None, False
+        substeps = 10
+        try:
+            with warnings.catch_warnings():  # of the D-step, which only helps start the smoother here
+                warnings.simplefilter("ignore", ModelWarning)
+                checked = dem._signals(outputs, signals)
+                basis = d_step_basis(dem, checked, dem._sample_estimate(checked, True, None, check=False))
+                substeps = smoother_substeps(dem, basis)
+                if initial is None:
+                    dem_start, dem_followed = initial_state_prior(dem, checked, basis), basis[1]
+        except AttendInputError as error:
+            if self.model.python_path and str(error).startswith(self.model.python_path):
+                raise
+        if initial is not None:
+            given = self.model.initial_state_std
+            return initial, np.broadcast_to(np.asarray(0.0 if given is None else given, dtype=float), (n,)), substeps
+        centre, scale, dof = None, self.model.initial_state_std, 1.0
+        if scale is None and dem_followed:  # DEM's D-step follows the whole log: its start and states' spread
+            (centre, scale), dof = dem_start, np.inf
+        search = search_start(self.system, self.dt, outputs, inputs, substeps=substeps, prior_mean=centre,
+                              prior_scale=None if scale is None else np.asarray(scale, dtype=float), prior_dof=dof,
+                              extra_starts=() if dem_start is None else (dem_start,), **options)
+        if search.ambiguous:
+            raise AmbiguousStartError(search.message)
+        best = search.modes[0]
+        if best.misfit > MISFIT_LIMIT:
+            warnings.warn(f"{self.model.path}: [observer] {search.misfit_message}", ModelWarning, stacklevel=2)
+        with np.errstate(all="ignore"):
+            substeps = rk4_substeps(self.system, self.dt, best.states, signals)
+        return search.mean, search.std, substeps
+
+
+def _path_prior_std(model) -> np.ndarray | None:
+    """[observer] initial_state_std for DEM's path mode: None without initial_state; a std of 0
+    (x[0] known: the file's default when initial_state is given) becomes 1e-6 (1 + |x[0]|)."""
+    if model.initial_state is None:
+        return None
+    mean = np.asarray(model.initial_state, dtype=float)
+    std = np.broadcast_to(np.asarray(0.0 if model.initial_state_std is None else model.initial_state_std,
+                                     dtype=float), mean.shape)
+    return np.where(std > 0, std, 1e-6 * (1.0 + np.abs(mean)))

@@ -212,6 +212,7 @@ class OccupancyMap:
         return np.where(observed, self.reading_sum / np.where(observed, self.reading_precision, 1.0), 0.0)
 
     def copy(self) -> "OccupancyMap":
+        """An independent copy (its arrays copied)."""
         return OccupancyMap(self.grid, self.mean.copy(), self.covariance.copy(), self.diagonal,
                             self.reading_precision.copy(), self.reading_sum.copy(), self.blob_detection_count.copy())
 

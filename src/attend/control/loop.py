@@ -23,7 +23,7 @@ from attend.control.process import GenerativeProcess
 
 
 class ClosedLoop(NamedTuple):
-    """One closed-loop run, sample k at time[k] [s]: states x[k] of the world (N, n_world), outputs y[k]
+    """One closed-loop run, sample k at time[k] (s): states x[k] of the world (N, n_world), outputs y[k]
     (N, m), actions a[k] as delivered (saturated) over [t_k, t_k + dt) (N, k); for an active inference
     controller also its beliefs belief_states (N, n) and belief_causes (N, r), the sensor precision
     diag Pi_z (N, m) and free_energy (N,) (empty columns / NaN otherwise); step_seconds: wall time of

@@ -289,7 +289,7 @@ def augmented_kalman_filter(system, dt, outputs, *, process_covariance, measurem
         y[k] = [C, 0] [x; u][k] + r
 
     input_variance: random-walk increment variance per sample [input unit^2] (scalar, vector or
-    matrix); initial_input, initial_input_std: prior of u[0] [input unit]; smooth: RTS over the
+    matrix); initial_input, initial_input_std: prior of u[0] (in the input's unit); smooth: RTS over the
     whole log instead of filtering; system, dt [s], outputs (N, m), process_covariance Q,
     measurement_covariance R, initial_mean, initial_covariance (of x[0]) and lag: as
     :func:`kalman_filter`. u[k] first acts on x[k+1],

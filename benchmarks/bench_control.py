@@ -1,8 +1,11 @@
-"""Active inference control vs a tuned PID and LQG on two plants (attend.control, issue 28).
+"""Active inference control vs a tuned PID and LQG on three plants (attend.control, issue 28).
 
-    python benchmarks/bench_control.py                  # both plants (10-14 min): tune on 5 seeds, 150 runs, evaluate 20 seeds
+    python benchmarks/bench_control.py                  # all three plants (about 20 min): tune on 5 seeds, 150 runs, evaluate 20 seeds
+    python benchmarks/bench_control.py --plant both     # the mass-spring-damper and the roll axis (10-14 min)
     python benchmarks/bench_control.py --plant roll     # the quadrotor roll axis only (about 3 min)
+    python benchmarks/bench_control.py --plant arm      # the two-link arm only (about 7 min)
     python benchmarks/bench_control.py --quick          # 3 tuning seeds, 50 runs, 8 evaluation seeds
+    python benchmarks/bench_control.py --plots DIR      # where the arm's response plots go (default results/control)
 
 Plant "msd": the paper's mass-spring-damper (m = 1.4 kg, k = 0.8 N/m, b = 0.4 N s/m) pushed by a force
 a (saturating at +-20 N) and a coloured force disturbance (std 0.3 N, kernel width 0.3 s), its
@@ -15,6 +18,19 @@ command u = m1 - m2 - m3 + m4 (saturating at +-100), d the wind's roll accelerat
 width identified from the four wind flights (printed), two roll-angle sensors (each std 2 mrad, kernel
 width 0.01 s; the motion capture's own noise, 0.09 mrad, would make sensing trivial), sampled at 120 Hz
 as the logs. Tasks: a 0.2 rad step (4 s) and tracking r(t) = 0.1 sin(pi t) rad (4 s).
+
+Plant "arm": a two-link arm in the vertical plane (attend.control.arm: M(q) q'' + C q' + g(q) = tau + tau_d - B q';
+links 0.5 / 0.4 m, 2.0 / 1.2 kg, uniform rods, viscous friction 0.1 / 0.05 N m s/rad), torques saturating at 30 / 10 N m,
+a coloured torque disturbance on each joint (std 0.5 / 0.2 N m, kernel width 0.1 s), two angle sensors per joint (each
+std 2 mrad, kernel width 0.01 s), 100 Hz. Tasks: a step from hanging (-pi/2, 0) to (-0.6, 0.8) rad and tracking
+(-0.8, 1.0) + (0.4 sin 1.5 t, 0.3 sin 2 t) rad (4 s each). All three controllers add the gravity torque of the
+nominal model (PID: at the measured angles; LQG: its operating point's torque and, tracking, the inverse dynamics of
+the reference; active inference: at its believed angles). PID per joint with gains per unit of the joint's inertia
+M_ii at the target; LQG on the arm linearised at rest at the target (tracking: at the reference's centre);
+active inference with dy~/da = M^-1(q) of the nominal model at the believed angles and the reference's (r, r', r'')
+as prior on its causes. Figures are medians over seeds; model error: masses and inertias x 0.7 / x 1.3, a payload
+(link 2 x 1.3), friction x 1.3, and every inertial parameter and friction drawn in [0.7, 1.3] per seed; the
+degrading sensor is sensor 2 of both joints, and precision learning shares each joint's total between its sensors.
 
 Controllers, each with 4 parameters tuned by the same protocol and budget (log-uniform random search
 in a box, then Nelder-Mead from the best point) to minimise mean(ITAE step + ITAE tracking) + w_e
@@ -46,6 +62,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import argparse  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 from scipy.optimize import minimize  # noqa: E402
@@ -63,6 +80,7 @@ from attend.control import (  # noqa: E402
     run,
     step_metrics,
 )
+from attend.control import arm  # noqa: E402
 from attend.control.metrics import itae  # noqa: E402
 from attend.control.roll import identify_roll_disturbance, roll_matrices  # noqa: E402
 
@@ -141,7 +159,7 @@ def make_pid(theta, task, cfg):
 def make_lqg(theta, task, cfg):
     q_pos, q_vel, q_int, w_scale = np.exp(theta)
     A, B = plant_matrices(cfg)
-    from attend.systems import zero_order_hold
+    from attend.models.linear import zero_order_hold
 
     _, Wd = zero_order_hold(A, np.eye(2), cfg["dt"])
     W = w_scale * Wd @ np.diag([0.0, disturbance_variance(cfg)]) @ Wd.T + 1e-12 * np.eye(2)
@@ -204,6 +222,8 @@ BOUNDS = {
 
 def evaluate(controller, task, cfg, seed, plant=None):
     """(ITAE, overshoot, settling, effort) of one run; inf ITAE if the loop diverges."""
+    if cfg["plant"] == "arm":
+        return evaluate_arm(controller, task, cfg, seed, plant)
     r, _ = reference(task, cfg)
     try:
         loop = run(plant or world(cfg), controller, cfg["duration"], seed=seed, record_beliefs=False)
@@ -222,7 +242,7 @@ def objective(name, theta, cfg, seeds):
     for task in ("step", "track"):
         for seed in seeds:
             try:
-                controller = MAKERS[name](theta, task, cfg)
+                controller = makers(cfg)[name](theta, task, cfg)
             except Exception:  # an LQR/Kalman design that does not exist for these weights
                 return 1e6
             value, _, _, effort = evaluate(controller, task, cfg, seed)
@@ -401,21 +421,350 @@ def compare(cfg, tune_seeds, eval_seeds, evaluations):
 
 
 
+# --- the two-link arm (attend.control.arm) ------------------------------------------------------------
+
+#: the two-link arm in the vertical plane: nominal parameters ArmParameters() (links 0.5 / 0.4 m, 2.0 / 1.2 kg).
+#: Chosen on the tuning seeds (1000-1002, 50 runs each, --quick): the agent's causes include the reference's
+#: acceleration (reference_acceleration, objective 0.146 against 0.179 without); exact backward differences for the
+#: embedding (embedding_window None; 6 samples: 0.87, 12 samples: 1.95).
+ARM_SETTINGS = dict(
+    plant="arm", dt=0.01, duration=4.0, start=(-np.pi / 2, 0.0), target=(-0.6, 0.8), track_centre=(-0.8, 1.0),
+    track_amplitude=(0.4, 0.3), track_rate=(1.5, 2.0), torque_noise_std=(0.5, 0.2), torque_kernel_width=0.1,
+    sensor_std=0.002, sensor_kernel_width=0.01, torque_limits=(30.0, 10.0), effort_weight=1e-4, degrade_at=2.0,
+    degrade_factor=10.0, learning_time_constants=(0.25, 0.5, 1.0), learning_orders=("value", "all"),
+    embedding_order=2, cause_prior_log_precision=8.0, embedding_window=None, settling_band=0.02,
+    jacobian_tolerance=0.02, substeps=2, random_error=0.3, reference_acceleration=True,
+    model_errors=(("masses, inertias x 0.7", dict(link_masses=0.7, link_inertias=0.7)),
+                  ("masses, inertias x 1.3", dict(link_masses=1.3, link_inertias=1.3)),
+                  ("payload: link 2 x 1.3", dict(link_masses=(1.0, 1.3), link_inertias=(1.0, 1.3))),
+                  ("friction x 1.3", dict(joint_friction=1.3))),
+)
+#: the parameters drawn independently in [1 - e, 1 + e] per evaluation seed for the "random +-30 %" case
+ARM_RANDOM_FIELDS = ("link_masses", "com_distances", "link_inertias", "joint_friction")
+
+
+def arm_reference(task, cfg):
+    """(r(t) -> (2,), trajectory t -> (r, r', r'')) [rad, rad/s, rad/s^2] of the task."""
+    if task == "step":
+        target = np.asarray(cfg["target"], dtype=float)
+        return (lambda t: target), (lambda t: (target, np.zeros(2), np.zeros(2)))
+    centre, amp, rate = (np.asarray(cfg[k], dtype=float) for k in ("track_centre", "track_amplitude", "track_rate"))
+
+    def trajectory(t):
+        return (centre + amp * np.sin(rate * t), amp * rate * np.cos(rate * t), -amp * rate**2 * np.sin(rate * t))
+    return (lambda t: trajectory(t)[0]), trajectory
+
+
+def arm_start(task, cfg):
+    """The arm's angles at t = 0 (at rest): hanging for the step, the centre of the reference for tracking."""
+    return np.asarray(cfg["start"] if task == "step" else cfg["track_centre"], dtype=float)
+
+
+def arm_world(cfg, task, degrade=False, params=None):
+    """The arm plant for ``task`` (true parameters ``params``, default nominal), sensor 2 of both joints degrading."""
+    scale = None
+    if degrade:
+        at, factor = cfg["degrade_at"], cfg["degrade_factor"]
+        scale = lambda t: np.array([1.0, 1.0, factor, factor]) if t >= at else 1.0  # noqa: E731
+    return arm.arm_plant(params or arm.ArmParameters(), initial_angles=arm_start(task, cfg),
+                         torque_noise_std=cfg["torque_noise_std"], torque_kernel_width=cfg["torque_kernel_width"],
+                         sensor_std=cfg["sensor_std"], sensor_kernel_width=cfg["sensor_kernel_width"],
+                         torque_limits=cfg["torque_limits"], sensor_noise_scale=scale, substeps=cfg["substeps"])
+
+
+def arm_operating_angles(task, cfg):
+    """The pose the model-based designs are made at: the target (step) or the reference's centre (tracking)."""
+    return np.asarray(cfg["target"] if task == "step" else cfg["track_centre"], dtype=float)
+
+
+def make_arm_pid(theta, task, cfg):
+    """PID per joint with gravity feed-forward; gains per unit of the joint's inertia M_ii at the operating pose."""
+    kp, ki, kd, tau = np.exp(theta)
+    model = arm.ArmParameters()
+    inertia = np.diag(arm.mass_matrix(model, arm_operating_angles(task, cfg)))
+    gains = np.column_stack([inertia * kp, inertia * ki, inertia * kd, [tau, tau]])
+    r, _ = arm_reference(task, cfg)
+    return arm.joint_pid(model, cfg["dt"], gains=gains, reference=r, torque_limits=cfg["torque_limits"])
+
+
+def make_arm_lqg(theta, task, cfg):
+    """LQG on the nominal arm linearised at the operating pose; tracking: the reference and its inverse dynamics."""
+    q_pos, q_vel, q_int, w_scale = np.exp(theta)
+    model = arm.ArmParameters()
+    q_o = arm_operating_angles(task, cfg)
+    A, B, _ = arm.linearise(model, q_o)
+    from attend.models.linear import zero_order_hold
+
+    _, Wd = zero_order_hold(A, np.eye(4), cfg["dt"])
+    Minv = np.linalg.inv(arm.mass_matrix(model, q_o))
+    accel = Minv @ np.diag(np.square(cfg["torque_noise_std"])) @ Minv.T  # torque noise as acceleration noise
+    W = w_scale * Wd @ np.block([[np.zeros((2, 2)), np.zeros((2, 2))], [np.zeros((2, 2)), accel]]) @ Wd.T \
+        + 1e-12 * np.eye(4)
+    r, trajectory = arm_reference(task, cfg)
+    return arm.ArmLQG(model, cfg["dt"], operating_angles=q_o, reference=r,
+                      reference_trajectory=trajectory if task == "track" else None,
+                      initial_angles=arm_start(task, cfg), state_weight=[q_pos, q_pos, q_vel, q_vel],
+                      integral_weight=q_int, action_weight=1.0, process_covariance=W,
+                      sensor_covariance=cfg["sensor_std"] ** 2 * np.eye(4), torque_limits=cfg["torque_limits"])
+
+
+def make_arm_aif(theta, task, cfg, learning=None, feedforward=True):
+    """Active inference: each joint believed drawn critically damped to the reference (r, r') (prior on the causes);
+    dy~/da from the nominal arm at the believed pose; plus the nominal gravity torque at the believed pose."""
+    omega, process_precision, gain, kernel_width = np.exp(theta)
+    _, trajectory = arm_reference(task, cfg)
+
+    with_acceleration = cfg["reference_acceleration"]
+
+    def prior(t):  # eta~ = [v; v'], v = (r, r') or (r, r', r''), v' its derivative
+        q, w, acc = trajectory(t)
+        if not with_acceleration:
+            return np.concatenate([q, w, w, acc])
+        jerk = -np.asarray(cfg["track_rate"]) ** 2 * w if task == "track" else np.zeros(2)
+        return np.concatenate([q, w, acc, w, acc, jerk])
+    model = arm.critically_damped_model(
+        omega, sensor_std=cfg["sensor_std"], process_precision=process_precision, kernel_width=kernel_width,
+        cause_prior=prior, cause_prior_precision=np.exp(cfg["cause_prior_log_precision"]),
+        embedding_order=cfg["embedding_order"], initial_angles=arm_start(task, cfg),
+        reference_acceleration=with_acceleration)
+    nominal = arm.ArmParameters()
+    limit = np.asarray(cfg["torque_limits"])
+    controller = ActiveInferenceController(
+        model, cfg["dt"], action_gain=gain, n_actions=2,
+        action_jacobian=arm.ArmActionJacobian(nominal, cfg["embedding_order"], tolerance=cfg["jacobian_tolerance"]),
+        action_limits=(-limit, limit), precision_learning=learning, embedding_window=cfg["embedding_window"])
+    return arm.GravityFeedforward(controller, nominal, "believed") if feedforward else controller
+
+
+ARM_MAKERS = {"PID": make_arm_pid, "LQG": make_arm_lqg, "active inference": make_arm_aif}
+BOUNDS["arm"] = {  # PID gains per unit of joint inertia [1/s^2, 1/s^3, 1/s], tau_d [s]; LQR weights (R = I, N m)
+    "PID": [(1.0, 1e5), (0.1, 1e6), (0.1, 1e3), (1e-3, 0.3)],
+    "LQG": [(1.0, 1e8), (1e-2, 1e5), (1.0, 1e10), (1e-3, 1e4)],
+    "active inference": [(0.5, 40.0), (1.0, 1e8), (1e-1, 1e7), (1e-3, 0.3)],
+}
+
+
+def makers(cfg):
+    """The three controllers' constructors for ``cfg``'s plant."""
+    return ARM_MAKERS if cfg["plant"] == "arm" else MAKERS
+
+
+def arm_run(controller, task, cfg, seed, plant=None):
+    """One closed loop on the arm (None if it diverged)."""
+    try:
+        return run(plant or arm_world(cfg, task), controller, cfg["duration"], seed=seed, record_beliefs=False)
+    except ClosedLoopDivergence:
+        return None
+
+
+def arm_metrics(loop, task, cfg):
+    """(ITAE summed over the joints, overshoot (largest joint) [%], settling (slowest joint) [s], effort) of a run."""
+    r, _ = arm_reference(task, cfg)
+    target = np.array([r(t) for t in loop.time])
+    effort = float(np.sum(loop.actions**2) * cfg["dt"])
+    if task == "track":
+        return sum(itae(loop.time, loop.states[:, i], target[:, i]) for i in range(2)), np.nan, np.nan, effort
+    joints = [step_metrics(loop.time, loop.states[:, i], target[:, i], loop.actions, band=cfg["settling_band"])
+              for i in range(2)]
+    return (sum(m.itae for m in joints), max(m.overshoot for m in joints), max(m.settling_time for m in joints),
+            effort)
+
+
+def evaluate_arm(controller, task, cfg, seed, plant=None):
+    """(ITAE, overshoot, settling, effort) of one run on the arm; inf if the loop diverges."""
+    loop = arm_run(controller, task, cfg, seed, plant)
+    return (np.inf,) * 4 if loop is None else arm_metrics(loop, task, cfg)
+
+
+def random_arm(cfg, seed):
+    """The arm with each of ARM_RANDOM_FIELDS (per link) drawn in [1 - e, 1 + e] x nominal (e = random_error)."""
+    rng = np.random.default_rng(10_000 + seed)
+    e = cfg["random_error"]
+    return arm.ArmParameters().scaled(**{name: rng.uniform(1 - e, 1 + e, 2) for name in ARM_RANDOM_FIELDS})
+
+
+def median_row(rows):
+    return np.median(np.asarray(rows, dtype=float), axis=0)
+
+
+def plot_arm(cfg, tuned, out_dir, learning):
+    """arm_responses.png: seed 0's joint angles and torques of the three controllers (step, tracking, sensor 2
+    degrading during the step with fixed and learned precision) into ``out_dir``."""
+    from attend.plotting import new_figure
+
+    fig, axes = new_figure(out_dir, (13, 9), 3, 3)
+    colours = {"PID": "C0", "LQG": "C1", "active inference": "C3"}
+    for row, (task, degrade) in enumerate((("step", False), ("track", False), ("step", True))):
+        r, _ = arm_reference(task, cfg)
+        variants = {name: ARM_MAKERS[name](tuned[name], task, cfg) for name in ARM_MAKERS}
+        if degrade:
+            variants["active inference, learned"] = make_arm_aif(tuned["active inference"], task, cfg, learning)
+        for label, controller in variants.items():
+            loop = arm_run(controller, task, cfg, 0, arm_world(cfg, task, degrade))
+            if loop is None:
+                continue
+            style = dict(color=colours.get(label, "C2"), lw=1.2, ls="--" if "learned" in label else "-")
+            for joint in range(2):
+                axes[row, joint].plot(loop.time, loop.states[:, joint], label=label, **style)
+            axes[row, 2].plot(loop.time, loop.actions[:, 0], **style)
+            axes[row, 2].plot(loop.time, loop.actions[:, 1], alpha=0.5, **style)
+        target = np.array([r(t) for t in loop.time])
+        for joint in range(2):
+            axes[row, joint].plot(loop.time, target[:, joint], "k:", lw=1, label="reference")
+            axes[row, joint].set_ylabel(f"q{joint + 1} [rad]")
+        axes[row, 2].set_ylabel("torque [N m] (q1 solid, q2 faint)")
+        title = {0: "step", 1: "tracking", 2: f"step, sensor 2 noise x{cfg['degrade_factor']:g} from "
+                 f"{cfg['degrade_at']:g} s"}[row]
+        axes[row, 0].set_title(title, loc="left", fontsize=10)
+        if degrade:
+            for axis in axes[row]:
+                axis.axvline(cfg["degrade_at"], color="0.6", lw=0.8)
+    axes[0, 0].legend(fontsize=8)
+    axes[2, 0].legend(fontsize=8)
+    for axis in axes[-1]:
+        axis.set_xlabel("time [s]")
+    fig.tight_layout()
+    path = Path(out_dir) / "arm_responses.png"
+    fig.savefig(path, dpi=100)
+    return path
+
+
+def compare_arm(cfg, tune_seeds, eval_seeds, evaluations, out_dir):
+    """Tune the three controllers on the arm and print every figure beside its target (medians over seeds)."""
+    params = arm.ArmParameters()
+    print(f"two-link arm in the vertical plane: masses {params.link_masses} kg, lengths {params.link_lengths} m, "
+          f"centres of mass {params.com_distances} m, inertias {tuple(round(i, 4) for i in params.link_inertias)} "
+          f"kg m^2, friction {params.joint_friction} N m s/rad; torque limits {cfg['torque_limits']} N m; torque "
+          f"disturbance std {cfg['torque_noise_std']} N m (kernel width {cfg['torque_kernel_width']} s); 2 angle "
+          f"sensors per joint, std {cfg['sensor_std'] * 1e3:g} mrad (kernel width {cfg['sensor_kernel_width']} s)")
+    print(f"step {np.round(cfg['start'], 3).tolist()} -> {list(cfg['target'])} rad; tracking "
+          f"{list(cfg['track_centre'])} + {list(cfg['track_amplitude'])} sin({list(cfg['track_rate'])} t) rad; "
+          f"dt = {cfg['dt']:g} s, {cfg['duration']} s per task; tuning seeds {list(tune_seeds)}, {evaluations} "
+          f"evaluations each; evaluation seeds 0..{len(eval_seeds) - 1}; figures are medians over the evaluation seeds")
+    tuned = {}
+    for name in ARM_MAKERS:
+        t0 = time.perf_counter()
+        theta, value, nfev = tune(name, cfg, tune_seeds, evaluations)
+        tuned[name] = theta
+        print(f"  tuned {name:17s} objective {value:.4f} ({nfev} runs of {2 * len(tune_seeds)} loops, "
+              f"{time.perf_counter() - t0:.0f} s): exp(theta) = {np.round(np.exp(theta), 4).tolist()}")
+
+    # nominal plant ---------------------------------------------------------------------------------
+    nominal, step_seconds = {}, {}
+    for name in ARM_MAKERS:
+        for task in ("step", "track"):
+            rows = []
+            for seed in eval_seeds:
+                loop = arm_run(ARM_MAKERS[name](tuned[name], task, cfg), task, cfg, seed)
+                rows.append((np.inf,) * 4 if loop is None else arm_metrics(loop, task, cfg))
+                if loop is not None:
+                    step_seconds.setdefault(name, []).append(np.median(loop.step_seconds))
+            nominal[name, task] = np.array(rows)
+    print(f"\nnominal arm (median over {len(eval_seeds)} evaluation seeds; ITAE summed over both joints; overshoot of "
+          f"the larger joint; settling band {100 * cfg['settling_band']:g} % of each joint's step, the slower joint)")
+    print(f"  {'controller':17s} {'ITAE step':>10s} {'overshoot %':>11s} {'settling s':>10s} {'effort':>10s} "
+          f"{'ITAE track':>10s} {'effort track':>12s} {'step us':>8s}")
+    for name in ARM_MAKERS:
+        s, tr = median_row(nominal[name, "step"]), median_row(nominal[name, "track"])
+        print(f"  {name:17s} {s[0]:10.4f} {s[1]:11.2f} {s[2]:10.2f} {s[3]:10.1f} {tr[0]:10.4f} {tr[3]:12.1f} "
+              f"{np.median(step_seconds.get(name, [np.nan])) * 1e6:8.1f}")
+    for task in ("step", "track"):
+        aif, pid, lqg = (nominal[n, task][:, 0] for n in ("active inference", "PID", "LQG"))
+        d_pid, d_lqg = interval(aif - pid), interval(aif - 1.2 * lqg)
+        m_aif, m_pid, m_lqg = np.median(aif), np.median(pid), np.median(lqg)
+        print(f"  {task} ITAE: active inference {m_aif:.4f} vs PID {m_pid:.4f} (target <= PID: "
+              f"{'met' if m_aif <= m_pid else 'NOT met'}; paired mean difference {d_pid[0]:+.4f}, 95 % "
+              f"[{d_pid[1]:+.4f}, {d_pid[2]:+.4f}]); vs 1.2 x LQG = {1.2 * m_lqg:.4f} "
+              f"({'met' if m_aif <= 1.2 * m_lqg else 'NOT met'}; paired mean difference {d_lqg[0]:+.4f}, 95 % "
+              f"[{d_lqg[1]:+.4f}, {d_lqg[2]:+.4f}])")
+
+    # model error -----------------------------------------------------------------------------------
+    e = cfg["random_error"]
+    print(f"\nmodel error: median ITAE on the changed arm / median nominal ITAE (every controller's model, dy~/da and "
+          f"gravity feed-forward stay nominal); 'random +-{100 * e:g} %': {', '.join(ARM_RANDOM_FIELDS)} of each link "
+          f"drawn in [{1 - e:g}, {1 + e:g}] x nominal, one arm per evaluation seed")
+    cases = [(label, lambda seed, change=change: params.scaled(**change)) for label, change in cfg["model_errors"]]
+    cases.append((f"random +-{100 * e:g} %", lambda seed: random_arm(cfg, seed)))
+    for task in ("step", "track"):
+        print(f"  {task:6s} {'arm':24s} " + " ".join(f"{name:>17s}" for name in ARM_MAKERS))
+        worst = {name: (0.0, "") for name in ARM_MAKERS}
+        for label, true_arm in cases:
+            ratios = []
+            for name in ARM_MAKERS:
+                rows = [evaluate_arm(ARM_MAKERS[name](tuned[name], task, cfg), task, cfg, seed,
+                                     arm_world(cfg, task, params=true_arm(seed)))[0] for seed in eval_seeds]
+                ratio = np.median(rows) / np.median(nominal[name, task][:, 0])
+                worst[name] = max(worst[name], (ratio, label))
+                ratios.append(ratio)
+            print(f"  {task:6s} {label:24s} " + " ".join(f"{value:17.3f}" for value in ratios))
+        print(f"  {task} worst ratio: " + ", ".join(f"{name} {value:.3f} ({label})" for name, (value, label)
+                                                 in worst.items()) + " (reported beside LQG's and PID's; no target)")
+
+    # degrading sensor ------------------------------------------------------------------------------
+    theta = tuned["active inference"]
+    choices = [(tc, orders) for tc in cfg["learning_time_constants"] for orders in cfg["learning_orders"]]
+
+    def learned_objective(learning):
+        return np.mean([evaluate_arm(make_arm_aif(theta, task, cfg, learning), task, cfg, seed,
+                                     arm_world(cfg, task, degrade=True))[0]
+                        for task in ("step", "track") for seed in tune_seeds])
+    groups = (0, 1, 0, 1)  # the relative level shares precision among each joint's sensors
+    scores = {(tc, orders): learned_objective(SensorPrecisionLearning(time_constant=tc, level="relative", orders=orders,
+                                                                      groups=groups))
+              for tc, orders in choices}
+    tc, orders = min(scores, key=scores.get)
+    print(f"\nsensor 2 of both joints degrades (noise x{cfg['degrade_factor']:g} from t = {cfg['degrade_at']:g} s); "
+          f"learning: time constant {tc:g} s, orders '{orders}' (chosen on the tuning seeds from "
+          + ", ".join(f"{c[0]:g} s/{c[1]}: {v:.4f}" for c, v in scores.items()) + ")")
+    variants = {"active inference, fixed precision": None}
+    for level in ("relative", "absolute"):
+        variants[f"active inference, learned ({level})"] = SensorPrecisionLearning(time_constant=tc, level=level,
+                                                                                   orders=orders, groups=groups)
+    for task in ("step", "track"):
+        degraded = arm_world(cfg, task, degrade=True)
+        results = {}
+        for label, learning in variants.items():
+            results[label] = np.array([evaluate_arm(make_arm_aif(theta, task, cfg, learning), task, cfg, seed,
+                                                    degraded)[0] for seed in eval_seeds])
+        for label in ("PID", "LQG"):
+            results[label] = np.array([evaluate_arm(ARM_MAKERS[label](tuned[label], task, cfg), task, cfg, seed,
+                                                    degraded)[0] for seed in eval_seeds])
+        print(f"  {task} median ITAE: " + ", ".join(f"{label} {np.median(v):.4f}" for label, v in results.items()))
+        for level in ("relative", "absolute"):
+            diff = results[f"active inference, learned ({level})"] - results["active inference, fixed precision"]
+            mean, low, high = interval(diff)
+            verdict = "met" if high < 0 else ("NOT met" if low > 0 else "not resolved (interval contains 0)")
+            print(f"  {task}: learned ({level}) - fixed ITAE: mean {mean:+.4f}, 95 % interval [{low:+.4f}, {high:+.4f}], "
+                  f"median {np.median(diff):+.4f} over {len(eval_seeds)} paired seeds (target < 0: {verdict})")
+    if out_dir is not None:
+        path = plot_arm(cfg, tuned, out_dir, SensorPrecisionLearning(time_constant=tc, level="relative", orders=orders,
+                                                                     groups=groups))
+        print(f"\nresponses (seed 0) plotted in {path}")
+    return tuned
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true", help="3 tuning seeds, 50 evaluations, 8 evaluation seeds")
-    parser.add_argument("--plant", choices=("msd", "roll", "both", "none"), default="both",
-                        help="mass-spring-damper, quadrotor roll axis, both (default) or none (step times only)")
+    parser.add_argument("--plant", choices=("msd", "roll", "arm", "both", "all", "none"), default="all",
+                        help="mass-spring-damper, quadrotor roll axis, two-link arm, both (msd and roll), all (default: "
+                             "the three) or none (step times only)")
+    parser.add_argument("--plots", default="results/control", metavar="DIR",
+                        help="folder for the response plots (default: %(default)s); 'none': no plots")
     args = parser.parse_args()
+    out_dir = None if args.plots == "none" else args.plots
     warnings.simplefilter("ignore")
     tune_seeds = range(1000, 1003 if args.quick else 1005)
     eval_seeds = range(8 if args.quick else 20)
     evaluations = 50 if args.quick else 150
     started = time.perf_counter()
     plants = {"msd": SETTINGS, "roll": ROLL_SETTINGS}
-    for name in {"both": ("msd", "roll"), "none": ()}.get(args.plant, (args.plant,)):
+    for name in {"both": ("msd", "roll"), "all": ("msd", "roll", "arm"), "none": ()}.get(args.plant, (args.plant,)):
         print(f"\n=== plant {name} ===")
-        compare(dict(plants[name]), tune_seeds, eval_seeds, evaluations)
+        if name == "arm":
+            compare_arm(dict(ARM_SETTINGS), tune_seeds, eval_seeds, evaluations, out_dir)
+        else:
+            compare(dict(plants[name]), tune_seeds, eval_seeds, evaluations)
 
     # step time ----------------------------------------------------------------------------------
     times = step_time(dict(SETTINGS))

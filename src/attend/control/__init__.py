@@ -22,6 +22,8 @@ sensory attenuation), modulated by a rhythm (attend.rhythm) or learned online.
 - the sensory-attenuation reproduction: :mod:`attend.control.attenuation` (run, plot, claims)
 - the reaching reproduction (SPM's ADEM_reaching): :mod:`attend.control.reaching` (run, plot, claims)
 - the quadrotor roll plant of the wind flights and its identified wind: :mod:`attend.control.roll`
+- a two-link arm in the vertical plane (rigid-body dynamics, torque disturbances, angle sensors) and
+  building blocks of its controllers: :mod:`attend.control.arm`
 """
 
 from attend.control._checks import ClosedLoopDivergence

@@ -2,7 +2,7 @@
 
 PID (derivative on the measurement, first-order filtered; integrator clamped at the limits)::
 
-    e = r - w' y,  a = kp e + ki int e dt - kd d(w' y)/dt (filtered with time constant tau_d)
+    e = r - w' y,  a = kp e + ki int e dt - kd d(w' y)/dt (filtered with time constant tau_d) + a_ff(t, y)
 
 LQG with integral action (python-control's dlqr and dlqe on the zero-order-hold model)::
 
@@ -11,7 +11,8 @@ LQG with integral action (python-control's dlqr and dlqe on the zero-order-hold 
 
 (x_ff, a_ff) the model's equilibrium at the reference r (H x_ff = r), or a given reference trajectory
 with its feedforward (``reference_state``), K = [K_x, K_i] the LQR gain
-of the plant augmented with the integral xi of the tracking error, L the steady Kalman gain.
+of the plant augmented with the integral xi of the tracking error (one per tracked variable, the
+rows of H), L the steady Kalman gain.
 """
 
 from __future__ import annotations
@@ -25,11 +26,14 @@ from attend.control._checks import action_limits as checked_action_limits
 from attend.control._checks import vector
 
 
-def _reference(value) -> Callable:
+def _reference(value, size: int = 1) -> Callable:
     if callable(value):
         return value
-    number(value, "reference")
-    constant = float(value)
+    if size == 1 and np.ndim(value) == 0:
+        number(value, "reference")
+        constant = float(value)
+        return lambda t: constant
+    constant = vector(value, size, "reference")
     return lambda t: constant
 
 
@@ -39,11 +43,13 @@ class PIDController:
     kp, ki, kd: gains [action / unit, action / (unit s), action s / unit]; dt: sample time [s];
     reference: r, a number or a function r(t) [unit]; output_weights: w (m,) combining the outputs
     (e.g. the mean of two sensors); n_outputs: m; derivative_filter: tau_d [s] (>= 0);
-    action_limits: optional (low, high) [action unit] (the integrator stops at the limits).
+    action_limits: optional (low, high) [action unit] (the integrator stops at the limits);
+    feedforward: optional a_ff(t, y) -> number added to the action before saturation (e.g. the gravity
+    torque at the measured pose), t [s], y the outputs (m,).
     """
 
     def __init__(self, kp: float, ki: float, kd: float, dt: float, *, reference=0.0, n_outputs: int = 1,
-                 output_weights=None, derivative_filter: float = 0.0, action_limits=None):
+                 output_weights=None, derivative_filter: float = 0.0, action_limits=None, feedforward=None):
         self.kp, self.ki, self.kd = (number(v, name) for v, name in ((kp, "kp"), (ki, "ki"), (kd, "kd")))
         self.dt = positive_scalar(dt, "dt", "s")
         self.reference = _reference(reference)
@@ -54,6 +60,9 @@ class PIDController:
             raise AttendInputError("derivative_filter: expected a time constant >= 0 (s)")
         self.n_actions = 1
         self.action_limits = checked_action_limits(action_limits, 1)
+        if feedforward is not None and not callable(feedforward):
+            raise AttendInputError("feedforward: expected a function a_ff(t, y) -> number or None")
+        self.feedforward = feedforward
         self.reset()
 
     def reset(self) -> None:
@@ -66,7 +75,8 @@ class PIDController:
     def step(self, y) -> np.ndarray:
         """Take y[k] (m,), return the action a[k] (1,)."""
         t = self._k * self.dt
-        measured = float(self.output_weights @ np.asarray(y, dtype=float).reshape(-1))
+        y = np.asarray(y, dtype=float).reshape(-1)
+        measured = float(self.output_weights @ y)
         error = self.reference(t) - measured
         if self._previous is not None:
             tau = self.derivative_filter
@@ -74,6 +84,8 @@ class PIDController:
         self._previous = measured
         candidate = self._integral + self.ki * error * self.dt
         action = self.kp * error + candidate + self._derivative
+        if self.feedforward is not None:
+            action += float(self.feedforward(t, y))
         if self.action_limits is not None:
             low, high = self.action_limits[0][0], self.action_limits[1][0]
             clipped = min(max(action, low), high)
@@ -90,18 +102,19 @@ class LQGController:
     """LQG with integral action on a linear model dx/dt = A x + B a, y = C x + D a (see the module).
 
     A (n, n), B (n, k), C (m, n), D (m, k) (default 0): the model (possibly wrong: that is the test);
-    dt: sample time [s]; reference: r, a number or function r(t), for the tracked variable H x;
-    tracked: H (1, n) (default the first output row of C); state_weight: Q_x (n, n) or a number
+    dt: sample time [s]; reference: r, a number or function r(t) (p numbers for p tracked variables), for
+    the tracked variables H x; tracked: H (p, n) (default the first output row of C, p = 1); state_weight: Q_x (n, n) or a number
     (times I); integral_weight: q_i >= 0 (0: no integral state); action_weight: R (k, k) or a
     number; process_covariance: covariance of the state noise per sample (n, n) or number;
     sensor_covariance: covariance of the sensor noise (m, m) or number; action_limits: optional;
     reference_state: optional function t -> (x_ff (n,), a_ff (k,)), a reference trajectory and its
-    feedforward action (default: the model's equilibrium at r(t), no feedforward of r's motion).
+    feedforward action (default: the model's equilibrium at r(t), no feedforward of r's motion);
+    initial_estimate: x^ at t = 0 (n,) (default zeros).
     """
 
     def __init__(self, A, B, C, dt: float, *, D=None, reference=0.0, tracked=None, state_weight=1.0,
                  integral_weight: float = 1.0, action_weight=1.0, process_covariance=1e-4, sensor_covariance=1e-4,
-                 action_limits=None, reference_state=None):
+                 action_limits=None, reference_state=None, initial_estimate=None):
         import control
 
         A = as_matrix(A, "A")
@@ -111,11 +124,10 @@ class LQGController:
         k, m = B.shape[1], C.shape[0]
         D = np.zeros((m, k)) if D is None else as_matrix(D, "D", rows=m, cols=k)
         self.dt = positive_scalar(dt, "dt", "s")
-        self.reference = _reference(reference)
         H = C[:1] if tracked is None else as_matrix(tracked, "tracked", cols=n)
-        if H.shape[0] != 1:
-            raise AttendInputError("tracked: expected one row H (1, n)")
-        from attend.systems import zero_order_hold
+        p = H.shape[0]
+        self.reference = _reference(reference, p)
+        from attend.models.linear import zero_order_hold
 
         Ad, Bd = zero_order_hold(A, B, self.dt)
         Qx = _square(state_weight, n, "state_weight")
@@ -125,35 +137,36 @@ class LQGController:
             raise AttendInputError("integral_weight: expected a number >= 0")
         self._integral_on = qi > 0
         if self._integral_on:
-            Aa = np.block([[Ad, np.zeros((n, 1))], [-self.dt * H, np.ones((1, 1))]])
-            Ba = np.vstack([Bd, np.zeros((1, k))])
-            Qa = np.block([[Qx, np.zeros((n, 1))], [np.zeros((1, n)), qi * np.ones((1, 1))]])
+            Aa = np.block([[Ad, np.zeros((n, p))], [-self.dt * H, np.eye(p)]])
+            Ba = np.vstack([Bd, np.zeros((p, k))])
+            Qa = np.block([[Qx, np.zeros((n, p))], [np.zeros((p, n)), qi * np.eye(p)]])
             K, _, _ = control.dlqr(Aa, Ba, Qa, R)
         else:
             K, _, _ = control.dlqr(Ad, Bd, Qx, R)
         K = np.asarray(K)
-        self._Kx, self._Ki = K[:, :n], (K[:, n:] if self._integral_on else np.zeros((k, 1)))
+        self._Kx, self._Ki = K[:, :n], (K[:, n:] if self._integral_on else np.zeros((k, p)))
         W = _square(process_covariance, n, "process_covariance")
         V = _square(sensor_covariance, m, "sensor_covariance")
         _, P, _ = control.dlqe(Ad, np.eye(n), C, W, V)
         P = np.asarray(P)
         self._L = P @ C.T @ np.linalg.inv(C @ P @ C.T + V)  # filter (current-estimate) gain
         # equilibrium at the reference: A x + B a = 0, H x = r (least squares when not square)
-        eq = np.block([[A, B], [H, np.zeros((1, k))]])
-        self._ff = np.linalg.pinv(eq) @ np.concatenate([np.zeros(n), [1.0]])
+        eq = np.block([[A, B], [H, np.zeros((p, k))]])
+        self._ff = np.linalg.pinv(eq) @ np.vstack([np.zeros((n, p)), np.eye(p)])  # (n + k, p): [x_ff; a_ff] = ff r
         self._Ad, self._Bd, self._C, self._D, self._H = Ad, Bd, C, D, H
         self.n_actions = k
         self.action_limits = checked_action_limits(action_limits, k)
         if reference_state is not None and not callable(reference_state):
             raise AttendInputError("reference_state: expected a function t -> (x_ff, a_ff)")
         self.reference_state = reference_state
+        self._x0 = np.zeros(n) if initial_estimate is None else vector(initial_estimate, n, "initial_estimate")
         self.reset()
 
     def reset(self) -> None:
-        """Estimate at zero, integrator zero, t = 0."""
-        n, k = self._Ad.shape[0], self._Bd.shape[1]
-        self._x = np.zeros(n)
-        self._xi = 0.0
+        """Estimate at initial_estimate (default zero), integrators zero, t = 0."""
+        k = self._Bd.shape[1]
+        self._x = self._x0.copy()
+        self._xi = np.zeros(self._H.shape[0])
         self._a = np.zeros(k)
         self._k = 0
 
@@ -166,21 +179,21 @@ class LQGController:
         """Take y[k] (m,), return a[k] (k,)."""
         n = self._Ad.shape[0]
         t = self._k * self.dt
-        r = self.reference(t)
+        r = np.asarray(self.reference(t), dtype=float).reshape(-1)
         y = np.asarray(y, dtype=float).reshape(-1)
         x = self._x + self._L @ (y - self._C @ self._x - self._D @ self._a)
         if self.reference_state is None:
-            x_ff, a_ff = self._ff[:n] * r, self._ff[n:] * r
+            x_ff, a_ff = self._ff[:n] @ r, self._ff[n:] @ r
         else:
             x_ff, a_ff = (np.asarray(value, dtype=float).reshape(-1) for value in self.reference_state(t))
-        action = a_ff - self._Kx @ (x - x_ff) - (self._Ki[:, 0] * self._xi)
+        action = a_ff - self._Kx @ (x - x_ff) - self._Ki @ self._xi
         if self.action_limits is not None:
             clipped = np.clip(action, *self.action_limits)
             if np.array_equal(clipped, action):
-                self._xi += self.dt * (r - float((self._H @ x)[0]))
+                self._xi += self.dt * (r - self._H @ x)
             action = clipped
         else:
-            self._xi += self.dt * (r - float((self._H @ x)[0]))
+            self._xi += self.dt * (r - self._H @ x)
         self._x = self._Ad @ x + self._Bd @ action
         self._a = action
         self._k += 1

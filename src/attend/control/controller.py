@@ -11,7 +11,7 @@ and integrates over one sample dt the joint flow of its beliefs X = [x~; v~] and
     Pi~ = blkdiag(kron(S, Pi_z), kron(S, Pi_w), kron(S_d, P_v))  F = -e' Pi~ e / 2 + log|Pi~| / 2
 
 E = de/dX (Jacobians of f, g held fixed over the sample), S = S(s) the smoothness precision
-(attend.generalized), kappa the ``action_gain``. dy~/da is the process's column of Markov
+(attend.models.generalized), kappa the ``action_gain``. dy~/da is the process's column of Markov
 parameters [g_a; g_x f_a; g_x f_x f_a; ...] (as spm_ADEM/spm_ALAP take it from the generative
 process): a matrix you give, a function of the beliefs, or "process" (then :func:`run` passes the
 true process's Jacobian at its true state each sample, exactly SPM's convention). Within the
@@ -48,7 +48,7 @@ from attend.control._core import (
     shift_matrix,
 )
 from attend.control.model import GenerativeModel
-from attend.generalized import smoothness_precision
+from attend.models.generalized import smoothness_precision
 
 
 @dataclass(frozen=True)
@@ -68,7 +68,9 @@ class SensorPrecisionLearning:
     each lambda_i as above; "relative": lambda shifted so that sum(exp(lambda)) = sum(exp(eta_lambda)),
     only each sensor's share of the designed total precision (the sensory gain of the controller) is
     learned: an agent's sensory errors hold its own intended prediction errors (what drives its action),
-    which the absolute level counts as noise. A linear model keeps its cached transition until some
+    which the absolute level counts as noise. ``groups``: None (one total over all outputs) or one label per
+    output (e.g. the joint each sensor reads): the relative level keeps the total within each group, so that
+    sensors of different variables do not trade precision. A linear model keeps its cached transition until some
     lambda_i has moved by more than ``rebuild_tolerance``.
     """
 
@@ -78,6 +80,7 @@ class SensorPrecisionLearning:
     orders: str = "value"
     level: str = "absolute"
     rebuild_tolerance: float = 0.05
+    groups: tuple | None = None
 
     def __post_init__(self) -> None:
         if self.orders not in ("value", "all"):
@@ -85,6 +88,11 @@ class SensorPrecisionLearning:
         if self.level not in ("absolute", "relative"):
             raise AttendInputError(f"level: expected 'absolute' or 'relative', got {self.level!r}")
         object.__setattr__(self, "rebuild_tolerance", positive_scalar(self.rebuild_tolerance, "rebuild_tolerance"))
+        if self.groups is not None:
+            labels = np.asarray(self.groups)
+            if labels.ndim != 1 or labels.size == 0 or labels.dtype.kind not in "iu":
+                raise AttendInputError(f"groups: expected one integer label per output, got {self.groups!r}")
+            object.__setattr__(self, "groups", tuple(int(v) for v in labels))
         object.__setattr__(self, "time_constant", positive_scalar(self.time_constant, "time_constant", "s"))
         object.__setattr__(self, "hyperprior_precision", positive_scalar(self.hyperprior_precision, "hyperprior_precision"))
         object.__setattr__(self, "bounds", positive_scalar(self.bounds, "bounds"))
@@ -216,6 +224,9 @@ class ActiveInferenceController:
         if precision_learning is not None and model.state_dependent_precision:
             raise AttendInputError("precision_learning: cannot learn a state-dependent sensor_precision(x, v); give a "
                                    "constant sensor_precision to start learning from")
+        if precision_learning is not None and precision_learning.groups is not None and len(precision_learning.groups) != m:
+            raise AttendInputError(f"precision_learning.groups: expected one label per output ({m}), got "
+                                   f"{len(precision_learning.groups)}")
         self.precision_learning = precision_learning
         if embedding_window is not None:
             embedding_window = count(embedding_window, "embedding_window", 1)
@@ -615,7 +626,13 @@ class ActiveInferenceController:
             hess = -0.5 * n_eff * np.exp(lam) * self._q - Pl
             lam = np.clip(lam - grad / hess, prior - learning.bounds, prior + learning.bounds)
         if learning.level == "relative":  # keep sum(pi): learn each sensor's share of the designed total
-            lam = lam + math.log(np.exp(prior).sum() / np.exp(lam).sum())
+            if learning.groups is None:
+                lam = lam + math.log(np.exp(prior).sum() / np.exp(lam).sum())
+            else:
+                labels = np.asarray(learning.groups)
+                for label in np.unique(labels):
+                    members = labels == label
+                    lam[members] += math.log(np.exp(prior[members]).sum() / np.exp(lam[members]).sum())
         self._log_precision = lam
 
     # --- reporting --------------------------------------------------------------------------

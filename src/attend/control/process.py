@@ -1,9 +1,10 @@
 """The generative process: the world the agent acts on, with its own f, g and noise.
 
-    dx/dt = f(x, a) + w(t) + d(t)        y = g(x, a) + sigma_z(t) * z(t)
+    dx/dt = f(x, a + u(t)) + w(t) + d(t)        y = g(x, a) + sigma_z(t) * z(t)
 
 x (n,) true states, a (k,) action (held over each sample: zero-order hold), y (m,) sampled
-outputs, w and z coloured noise (white noise convolved with a Gaussian kernel, attend.noise), d(t)
+outputs, u an optional disturbance of the action (e.g. a torque on a joint, entering where the
+actuator's does), w, z and u coloured noise (white noise convolved with a Gaussian kernel, attend.models.noise), d(t)
 an optional deterministic disturbance and sigma_z(t) an optional per-sensor noise scale (a sensor
 that degrades). Linear worlds are stepped exactly (zero-order hold of a and w); nonlinear ones
 with Runge-Kutta 4 on ``substeps`` sub-intervals.
@@ -30,12 +31,14 @@ from attend.control._checks import count, evaluated, finite_difference, function
 
 @dataclass(frozen=True, eq=False)
 class GenerativeProcess:
-    """The world: dx/dt = f(x, a) + w + d(t), y = g(x, a) + sigma_z(t) z.
+    """The world: dx/dt = f(x, a + u) + w + d(t), y = g(x, a) + sigma_z(t) z.
 
     f, g: functions ``f(x, a)`` -> (n_states,) and ``g(x, a)`` -> (n_outputs,) of 1-D arrays.
     n_states, n_actions, n_outputs: n, k, m. initial_states: x(0) (default zeros).
     process_noise_std: std of w per state (per sample) [state unit / s]; sensor_noise_std: std of z
     per output; process_kernel_width, sensor_kernel_width: their kernel widths s [s] (0: white).
+    action_noise_std: std of u per action [action unit] (an input disturbance added to the delivered,
+    saturated action; 0: none); action_kernel_width: its kernel width [s].
     disturbance: optional d(t) -> (n,) added to dx/dt (t in s). sensor_noise_scale: optional
     sigma_z(t) -> scalar or (m,) multiplying the sensor noise (1: nominal). action_limits:
     optional (low, high), each a number or k numbers: the actuator saturates there.
@@ -61,6 +64,8 @@ class GenerativeProcess:
     jacobian_g: Callable | None = None
     substeps: int = 4
     matrices: tuple | None = field(default=None, repr=False)
+    action_noise_std: object = 0.0
+    action_kernel_width: float = 0.0
 
     def __post_init__(self) -> None:
         function(self.f, "f", "f(x, a) -> dx/dt")
@@ -72,13 +77,14 @@ class GenerativeProcess:
             object.__setattr__(self, name, value)
         x0 = np.zeros(n) if self.initial_states is None else vector(self.initial_states, n, "initial_states")
         object.__setattr__(self, "initial_states", x0)
-        for name, size in (("process_noise_std", n), ("sensor_noise_std", m)):
+        for name, size in (("process_noise_std", n), ("sensor_noise_std", m), ("action_noise_std", k)):
             value = vector(getattr(self, name), size, name, "standard deviations")
             if np.any(value < 0):
                 raise AttendInputError(f"{name}: expected standard deviations >= 0, got {value.tolist()}")
             object.__setattr__(self, name, value)
         object.__setattr__(self, "process_kernel_width", _kernel_width(self.process_kernel_width, "process_kernel_width"))
         object.__setattr__(self, "sensor_kernel_width", _kernel_width(self.sensor_kernel_width, "sensor_kernel_width"))
+        object.__setattr__(self, "action_kernel_width", _kernel_width(self.action_kernel_width, "action_kernel_width"))
         for name, form in (("disturbance", "d(t) -> (n,)"), ("sensor_noise_scale", "sigma_z(t) -> (m,)"),
                            ("jacobian_f", "(x, a) -> (d/dx, d/da)"), ("jacobian_g", "(x, a) -> (d/dx, d/da)")):
             if getattr(self, name) is not None:
@@ -158,22 +164,25 @@ class ProcessRun:
     sequences are drawn at the start from ``seed``."""
 
     def __init__(self, process: GenerativeProcess, n_samples: int, dt: float, seed):
-        from attend.noise import coloured_noise
+        from attend.models.noise import coloured_noise
 
         self.process, self.dt, self.n_samples = process, dt, n_samples
-        seeds = np.random.SeedSequence(seed).spawn(2)
-        n, m = process.n_states, process.n_outputs
+        seeds = np.random.SeedSequence(seed).spawn(3)  # the first two streams as before the action noise
+        n, m, k = process.n_states, process.n_outputs, process.n_actions
         self._w = (coloured_noise(n_samples + 1, n, dt, process.process_kernel_width, process.process_noise_std,
                                   np.random.default_rng(seeds[0]))
                    if np.any(process.process_noise_std > 0) else np.zeros((n_samples + 1, n)))
         self._z = (coloured_noise(n_samples + 1, m, dt, process.sensor_kernel_width, process.sensor_noise_std,
                                   np.random.default_rng(seeds[1]))
                    if np.any(process.sensor_noise_std > 0) else np.zeros((n_samples + 1, m)))
+        self._u = (coloured_noise(n_samples + 1, k, dt, process.action_kernel_width, process.action_noise_std,
+                                  np.random.default_rng(seeds[2]))
+                   if np.any(process.action_noise_std > 0) else None)
         self.k = 0
         self.x = process.initial_states.copy()
         self.applied = np.zeros(process.n_actions)
         if process.matrices is not None:
-            from attend.systems import zero_order_hold
+            from attend.models.linear import zero_order_hold
 
             A, B, _, _ = process.matrices
             self._Ad, drive = zero_order_hold(A, np.hstack([B, np.eye(n)]), dt)
@@ -193,9 +202,10 @@ class ProcessRun:
         return np.asarray(p.g(self.x, self.applied), dtype=float).reshape(-1) + noise
 
     def advance(self, action) -> None:
-        """Hold ``action`` (saturated) over [t, t + dt) and move to the next sample."""
+        """Hold ``action`` (saturated, plus the action noise u) over [t, t + dt) and move to the next sample."""
         p = self.process
-        a = p.saturate(np.asarray(action, dtype=float).reshape(-1))
+        delivered = p.saturate(np.asarray(action, dtype=float).reshape(-1))
+        a = delivered if self._u is None else delivered + self._u[self.k]
         drive = self._w[self.k] + (0.0 if p.disturbance is None else np.asarray(p.disturbance(self.time), dtype=float))
         if p.matrices is not None:
             self.x = self._Ad @ self.x + self._Bd @ a + self._Wd @ drive
@@ -210,5 +220,5 @@ class ProcessRun:
                 k4 = rate(x + h * k3)
                 x = x + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
             self.x = x
-        self.applied = a
+        self.applied = delivered
         self.k += 1

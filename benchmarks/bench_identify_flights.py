@@ -23,18 +23,21 @@ import argparse
 import os
 import time
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from attend.perception.learning import identify
+from attend.perception.learning import LearningSettings, identify
 from attend.models import parameter_vector
 from attend.models.linear import LinearSystem
 
 DATA = Path(os.environ.get("ATTEND_QUADROTOR_DATA", Path(__file__).resolve().parents[2] / "shared" / "data" / "quadrotor-wind"))
 FREE = ["A[2,1]", "A[2,2]", "B[2,1]", "B[2,2]", "B[2,3]", "B[2,4]"]
-LEARNING = dict(free=FREE, free_prior_precision=1.0, known_prior_precision=np.inf, noise_prior_mean=(0.0, 0.0),
-                noise_prior_precision=1.0, max_iterations=50, tolerance=1e-3)
+LEARNING = dict(free=FREE, free_prior_precision=1.0, known_prior_precision=np.inf)  # the parameter prior
+#: the README's [learning] settings with the flights' [observer] embedding (p = 6, d = 2, Meera's S)
+SETTINGS = LearningSettings(embedding_order=6, input_order=2, precision_convention="max", noise_prior_mean=(0.0, 0.0),
+                            noise_prior_precision=1.0, max_iterations=50, tolerance=1e-3)
 PRIOR = LinearSystem(A=np.array([[0.0, 1.0], [0.0, 0.0]]),
                      B=np.array([[0.0, 0.0, 0.0, 0.0], [0.374838, -0.374838, -0.374838, 0.374838]]),
                      C=np.array([[1.0, 0.0]]))
@@ -130,8 +133,8 @@ def main(argv=None) -> int:
             started = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                result = identify(PRIOR, y, u, DT, kernel_width=0.006, embedding_order=6, input_order=2,
-                                  precision_convention="max", states=states, **learning)
+                result = identify(PRIOR, y, u, DT, kernel_width=0.006, settings=replace(SETTINGS, states=states),
+                                  **learning)
             elapsed = time.perf_counter() - started
             learned = result.system()
             ratio = prediction_ratio(learned, logs, name)[2]

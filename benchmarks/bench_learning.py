@@ -23,6 +23,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy: one BLAS thr
 import argparse  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
+from dataclasses import replace  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -49,9 +50,9 @@ def msd(seeds: int, embedding_order: int, states: str = "sample"):
     std = np.exp(-4.0)
     Y, U = msd_logs(idx, std, std)
     P = np.where(FREE, 1.0, L.KNOWN_PRIOR_PRECISION)[None].repeat(seeds, 0)
+    published = replace(L.PAPER_LEARNER, embedding_order=embedding_order, max_iterations=50, states=states)
     res = L.learn_batch(Y, U, DT, n_states=2, kernel_width=S, prior_mean=random_priors(idx), prior_precision=P,
-                        embedding_order=embedding_order, max_iterations=50, states=states,
-                        **L.PAPER_LEARNER)  # the published learner (eq. 8 truncated, plain sweeps)
+                        settings=published)  # the published learner (eq. 8 truncated, plain sweeps)
     rel = np.abs(res.parameters[:, FREE] - theta[FREE]) / np.abs(theta[FREE])
     return np.median(rel, axis=0), res.log_precision[:, 0], res, Y, U
 
@@ -123,8 +124,8 @@ def main():
     for states, log_prior in (("sample", 6.0), ("path", 6.0), ("path", 2.0)):
         res = L.learn_batch(np.array(Y), np.array(U), DT, n_states=2, kernel_width=S, prior_mean=np.array(eta),
                             prior_precision=np.where(free, np.exp(log_prior), KNOWN_INPUT_PRECISION)[None],
-                            noise_prior_precision=np.exp(3), max_iterations=20, states=states,
-                            **L.PAPER_LEARNER)
+                            settings=replace(L.PAPER_LEARNER, noise_prior_precision=np.exp(3), max_iterations=20,
+                                             states=states))
         worst = np.abs(res.parameters[:, free] - theta[free]).max(axis=1)
         tag = f"{states}, P_theta = exp({log_prior:g}):"
         target = ">= 80 %" if log_prior == 6.0 else "(not the published prior)"
@@ -162,15 +163,17 @@ def main():
     print("4. speed")
     log = simulate(true, u, DT, kernel_width=S, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=0)
     prior = system_from_parameters(random_priors([0])[0], true)
-    L.identify(prior, log.outputs, log.inputs, DT, kernel_width=S, free=FREE, max_iterations=2)
+    L.identify(prior, log.outputs, log.inputs, DT, kernel_width=S, free=FREE,
+               settings=L.LearningSettings(max_iterations=2))
+    timed = L.LearningSettings(max_iterations=20, tolerance=-1.0)
     t0 = time.perf_counter()
     for _ in range(5):
-        L.identify(prior, log.outputs, log.inputs, DT, kernel_width=S, free=FREE, max_iterations=20, tolerance=-1.0)
+        L.identify(prior, log.outputs, log.inputs, DT, kernel_width=S, free=FREE, settings=timed)
     line("one identification (320 samples, 20 iterations)", f"{(time.perf_counter() - t0) / 5 * 1000:.0f} ms", "-")
     t0 = time.perf_counter()
     for _ in range(5):
-        L.identify(prior, log.outputs, log.inputs, DT, kernel_width=S, free=FREE, max_iterations=20, tolerance=-1.0,
-                   states="path")
+        L.identify(prior, log.outputs, log.inputs, DT, kernel_width=S, free=FREE,
+                   settings=replace(timed, states="path"))
     line("the same in path mode", f"{(time.perf_counter() - t0) / 5 * 1000:.0f} ms", "-")
     for name, module in (("fig4 sweep (quick: 156 runs, batched)", fig4), ("fig5 sweep (quick: 144 runs, batched)", fig5)):
         t0 = time.perf_counter()

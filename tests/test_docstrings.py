@@ -20,6 +20,7 @@ MODULES = [
     "attend",
     "attend.perception",
     "attend.perception.learning",
+    "attend.perception.learning.settings",
     "attend.perception.references",
     "attend.perception.dem",
     "attend.perception.spread_check",

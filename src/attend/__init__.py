@@ -9,7 +9,7 @@ Public API (everything else is private):
   :func:`shift_operator`
 - perception: :class:`KalmanEstimator` (coloured-noise Kalman smoother/filter, the default of
   ``attend estimate``), :class:`StateEstimate`, :class:`DEMObserver`, :class:`DEMEstimate`
-- learning: :func:`identify`, :class:`IdentificationResult`
+- learning: :func:`identify` (settings :class:`LearningSettings`), :class:`IdentificationResult`
 - nonlinear perception: :class:`NonlinearDEM` for a :class:`NonlinearSystem`
 - action (UAV search, :mod:`attend.action`): at field scale :func:`make_world`,
   :class:`ProbabilityMap`, :func:`fly_search` (several UAVs, the EFE planner); the paper's
@@ -53,6 +53,7 @@ _EXPORTS = {
     "IdentificationResult": "attend.perception.learning",
     "identify": "attend.perception.learning",
     "KalmanEstimator": "attend.perception.kalman",
+    "LearningSettings": "attend.perception.learning",
     "LinearSystem": "attend.models.linear",
     "make_field": "attend.action",
     "make_planner": "attend.action",

@@ -2,6 +2,7 @@
 free energy, monotone free energy, least-squares limit, recovery, bad input and divergence."""
 
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -142,7 +143,8 @@ def test_free_energy_never_decreases_and_parameters_are_recovered():
     start = theta.copy()
     start[FREE_MSD] = rng.uniform(-2, 2, 3)
     prior = system_from_parameters(start, system)
-    result = L.identify(prior, log.outputs, log.inputs, DT, kernel_width=0.5, free=FREE_MSD, max_iterations=40)
+    result = L.identify(prior, log.outputs, log.inputs, DT, kernel_width=0.5, free=FREE_MSD,
+                        settings=L.LearningSettings(max_iterations=40))
     trace = result.settings["free_energy_trace"]
     assert np.all(np.diff(trace) >= 0)
     assert np.all(np.diff(result.free_energy) >= 0)
@@ -162,7 +164,8 @@ def test_batch_equals_single_runs():
     theta = parameter_vector(system)
     P = np.where(FREE_MSD, 1.0, KNOWN_PRIOR_PRECISION)
     eta = np.stack([theta + 0.5 * FREE_MSD, theta - 0.4 * FREE_MSD])
-    kw = dict(n_states=2, kernel_width=0.5, prior_precision=P[None], max_iterations=8, embedding_order=4)
+    kw = dict(n_states=2, kernel_width=0.5, prior_precision=P[None],
+              settings=L.LearningSettings(max_iterations=8, embedding_order=4))
     batch = L.learn_batch(np.stack([log0.outputs, log1.outputs]), np.stack([log0.inputs, log1.inputs]), DT,
                           prior_mean=eta, **kw)
     for k, log in enumerate((log0, log1)):
@@ -183,7 +186,7 @@ def test_identification_system_learns_a_and_b():
     start[free] = np.random.default_rng(1).uniform(-2, 2, 6)
     result = L.identify(system_from_parameters(start, system), log.outputs, log.inputs, DT, kernel_width=0.5,
                         free=free, prior_precision=np.where(free, np.exp(6), KNOWN_INPUT_PRECISION),
-                        noise_prior_precision=np.exp(3), max_iterations=20)
+                        settings=L.LearningSettings(noise_prior_precision=np.exp(3), max_iterations=20))
     assert np.abs(result.parameters[free] - theta[free]).max() < 0.1
     assert abs(result.log_precision[0] - 8.0) < 0.5
 
@@ -213,14 +216,16 @@ def test_log_without_excitation_is_rejected():
 def test_zero_input_with_free_b_warns():
     system, log = _msd_log(n=100)
     with pytest.warns(L.IdentifiabilityWarning, match="inputs are identically zero"):
-        L.identify(system, log.outputs, np.zeros((100, 1)), DT, kernel_width=0.5, free=FREE_MSD, max_iterations=2)
+        L.identify(system, log.outputs, np.zeros((100, 1)), DT, kernel_width=0.5, free=FREE_MSD,
+                   settings=L.LearningSettings(max_iterations=2))
 
 
 def test_unidentifiable_model_warns():
     """A, B and C all free: a change of state basis leaves the input-output behaviour unchanged."""
     system, log = _msd_log(n=100)
     with pytest.warns(L.IdentifiabilityWarning, match="determines only"):
-        L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5, free=np.ones(8, bool), max_iterations=2)
+        L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5, free=np.ones(8, bool),
+                   settings=L.LearningSettings(max_iterations=2))
 
 
 @pytest.mark.parametrize("field, kwargs, match", [
@@ -229,15 +234,18 @@ def test_unidentifiable_model_warns():
     ("outputs", dict(outputs=np.full((100, 1), np.nan)), "outputs: expected finite"),
     ("free", dict(free=["A[3,1]"]), "unknown parameter"),
     ("dt", dict(dt=-1.0), "dt"),
-    ("noise_prior_precision", dict(noise_prior_precision=0.0), "noise_prior_precision"),
+    ("noise_prior_precision", dict(settings=dict(noise_prior_precision=0.0)), "noise_prior_precision"),
     ("outputs", dict(outputs=np.ones((10, 1)), inputs=np.ones((10, 1))), "at least"),
-    ("embedding_order", dict(embedding_order=0), "embedding_order: expected p >= 1"),
+    ("embedding_order", dict(settings=dict(embedding_order=0)), "embedding_order: expected p >= 1"),
+    ("settings", dict(settings={"max_iterations": 5}, raw=True), "settings: expected a LearningSettings"),
 ])
 def test_bad_input_names_the_field(field, kwargs, match):
     system, log = _msd_log(n=100)
     args = dict(outputs=log.outputs, inputs=log.inputs, dt=DT, free=FREE_MSD)
     args.update(kwargs)
     with pytest.raises(AttendInputError, match=match):
+        if "settings" in args and not args.pop("raw", False):
+            args["settings"] = L.LearningSettings(**args["settings"])
         L.identify(system, args.pop("outputs"), args.pop("inputs"), args.pop("dt"), kernel_width=0.5, **args)
 
 
@@ -247,7 +255,8 @@ def test_divergence_stops_with_a_message_and_the_last_accepted_estimate():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", L.IdentifiabilityWarning)
         with pytest.warns(L.LearningWarning, match=r"iteration \d+"):
-            result = L.identify(system, huge, log.inputs, DT, kernel_width=0.5, free=FREE_MSD, max_iterations=5)
+            result = L.identify(system, huge, log.inputs, DT, kernel_width=0.5, free=FREE_MSD,
+                                settings=L.LearningSettings(max_iterations=5))
     assert "step" in result.message
     assert np.all(np.isfinite(result.parameters))
     np.testing.assert_allclose(result.parameters, parameter_vector(system))
@@ -304,7 +313,7 @@ def test_path_mode_free_energy_rises_and_recovers_the_damping():
     errors = {}
     for states in ("sample", "path"):
         res = L.learn_batch(Y, U, DT, n_states=2, kernel_width=0.5, prior_mean=random_priors(seeds), prior_precision=P,
-                            max_iterations=40, states=states)
+                            settings=L.LearningSettings(max_iterations=40, states=states))
         steps = np.diff(res.free_energy, axis=1)
         assert np.all(steps[np.isfinite(steps)] >= 0)
         errors[states] = np.median(np.abs(res.parameters[:, FREE_MSD] - theta[FREE_MSD]) / np.abs(theta[FREE_MSD]), axis=0)
@@ -318,7 +327,8 @@ def test_path_mode_free_energy_rises_and_recovers_the_damping():
 def test_unknown_states_mode_is_rejected():
     system, log = _msd_log(seed=0, n=100)
     with pytest.raises(AttendInputError, match="states"):
-        L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5, free=FREE_MSD, states="window")
+        L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5, free=FREE_MSD,
+                   settings=L.LearningSettings(states="window"))
 
 
 def test_path_posterior_marks_only_the_failing_run():
@@ -363,7 +373,7 @@ def test_path_mode_warns_above_order_six():
     with pytest.warns(L.LearningWarning, match="ill-conditioned"):
         L.learn_batch(log.outputs[None], log.inputs[None], DT, n_states=2, kernel_width=0.5,
                       prior_mean=parameter_vector(system)[None], prior_precision=np.where(FREE_MSD, 1.0, KNOWN_PRIOR_PRECISION)[None],
-                      embedding_order=8, max_iterations=1, states="path")
+                      settings=L.LearningSettings(embedding_order=8, max_iterations=1, states="path"))
 
 
 from conftest import QUADROTOR_DATA as QUADROTOR  # noqa: E402  (../shared beside the clone, or ATTEND_SHARED)
@@ -378,13 +388,12 @@ def test_readme_learning_section_converges_on_real_flights(flight):
     import sys
 
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).parents[2] / "benchmarks"))
-    from bench_identify_flights import DT, LEARNING, PRIOR, load
+    from bench_identify_flights import DT, LEARNING, PRIOR, SETTINGS, load
 
     y, u, _ = load(QUADROTOR / f"{flight}.csv", 399, 1200)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", L.IdentifiabilityWarning)
-        result = L.identify(PRIOR, y, u, DT, kernel_width=0.006, embedding_order=6, input_order=2,
-                            precision_convention="max", states="sample", **LEARNING)
+        result = L.identify(PRIOR, y, u, DT, kernel_width=0.006, settings=SETTINGS, **LEARNING)
     assert result.converged, result.message
     trace = result.settings["free_energy_trace"]
     assert np.all(np.diff(trace) >= 0)
@@ -405,16 +414,20 @@ def test_readme_learning_section_converges_on_real_flights(flight):
 def test_top_order_option_is_validated_and_reported():
     system, log = _msd_log(seed=0, n=120)
     kw = dict(n_states=2, kernel_width=0.5, prior_mean=parameter_vector(system)[None],
-              prior_precision=np.where(FREE_MSD, 1.0, KNOWN_PRIOR_PRECISION)[None], max_iterations=3)
+              prior_precision=np.where(FREE_MSD, 1.0, KNOWN_PRIOR_PRECISION)[None])
     with pytest.raises(AttendInputError, match="top_order"):
-        L.learn_batch(log.outputs[None], log.inputs[None], DT, top_order="zero", **kw)
-    truncate = L.learn_batch(log.outputs[None], log.inputs[None], DT, top_order="truncate", **kw)
-    marginal = L.learn_batch(log.outputs[None], log.inputs[None], DT, top_order="marginal", **kw)
+        L.learn_batch(log.outputs[None], log.inputs[None], DT, settings=L.LearningSettings(top_order="zero"), **kw)
+    truncate = L.learn_batch(log.outputs[None], log.inputs[None], DT,
+                             settings=L.LearningSettings(top_order="truncate", max_iterations=3), **kw)
+    marginal = L.learn_batch(log.outputs[None], log.inputs[None], DT,
+                             settings=L.LearningSettings(top_order="marginal", max_iterations=3), **kw)
     assert not np.allclose(truncate.free_energy[0, -1], marginal.free_energy[0, -1])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", L.IdentifiabilityWarning)
-        result = L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5, max_iterations=2)
-        path = L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5, max_iterations=2, states="path")
+        result = L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5,
+                            settings=L.LearningSettings(max_iterations=2))
+        path = L.identify(system, log.outputs, log.inputs, DT, kernel_width=0.5,
+                          settings=L.LearningSettings(max_iterations=2, states="path"))
     assert result.settings["top_order"] == "marginal" and path.settings["top_order"] == "truncate"
 
 
@@ -426,10 +439,11 @@ def _default_learner_theta3_seed0() -> float:
     std = np.exp(-cfg["noise_log_precision"] / 2)
     Y, U = fig3.msd_logs(np.arange(1), std, std, cfg["dt"], cfg["duration"], cfg["kernel_width"])
     P = np.where(fig3.MSD_FREE, cfg["free_prior_precision"], KNOWN_PRIOR_PRECISION)[None]
+    settings = L.LearningSettings(noise_prior_mean=cfg["noise_prior_mean"], noise_prior_precision=cfg["noise_prior_precision"],
+                                  embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"])
     result = L.learn_batch(Y, U, cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"],
-                           prior_mean=fig3.msd_random_priors(np.arange(1)), prior_precision=P,
-                           noise_prior_mean=cfg["noise_prior_mean"], noise_prior_precision=cfg["noise_prior_precision"],
-                           embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"], progress=False)
+                           prior_mean=fig3.msd_random_priors(np.arange(1)), prior_precision=P, settings=settings,
+                           progress=False)
     return float(result.parameters[0, 2])
 
 
@@ -438,7 +452,7 @@ def test_paper_reproduction_numbers_are_the_published_learners():
     over-relaxation, Newton and scaling changes (values from main before they were made)."""
     from attend.experiments import fig3
 
-    assert L.PAPER_LEARNER == dict(top_order="truncate", overrelax=False, newton=False, scaled=False)
+    assert L.PAPER_LEARNER == L.LearningSettings(top_order="truncate", overrelax=False, newton=False, scaled=False)
     got = {m.name: m.value for m in fig3.run(quick=True, progress=False).metrics}
     # Tolerances from the computation's conditioning, not from the digits one machine printed.
     # Seed 0 runs all 40 iterations; each E-step solves with a curvature whose condition number is
@@ -472,13 +486,12 @@ def test_readme_example_converges_on_the_whole_bundled_flight():
     import sys
 
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).parents[2] / "benchmarks"))
-    from bench_identify_flights import DT as DT_FLIGHT, LEARNING, PRIOR
+    from bench_identify_flights import DT as DT_FLIGHT, LEARNING, PRIOR, SETTINGS
 
     y, u = _bundled_flight()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", L.IdentifiabilityWarning)
-        result = L.identify(PRIOR, y, u, DT_FLIGHT, kernel_width=0.006, embedding_order=6, input_order=2,
-                            precision_convention="max", **LEARNING)
+        result = L.identify(PRIOR, y, u, DT_FLIGHT, kernel_width=0.006, settings=SETTINGS, **LEARNING)
     assert result.converged and result.iterations < 50, result.message
     assert np.all(np.diff(result.settings["free_energy_trace"]) >= 0)
     known = ~result.free
@@ -493,28 +506,28 @@ def test_drifting_known_entries_are_named():
     import sys
 
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).parents[2] / "benchmarks"))
-    from bench_identify_flights import DT as DT_FLIGHT, LEARNING, PRIOR
+    from bench_identify_flights import DT as DT_FLIGHT, LEARNING, PRIOR, SETTINGS
 
     y, u = _bundled_flight()
     start = parameter_vector(PRIOR)
     start[parameter_names(PRIOR).index("C[1,2]")] = 0.02
     with pytest.warns(L.IdentifiabilityWarning, match=r"known entries moved .*C\[1,2\]"):
-        result = L.identify(PRIOR, y, u, DT_FLIGHT, kernel_width=0.006, embedding_order=6, input_order=2,
-                            precision_convention="max", initial=start,
-                            **dict(LEARNING, known_prior_precision=3.3e6, max_iterations=2))
+        result = L.identify(PRIOR, y, u, DT_FLIGHT, kernel_width=0.006, initial=start,
+                            settings=replace(SETTINGS, max_iterations=2),
+                            **dict(LEARNING, known_prior_precision=3.3e6))
     assert not result.converged and "known_prior_precision = inf" in result.message
 
 
 def test_identify_accepts_a_python_control_statespace():
     """The prior system may be a python-control StateSpace (converted with from_statespace)."""
     control = pytest.importorskip("control")
-    from attend import identify, mass_spring_damper, simulate
+    from attend import LearningSettings, identify, mass_spring_damper, simulate
 
     system = mass_spring_damper()
     t = np.arange(200) * 0.1
     u = np.exp(-0.25 * (t - 8) ** 2)[:, None]
     log = simulate(system, u, 0.1, kernel_width=0.5, process_std=np.exp(-4), measurement_std=np.exp(-4), seed=0)
-    settings = dict(kernel_width=0.5, free=["A[2,1]"], max_iterations=3)
-    from_statespace = identify(control.ss(system.A, system.B, system.C, 0), log.outputs, u, 0.1, **settings)
-    direct = identify(system, log.outputs, u, 0.1, **settings)
+    options = dict(kernel_width=0.5, free=["A[2,1]"], settings=LearningSettings(max_iterations=3))
+    from_statespace = identify(control.ss(system.A, system.B, system.C, 0), log.outputs, u, 0.1, **options)
+    direct = identify(system, log.outputs, u, 0.1, **options)
     np.testing.assert_allclose(from_statespace.system().A, direct.system().A)

@@ -5,7 +5,7 @@ import pytest
 
 from attend._validation import AttendInputError
 from attend.models import simulate_nonlinear
-from attend.perception.learning import learn_batch
+from attend.perception.learning import LearningSettings, learn_batch
 from attend.perception.nonlinear import ParametrisedSystem, learn_nonlinear
 
 # --- a linear model written as f, g: theta = [A[2,1], A[2,2], B[2,1]] ------------------------
@@ -53,8 +53,9 @@ def test_linear_model_agrees_with_the_linear_learner():
     free = [2, 3, 5]
     theta_eta[free], P_lin[free] = eta, P
     theirs = learn_batch(y[None], u[None], dt, n_states=2, kernel_width=s, prior_mean=theta_eta[None],
-                         prior_precision=P_lin[None], embedding_order=4, noise_prior_mean=(6.0, 6.0), tolerance=1e-6,
-                         max_iterations=400, top_order="marginal", newton=True)
+                         prior_precision=P_lin[None],
+                         settings=LearningSettings(embedding_order=4, noise_prior_mean=(6.0, 6.0), tolerance=1e-6,
+                                                   max_iterations=400, top_order="marginal", newton=True))
     assert ours.converged and theirs.converged[0]
     std_ours = 1 / np.sqrt(np.diag(ours.parameter_precision))
     std_theirs = 1 / np.sqrt(np.diag(theirs.parameter_precision[0])[free])

@@ -51,11 +51,12 @@ def test_full_schedule_puts_the_rhythm_on_the_free_entries_only():
 
 def test_constant_schedule_equals_learn_batch_with_that_fixed_prior_precision():
     Y, U, eta = _logs()
-    kw = dict(n_states=2, kernel_width=0.5, prior_mean=eta, embedding_order=4)
+    kw = dict(n_states=2, kernel_width=0.5, prior_mean=eta)
     fixed = L.learn_batch(Y, U, DT, prior_precision=np.where(FREE, 3.0, L.KNOWN_PRIOR_PRECISION)[None],
-                          max_iterations=12, **kw)
+                          settings=L.LearningSettings(embedding_order=4, max_iterations=12), **kw)
     constant = prior_precision_sequence(FixedSchedule(multiplier=3.0), 12)
-    scheduled = learn_scheduled(Y, U, DT, free_schedule=constant, free=FREE, **kw)
+    scheduled = learn_scheduled(Y, U, DT, free_schedule=constant, free=FREE,
+                                settings=L.LearningSettings(embedding_order=4), **kw)
     for a, b in zip(fixed, scheduled):
         if isinstance(a, tuple):
             for x, y in zip(a, b):
@@ -69,13 +70,14 @@ def test_rhythmic_schedule_changes_the_learning_and_each_iteration_uses_its_prio
     osc = PrecisionOscillator(frequency=0.25, depth=5.0, baseline_multiplier=10.0)
     sched = prior_precision_sequence(RhythmicSchedule(osc), 8)
     res = learn_scheduled(Y, U, DT, free_schedule=sched, free=FREE, prior_mean=eta, n_states=2, kernel_width=0.5,
-                          embedding_order=4)
+                          settings=L.LearningSettings(embedding_order=4))
     assert res.iterations.tolist() == [8, 8]  # no early stop while the schedule still moves
     # the posterior precision of a free entry is H + P_theta(k): it moves with the schedule
     info = res.precision_history[:, 1:, FREE] - sched[None, :, None]
     assert np.all(info > 0)
-    fixed = L.learn_batch(Y, U, DT, n_states=2, kernel_width=0.5, prior_mean=eta, embedding_order=4,
-                          prior_precision=np.where(FREE, 10.0, L.KNOWN_PRIOR_PRECISION)[None], max_iterations=8)
+    fixed = L.learn_batch(Y, U, DT, n_states=2, kernel_width=0.5, prior_mean=eta,
+                          prior_precision=np.where(FREE, 10.0, L.KNOWN_PRIOR_PRECISION)[None],
+                          settings=L.LearningSettings(embedding_order=4, max_iterations=8))
     assert not np.allclose(res.parameters, fixed.parameters)
 
 
@@ -84,7 +86,7 @@ def test_bad_schedules_are_rejected():
     with pytest.raises(AttendInputError, match="free_schedule"):
         prior_precision_per_entry([1.0, -1.0], FREE)
     with pytest.raises(AttendInputError, match="one row per iteration"):
-        L.learn_batch(Y, U, DT, n_states=2, kernel_width=0.5, prior_mean=eta, max_iterations=5,
+        L.learn_batch(Y, U, DT, n_states=2, kernel_width=0.5, prior_mean=eta, settings=L.LearningSettings(max_iterations=5),
                       prior_precision=prior_precision_per_entry(np.ones(4), FREE, n_runs=2))
     with pytest.raises(AttendInputError, match="n_iterations"):
         prior_precision_sequence(RhythmicSchedule(PrecisionOscillator()), 0)

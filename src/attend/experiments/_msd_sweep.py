@@ -4,6 +4,7 @@ that run here or on a Dask cluster (:func:`attend.sweep.run_tasks`) with the sam
 
 from __future__ import annotations
 
+from dataclasses import replace
 import numpy as np
 
 from attend.constants import KNOWN_PRIOR_PRECISION
@@ -47,8 +48,8 @@ def learn_msd_runs(task: dict) -> dict:
     P = np.where(MSD_FREE[None], np.asarray(task["prior_precision"], dtype=float)[:, None], KNOWN_PRIOR_PRECISION)
     result = learn_batch(Y, U, cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"],
                          prior_mean=np.asarray(task["prior_mean"], dtype=float), prior_precision=P,
-                         embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"],
-                         **PAPER_LEARNER)
+                         settings=replace(PAPER_LEARNER, embedding_order=cfg["embedding_order"],
+                                          max_iterations=cfg["iterations"]))
     return dict(parameters=result.parameters, log_precision=result.log_precision,
                 iterations=result.iterations, parameter_history=result.parameter_history)
 

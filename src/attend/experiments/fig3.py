@@ -19,6 +19,7 @@ which halves the error of the damping theta4.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -46,11 +47,10 @@ def run(quick: bool = True, progress: bool = True) -> ExperimentResult:
     Y, U = msd_logs(seeds, std, std, cfg["dt"], cfg["duration"], cfg["kernel_width"])
     eta = msd_random_priors(seeds)
     P = np.where(MSD_FREE, cfg["free_prior_precision"], KNOWN_PRIOR_PRECISION)[None].repeat(len(seeds), 0)
+    learner = replace(PAPER_LEARNER, embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"],
+                       noise_prior_mean=cfg["noise_prior_mean"], noise_prior_precision=cfg["noise_prior_precision"])
     result = learn_batch(Y, U, cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"], prior_mean=eta,
-                         prior_precision=P, noise_prior_mean=cfg["noise_prior_mean"],
-                         noise_prior_precision=cfg["noise_prior_precision"],
-                         embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"],
-                         progress=progress, **PAPER_LEARNER)
+                         prior_precision=P, settings=learner, progress=progress)
     out = ExperimentResult("fig3", settings=cfg)
     positions = {"theta3": 2, "theta4": 3, "theta6": 5}
     for name, j in positions.items():
@@ -61,10 +61,7 @@ def run(quick: bool = True, progress: bool = True) -> ExperimentResult:
         out.add(f"{name}_median_relative_error", np.median(rel), "", None)
     # the same logs and priors learned in path mode (one state trajectory, data counted once)
     path = learn_batch(Y, U, cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"], prior_mean=eta,
-                       prior_precision=P, noise_prior_mean=cfg["noise_prior_mean"],
-                       noise_prior_precision=cfg["noise_prior_precision"],
-                       embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"],
-                       states="path", progress=progress, **PAPER_LEARNER)
+                       prior_precision=P, settings=replace(learner, states="path"), progress=progress)
     for name, j in positions.items():
         rel = np.abs(path.parameters[:, j] - theta_true[j]) / abs(theta_true[j])
         out.add(f"{name}_median_relative_error_path_mode", np.median(rel), "", None)

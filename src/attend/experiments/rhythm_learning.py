@@ -36,6 +36,7 @@ cent in the middle noise levels and loses 25-47 % at the ends.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -91,8 +92,8 @@ def learn_schedule_runs(task: dict) -> dict:
     P = prior_precision_per_entry(np.asarray(task["schedule"], dtype=float), FREE, KNOWN_PRECISION)
     result = learn_batch(Y, U, cfg["dt"], n_states=2, kernel_width=cfg["kernel_width"],
                          prior_mean=np.asarray(task["prior_mean"], dtype=float), prior_precision=P,
-                         embedding_order=cfg["embedding_order"], max_iterations=cfg["iterations"],
-                         **PAPER_LEARNER)
+                         settings=replace(PAPER_LEARNER, embedding_order=cfg["embedding_order"],
+                                          max_iterations=cfg["iterations"]))
     return dict(parameters=result.parameters, log_precision=result.log_precision)
 
 

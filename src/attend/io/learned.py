@@ -23,7 +23,7 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
     [observer] embedding_order of "auto" means :func:`auto_identification_order` here. model: the
     parsed model file; log: the CSV log; progress: show a progress bar over the iterations.
     """
-    from attend.perception.learning import identify
+    from attend.perception.learning import LearningSettings, identify
 
     if model.nonlinear:
         raise AttendInputError(f"{model.path}: this is a nonlinear model ([model] python): use "
@@ -49,22 +49,21 @@ def identify_from_files(model: ModelFile, log: Log, *, progress: bool = False):
         )
     window = max(model.learning_order, model.input_order) + 1
     dt = _check_samples(model, log, 3 * window, f"3 embedding windows of order {window - 1}")
-    settings = dict(model.learning or {})
-    options = {key: settings[key] for key in (
-        "free", "free_prior_precision", "known_prior_precision", "noise_prior_mean", "noise_prior_precision",
-        "max_iterations", "tolerance", "states", "top_order") if key in settings}
-    if "noise_prior_mean" in options:
-        options["noise_prior_mean"] = tuple(np.atleast_1d(options["noise_prior_mean"]))
+    learning = dict(model.learning or {})
+    problem = {key: learning[key] for key in ("free", "free_prior_precision", "known_prior_precision")
+               if key in learning}
+    options = {key: learning[key] for key in ("noise_prior_mean", "noise_prior_precision", "max_iterations",
+                                              "tolerance", "states", "top_order") if key in learning}
     if model.kernel_width is None or model.kernel_width == 0:
         raise AttendInputError(f"{model.path}: [observer] kernel_width: identify needs one kernel width > 0 [s] for "
                                "both noises (separate or white widths are for attend estimate only)")
     try:
         order = (auto_identification_order(model.kernel_width, dt) if model.embedding_order == "auto"
                  else model.learning_order)
-        return identify(model.system, outputs, inputs, dt, kernel_width=model.kernel_width,
-                        embedding_order=order,
-                        input_order=model.input_order,
-                        precision_convention=model.precision_convention, progress=progress, **options)
+        settings = LearningSettings(embedding_order=order, input_order=model.input_order,
+                                    precision_convention=model.precision_convention, **options)
+        return identify(model.system, outputs, inputs, dt, kernel_width=model.kernel_width, settings=settings,
+                        progress=progress, **problem)
     except AttendInputError as error:
         raise AttendInputError(_in_file_terms(str(error), model, log)) from None
 
@@ -84,7 +83,7 @@ def auto_identification_order(kernel_width: float, dt: float) -> int:
 
 
 _LEARNING_FIELDS = ("free", "prior_precision", "initial", "noise_prior_mean", "noise_prior_precision",
-                    "max_iterations", "tolerance", "states")
+                    "max_iterations", "tolerance", "states", "top_order")
 
 
 def _in_file_terms(message: str, model: ModelFile, log: Log) -> str:

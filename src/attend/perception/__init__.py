@@ -7,8 +7,8 @@ Entry points (re-exported here and from :mod:`attend`):
   :class:`DEMEstimate` (:mod:`attend.perception.dem`);
 - :class:`KalmanEstimator` and :class:`OnlineKalman`, results :class:`StateEstimate`
   (:mod:`attend.perception.kalman`);
-- :func:`identify` and :func:`learn_batch`, results :class:`IdentificationResult`
-  (:mod:`attend.perception.learning`);
+- :func:`identify` and :func:`learn_batch` with their settings :class:`LearningSettings`, results
+  :class:`IdentificationResult` (:mod:`attend.perception.learning`);
 - :class:`NonlinearDEM` for a :class:`attend.models.NonlinearSystem` (:mod:`attend.perception.nonlinear`).
 
 Smoothers for nonlinear models besides DEM (the unscented Kalman smoother, the default of a
@@ -31,6 +31,7 @@ _EXPORTS = {
     "IdentificationResult": "attend.perception.learning",
     "identify": "attend.perception.learning",
     "learn_batch": "attend.perception.learning",
+    "LearningSettings": "attend.perception.learning",
     "KalmanEstimator": "attend.perception.kalman",
     "OnlineKalman": "attend.perception.kalman",
     "StateEstimate": "attend.perception.kalman",
@@ -42,6 +43,7 @@ __all__ = [
     "DEMObserver",
     "IdentificationResult",
     "KalmanEstimator",
+    "LearningSettings",
     "NonlinearDEM",
     "OnlineDEM",
     "OnlineKalman",

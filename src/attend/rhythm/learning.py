@@ -24,10 +24,12 @@ schedule as a prior precision of shape (R, n_iterations, n_theta), batched over 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from attend._validation import AttendInputError
-from attend.perception.learning import KNOWN_PRIOR_PRECISION, BatchLearningResult, learn_batch
+from attend.perception.learning import KNOWN_PRIOR_PRECISION, BatchLearningResult, LearningSettings, learn_batch
 from attend.rhythm.schedule import FixedSchedule, RhythmicSchedule
 
 __all__ = ["learn_scheduled", "prior_precision_per_entry", "prior_precision_sequence"]
@@ -73,21 +75,22 @@ def prior_precision_per_entry(free_schedule, free, known_prior_precision: float 
 
 
 def learn_scheduled(outputs, inputs, dt: float, *, free_schedule, free, prior_mean, n_states: int,
-                    kernel_width: float, known_prior_precision: float = KNOWN_PRIOR_PRECISION,
-                    **learn_kwargs) -> BatchLearningResult:
+                    kernel_width: float, known_prior_precision: float = KNOWN_PRIOR_PRECISION, initial=None,
+                    settings: LearningSettings | None = None, progress: bool = False) -> BatchLearningResult:
     """learn_batch of R runs with P_theta of the free entries following ``free_schedule``.
 
     free_schedule (n_iterations,) or (R, n_iterations), e.g. from :func:`prior_precision_sequence`;
-    the number of iterations is its length; free: bool mask of the learned entries. outputs
-    (R, T, m), inputs (R, T, r), sampling interval dt [s], prior_mean eta_theta (R, n_theta),
-    n_states, kernel_width and known_prior_precision as in
-    :func:`attend.perception.learning.learn_batch` (which gets the other keywords).
-    A constant schedule gives exactly learn_batch with that fixed P_theta.
+    the number of iterations is its length (it replaces ``settings.max_iterations``); free: bool
+    mask of the learned entries. outputs (R, T, m), inputs (R, T, r), sampling interval dt [s],
+    prior_mean eta_theta (R, n_theta), n_states, kernel_width, initial, settings and progress as
+    in :func:`attend.perception.learning.learn_batch`; known_prior_precision: P_theta of the
+    entries that are not free. A constant schedule gives exactly learn_batch with that fixed P_theta.
     """
     outputs = np.asarray(outputs, dtype=float)
     R = outputs.shape[0]
     P = prior_precision_per_entry(free_schedule, free, known_prior_precision, n_runs=R)
-    if "max_iterations" in learn_kwargs:
-        raise AttendInputError("max_iterations: set by the length of free_schedule")
+    if settings is not None and not isinstance(settings, LearningSettings):
+        raise AttendInputError(f"settings: expected a LearningSettings, got {type(settings).__name__}")
+    settings = replace(settings or LearningSettings(), max_iterations=P.shape[1])
     return learn_batch(outputs, inputs, dt, n_states=n_states, kernel_width=kernel_width, prior_mean=prior_mean,
-                       prior_precision=P, max_iterations=P.shape[1], **learn_kwargs)
+                       prior_precision=P, initial=initial, settings=settings, progress=progress)

@@ -65,18 +65,20 @@ marginalises the top-order motion error (x^(p+1) is not modelled): W keeps the p
 inv(V[:p, :p]) of orders 0..p-1 and counts p n dimensions, which keeps F bounded in lambda_w at
 high sampling rates. (3) Over-relaxation: after each D-E-M sweep its total move in (theta, lambda)
 is extended beta times (beta doubling on success, reset on failure), accepted only if F rises.
-(4) ``newton=True`` (the default of :func:`identify`, off in :func:`learn_batch`): once sweeps creep
-(gain < NEWTON_CREEP |F|), a Levenberg-Marquardt step on the collapsed F*(theta, lambda) = max_q F,
-gradient by the envelope theorem, Hessian by differences; accepted only if F rises.
+(4) Newton: once sweeps creep (gain < NEWTON_CREEP |F|), a Levenberg-Marquardt step on the
+collapsed F*(theta, lambda) = max_q F, gradient by the envelope theorem, Hessian by differences;
+accepted only if F rises.
 
-Options. ``top_order`` ("marginal" | "truncate"): "truncate" is the paper's eq. 8 (x^(p+1) set to
-0, all p + 1 orders of the motion error carry precision); "marginal" is (2). ``overrelax``,
-``newton`` and ``scaled`` switch (3), (4) and (1). Defaults: :func:`identify` (and
-``attend identify``) use top_order="marginal" in sample mode ("truncate" in path mode),
-overrelax, newton and scaled coordinates; :func:`learn_batch` the same except newton=False.
-``PAPER_LEARNER`` = dict(top_order="truncate", overrelax=False, newton=False, scaled=False) is the
-learner as published; the paper reproductions pass it explicitly. :func:`identify` warns
-(IdentifiabilityWarning) when an entry given a large ("known") prior precision ends more than
+Options: the fields of :class:`LearningSettings`, the one settings value :func:`identify` and
+:func:`learn_batch` take (its docstring describes every field). ``top_order`` ("marginal" |
+"truncate"): "truncate" is the paper's eq. 8 (x^(p+1) set to 0, all p + 1 orders of the motion
+error carry precision); "marginal" is (2). ``overrelax``, ``newton`` and ``scaled`` switch (3),
+(4) and (1). Defaults: top_order="marginal" in sample mode ("truncate" in path mode), overrelax
+and scaled coordinates; newton on in :func:`identify` (and ``attend identify``), off in
+:func:`learn_batch` (``newton=None``, the default, means the function's own).
+``PAPER_LEARNER`` = LearningSettings(top_order="truncate", overrelax=False, newton=False,
+scaled=False) is the learner as published; the paper reproductions pass it explicitly.
+:func:`identify` warns (IdentifiabilityWarning) when an entry given a large ("known") prior precision ends more than
 KNOWN_DISPLACED_STD prior std from its mean: the data then outweigh that prior, and freeing an
 unobservable direction lets F grow without bound.
 
@@ -98,7 +100,7 @@ All numerics are batched over a leading axis of independent runs (seeds, prior p
 noise levels) sharing one model structure: see :func:`learn_batch`.
 
 Layout of this package (public names are re-exported here):
-:mod:`.problem` the embedded logs, the structure runs
+:mod:`.settings` :class:`LearningSettings`; :mod:`.problem` the embedded logs, the structure runs
 share, Pi_X; :mod:`.path` path-mode block-tridiagonal algebra; :mod:`.free_energy` F and its
 pieces; :mod:`.steps` the D, E and M steps (and the extra moves); :mod:`.batch` the batched loop
 :func:`learn_batch`; :mod:`.identification` :func:`identify`. The N4SID and EM baselines and the
@@ -107,9 +109,10 @@ basis-invariant error metrics live with the other references (:mod:`attend.perce
 """
 
 from attend.constants import KNOWN_PRIOR_PRECISION
-from attend.perception.learning.batch import PAPER_LEARNER, BatchLearningResult, learn_batch
+from attend.perception.learning.batch import BatchLearningResult, learn_batch
 from attend.perception.learning.identification import KNOWN_DISPLACED_STD, IdentificationResult, identify
 from attend.perception.learning.problem import IdentifiabilityWarning, LearningWarning
+from attend.perception.learning.settings import PAPER_LEARNER, LearningSettings
 from attend.perception.learning.steps import NEWTON_CREEP
 from attend.perception.references import identification as _baselines
 from attend.perception.references.identification import (  # re-exported: the baselines of identify
@@ -117,6 +120,7 @@ from attend.perception.references.identification import (  # re-exported: the ba
 
 __all__ = [
     "PAPER_LEARNER",
+    "LearningSettings",
     "IdentificationResult",
     "BatchLearningResult",
     "IdentifiabilityWarning",

@@ -25,10 +25,7 @@ from attend.perception.learning.steps import (
     start,
 )
 from attend.perception.learning.problem import LearningWarning
-
-#: The learner exactly as published (eq. 8 with the top-order motion error truncated, plain D-E-M
-#: sweeps): what the paper reproductions (fig3, fig4, fig5, rhythm-learning) pass to learn_batch
-PAPER_LEARNER = dict(top_order="truncate", overrelax=False, newton=False, scaled=False)
+from attend.perception.learning.settings import LearningSettings, _resolved
 
 
 class BatchLearningResult(NamedTuple):
@@ -69,49 +66,30 @@ def learn_batch(
     prior_mean: np.ndarray,
     prior_precision: np.ndarray,
     initial: np.ndarray | None = None,
-    noise_prior_mean=(0.0, 0.0),
-    noise_prior_precision=(1.0, 1.0),
-    embedding_order: int = 6,
-    input_order: int | None = None,
-    max_iterations: int = 50,
-    tolerance: float = 1e-3,
-    integration_time: float = 10.0,
-    noise_integration_time: float = 4.0,
-    noise_iterations: int = 8,
-    trim_edges: bool = True,
-    precision_convention: str = "size",
-    states: str = "sample",
+    settings: LearningSettings | None = None,
     progress: bool = False,
-    overrelax: bool = True,
-    newton: bool = False,
-    top_order: str | None = None,
-    scaled: bool = True,
 ) -> BatchLearningResult:
     """Alternating D/E/M learning of R independent runs at once (see the package docstring of attend.perception.learning).
 
-    outputs (R, T, m) and inputs (R, T, r) sampled at dt [s]; prior_mean eta_theta and
-    prior_precision P_theta (R, n_theta) in the order of :func:`parameter_names` (P_theta = inf
-    holds an entry fixed; all runs must fix the same entries); prior_precision may also be a
-    schedule (R, max_iterations, n_theta): row i is the P_theta of iteration i + 1 (its E-step
-    and the free energy it maximises; the learning schedules of attend.rhythm.learning),
-    and a run then converges only once its schedule stays constant; initial theta (R, n_theta)
-    (default eta_theta); noise_prior_mean eta_lambda and noise_prior_precision P_lambda,
-    (2,) or (R, 2), for [lambda_z, lambda_w] (P_lambda = inf holds lambda fixed at eta_lambda);
-    tolerance: a run has converged when one whole D-E-M iteration raises F by less than this
-    [nats]. ``states``: "sample" (the paper's eq. 8) or "path" (package docstring, "Path mode").
-    n_states n; kernel_width s [s]; embedding_order p; input_order (default p); integration_time
-    L of the E-step; noise_integration_time and noise_iterations of the M-step; trim_edges,
-    precision_convention, progress: as :func:`identify`; overrelax, newton, top_order, scaled: the
-    options (3), (4), the top-order treatment and (1) of the package docstring.
+    outputs (R, T, m) and inputs (R, T, r) sampled at dt [s]; n_states n; kernel_width s [s] of
+    the noise's Gaussian kernel; prior_mean eta_theta and prior_precision P_theta (R, n_theta) in
+    the order of :func:`parameter_names` (P_theta = inf holds an entry fixed; all runs must fix
+    the same entries); prior_precision may also be a schedule (R, max_iterations, n_theta): row i
+    is the P_theta of iteration i + 1 (its E-step and the free energy it maximises; the learning
+    schedules of attend.rhythm.learning), and a run then converges only once its schedule stays
+    constant; initial theta (R, n_theta) (default eta_theta). ``settings``: a
+    :class:`LearningSettings` (embedding, noise prior, stopping rule, options; every run shares
+    it); None is ``LearningSettings()``, and its ``newton`` = None means off here. progress: show
+    a progress bar over the iterations.
     No Python loop over runs: every step is batched linear algebra over the leading axis.
-    Inputs are not validated here (see :func:`identify`).
+    The arrays are not validated here (see :func:`identify`).
     """
+    settings = _resolved(settings, newton=False)
     data, priors, theta0, P_schedule, constant_from = _setup(
-        outputs, inputs, dt, n_states, kernel_width, prior_mean, prior_precision, initial, noise_prior_mean,
-        noise_prior_precision, embedding_order, input_order, max_iterations, trim_edges, precision_convention,
-        states, top_order, scaled)
+        outputs, inputs, dt, n_states, kernel_width, prior_mean, prior_precision, initial, settings)
+    max_iterations = settings.max_iterations
     R, st = theta0.shape[0], data.st
-    L = np.full(R, float(integration_time))
+    L = np.full(R, settings.integration_time)
     beta = np.ones(R)
     point = start(theta0, priors.eta_lambda.copy(), data, priors)
     log = _Log(point, st.active, max_iterations)
@@ -126,15 +104,15 @@ def learn_batch(
         before = point
         point = log.take(d_step(point, live, data, priors), "D", it)
         point = log.take(e_step(point, live & ~log.stopped, data, priors, L), "E", it)
-        point = log.take(m_step(point, live & ~log.stopped, data, priors, noise_integration_time,
-                                noise_iterations), "M", it)
-        if overrelax:
+        point = log.take(m_step(point, live & ~log.stopped, data, priors, settings.noise_integration_time,
+                                settings.noise_iterations), "M", it)
+        if settings.overrelax:
             outcome, beta = overrelax_step(point, live & ~log.stopped, data, priors, before.state, beta)
             point = log.take(outcome, "over-relaxed", it)
-        if newton:  # only once the sweeps creep (a sweep gained < NEWTON_CREEP |F| nats)
+        if settings.newton:  # only once the sweeps creep (a sweep gained < NEWTON_CREEP |F|)
             creeping = (point.ev.F - before.ev.F) < NEWTON_CREEP * np.abs(point.ev.F)
             point = log.take(newton_step(point, live & ~log.stopped & creeping, data, priors), "over-relaxed", it)
-        log.end_iteration(it, live, point, before.ev.F, tolerance, constant_from[:, it - 1])
+        log.end_iteration(it, live, point, before.ev.F, settings.tolerance, constant_from[:, it - 1])
     return log.result(point, -curvature_default(priors.fisher, priors.P_lambda), max_iterations)
 
 
@@ -148,32 +126,29 @@ def _iterations(max_iterations: int, progress: bool, R: int):
     return iterator
 
 
-def _setup(outputs, inputs, dt, n_states, kernel_width, prior_mean, prior_precision, initial, noise_prior_mean,
-           noise_prior_precision, embedding_order, input_order, max_iterations, trim_edges, precision_convention,
-           states, top_order, scaled):
+def _setup(outputs, inputs, dt, n_states, kernel_width, prior_mean, prior_precision, initial,
+           settings: LearningSettings):
     """The embedded logs and their structure, the priors of the first iteration, the starting theta,
-    P_theta per iteration and when each run's P_theta stops changing (see :func:`_prior_schedule`)."""
-    if states not in ("sample", "path"):
-        raise AttendInputError(f"states: expected 'sample' or 'path', got {states!r}")
-    if states == "path" and embedding_order > 6:
-        warnings.warn(f"states='path' with embedding_order = {embedding_order}: the path precision is "
+    P_theta per iteration and when each run's P_theta stops changing (see :func:`_prior_schedule`);
+    ``settings`` resolved (:func:`_resolved`)."""
+    p = settings.embedding_order
+    if settings.states == "path" and p > 6:
+        warnings.warn(f"states='path' with embedding_order = {p}: the path precision is "
                       "ill-conditioned above p = 6 (condition number ~dt^-2p); estimates lose accuracy",
                       LearningWarning, stacklevel=3)
     outputs = np.asarray(outputs, dtype=float)
     inputs = np.asarray(inputs, dtype=float)
     R = outputs.shape[0]
-    eta, P_schedule, constant_from = _prior_schedule(prior_mean, prior_precision, R, max_iterations)
+    eta, P_schedule, constant_from = _prior_schedule(prior_mean, prior_precision, R, settings.max_iterations)
     active = np.isfinite(P_schedule[0, 0])
-    if top_order is None:  # sample mode's free per-sample states need it (package docstring); a path does not
-        top_order = "marginal" if states == "sample" else "truncate"
-    input_order = embedding_order if input_order is None else input_order
-    data = _Data(*_prepare(outputs, inputs, dt, kernel_width, embedding_order, input_order, active, n_states,
-                           trim_edges, precision_convention, states, top_order, scaled))
+    data = _Data(*_prepare(outputs, inputs, dt, kernel_width, p, settings.input_order, active, n_states,
+                           settings.trim_edges, settings.precision_convention, settings.states, settings.top_order,
+                           settings.scaled))
     st = data.st
     theta0 = eta.copy() if initial is None else np.broadcast_to(np.asarray(initial, dtype=float), eta.shape).copy()
     theta0[:, ~active] = eta[:, ~active]
-    lam_eta = np.broadcast_to(np.asarray(noise_prior_mean, dtype=float), (R, 2)).copy()
-    P_lam = np.broadcast_to(np.asarray(noise_prior_precision, dtype=float), (R, 2)).copy()
+    lam_eta = np.broadcast_to(np.asarray(settings.noise_prior_mean, dtype=float), (R, 2)).copy()
+    P_lam = np.broadcast_to(np.asarray(settings.noise_prior_precision, dtype=float), (R, 2)).copy()
     fisher = 0.5 * st.count * st.n_used * np.array([st.m * st.orders, st.n * st.w_orders], dtype=float)
     priors = _Priors(eta, P_schedule[:, 0].copy(), lam_eta, P_lam, fisher)
     return data, priors, theta0, P_schedule, constant_from

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from attend._validation import AttendInputError, as_matrix, order, positive_scalar
+from attend._validation import AttendInputError, as_matrix, positive_scalar
 from attend.constants import KNOWN_PRIOR_PRECISION
 from attend.models.linear import LinearSystem, as_linear_system, observability_rank
 from attend.models.parameters import (
@@ -20,6 +20,7 @@ from attend.models.parameters import (
 )
 from attend.perception.learning.batch import BatchLearningResult, learn_batch
 from attend.perception.learning.problem import IdentifiabilityWarning, LearningWarning
+from attend.perception.learning.settings import LearningSettings, _resolved
 
 KNOWN_DISPLACED_STD = 5.0  # identify warns when a known entry ends this many prior std from its mean
 
@@ -107,21 +108,8 @@ def identify(
     free_prior_precision: float = 1.0,
     known_prior_precision: float = KNOWN_PRIOR_PRECISION,
     initial=None,
-    noise_prior_mean=(0.0, 0.0),
-    noise_prior_precision=1.0,
-    embedding_order: int = 6,
-    input_order: int | None = None,
-    max_iterations: int = 50,
-    tolerance: float = 1e-3,
-    integration_time: float = 10.0,
-    trim_edges: bool = True,
-    precision_convention: str = "size",
-    states: str = "sample",
+    settings: LearningSettings | None = None,
     progress: bool = False,
-    overrelax: bool = True,
-    newton: bool = True,
-    top_order: str | None = None,
-    scaled: bool = True,
 ) -> IdentificationResult:
     """Learn the free entries of (A, B, C) and the noise precisions from a log.
 
@@ -131,49 +119,37 @@ def identify(
     over :func:`parameter_names`, names like "A[2,1]", or a dict of A/B/C masks; default: all of
     A and B). ``prior_precision`` P_theta per entry (same forms; default free_prior_precision on
     free entries and known_prior_precision = exp(15) on the others; inf holds an entry fixed).
-    noise_prior_mean eta_lambda and noise_prior_precision P_lambda for [lambda_z, lambda_w]
-    (scalar or pair; inf holds lambda fixed). embedding_order p; input_order (default p);
-    integration_time L of the E-step; learning stops when an iteration raises F by < tolerance
-    or after max_iterations. trim_edges: leave out the samples whose embedding window reaches
-    past the log; precision_convention: how S is normalised (:func:`attend.block_precisions`);
-    progress: show a progress bar. ``states``: "sample" (default, the paper's eq. 8: free generalised
-    states at every sample) or "path" (one state trajectory, data counted once; see
-    :func:`learn_batch`). ``top_order``: "marginal" (default in sample mode: the top-order motion
-    error is integrated out, F stays bounded in lambda_w on fast-sampled logs) or "truncate" (the
-    paper's eq. 8, x^(p+1) = 0; default in path mode); ``overrelax``, ``newton``, ``scaled``: see
-    the package docstring ("Options and the published learner"; ``PAPER_LEARNER`` switches all four
-    to the published learner).
+    initial: the starting theta (same forms; default eta_theta). ``settings``: a
+    :class:`LearningSettings` (embedding orders, noise prior, stopping rule, state model and the
+    numerical options); None is ``LearningSettings()``, and its ``newton`` = None means on here.
+    progress: show a progress bar over the iterations.
 
     Raises AttendInputError for malformed input, free entries with infinite prior precision,
     or a log whose outputs never vary; warns (IdentifiabilityWarning) when the inputs are zero
     while B is free, or when the free entries are not locally identifiable from input-output data.
     If a step diverges the learning stops (LearningWarning) and returns the last accepted estimate.
     """
+    settings = _resolved(settings, newton=True)
     system_prior = as_linear_system(system_prior, "system_prior")  # a python-control StateSpace converts
     dt, kernel_width = positive_scalar(dt, "dt", "s"), positive_scalar(kernel_width, "kernel_width", "s")
-    p, d = _orders(embedding_order, input_order)
-    y, u = _log(system_prior, outputs, inputs, max(p, d) + 1)
+    y, u = _log(system_prior, outputs, inputs, max(settings.embedding_order, settings.input_order) + 1)
     free_mask, prec = _parameter_prior(system_prior, free, prior_precision, free_prior_precision,
                                        known_prior_precision)
-    lam_eta, lam_prec = _noise_prior(noise_prior_mean, noise_prior_precision)
     eta, theta0 = _start(system_prior, y, initial)
     _warn_unidentifiable(system_prior, u, free_mask & np.isfinite(prec), theta0)
 
-    batch = learn_batch(
-        y[None], u[None], dt, n_states=system_prior.n_states, kernel_width=kernel_width, prior_mean=eta[None],
-        prior_precision=prec[None], initial=theta0[None], noise_prior_mean=lam_eta,
-        noise_prior_precision=lam_prec, embedding_order=p, input_order=d, max_iterations=max_iterations,
-        tolerance=tolerance, integration_time=integration_time, trim_edges=trim_edges,
-        precision_convention=precision_convention, states=states, progress=progress,
-        overrelax=overrelax, newton=newton, top_order=top_order, scaled=scaled,
-    )
-    settings = dict(dt=dt, kernel_width=kernel_width, embedding_order=p, input_order=d,
-                    max_iterations=max_iterations, tolerance=tolerance,
-                    integration_time=integration_time, trim_edges=trim_edges, state_model=states,
-                    top_order=top_order or ("marginal" if states == "sample" else "truncate"),
-                    overrelax=overrelax, newton=newton, scaled=scaled, noise_prior_mean=lam_eta.tolist(),
-                    noise_prior_precision=lam_prec.tolist(), free_energy_trace=batch.free_energy_trace[0])
-    return _result(batch, system_prior, free_mask, prec, eta, settings)
+    batch = learn_batch(y[None], u[None], dt, n_states=system_prior.n_states, kernel_width=kernel_width,
+                        prior_mean=eta[None], prior_precision=prec[None], initial=theta0[None], settings=settings,
+                        progress=progress)
+    record = dict(dt=dt, kernel_width=kernel_width, embedding_order=settings.embedding_order,
+                  input_order=settings.input_order, max_iterations=settings.max_iterations,
+                  tolerance=settings.tolerance, integration_time=settings.integration_time,
+                  trim_edges=settings.trim_edges, state_model=settings.states, top_order=settings.top_order,
+                  overrelax=settings.overrelax, newton=settings.newton, scaled=settings.scaled,
+                  noise_prior_mean=list(settings.noise_prior_mean),
+                  noise_prior_precision=list(settings.noise_prior_precision),
+                  free_energy_trace=batch.free_energy_trace[0])
+    return _result(batch, system_prior, free_mask, prec, eta, record)
 
 
 def _result(batch: BatchLearningResult, system: LinearSystem, free_mask: np.ndarray, prec: np.ndarray,
@@ -201,15 +177,6 @@ def _result(batch: BatchLearningResult, system: LinearSystem, free_mask: np.ndar
         prior_system=system,
         settings=settings,
     )
-
-
-def _orders(embedding_order, input_order) -> tuple[int, int]:
-    """The embedding order p >= 1 and the input order (default p)."""
-    p = order(embedding_order, "embedding_order")
-    if p < 1:
-        raise AttendInputError("embedding_order: expected p >= 1 for learning (with p = 0 the model has no "
-                               "derivative dx/dt to compare with A x + B u, so A and B cannot be learned)")
-    return p, (p if input_order is None else order(input_order, "input_order"))
 
 
 def _log(system: LinearSystem, outputs, inputs, window: int) -> tuple[np.ndarray, np.ndarray]:
@@ -251,17 +218,6 @@ def _parameter_prior(system: LinearSystem, free, prior_precision, free_prior_pre
         warnings.warn("free: no entry is marked free; only the noise precisions and entries with "
                       "finite prior precision will move", IdentifiabilityWarning, stacklevel=3)
     return free_mask, prec
-
-
-def _noise_prior(noise_prior_mean, noise_prior_precision) -> tuple[np.ndarray, np.ndarray]:
-    """eta_lambda and P_lambda (2,) for [lambda_z, lambda_w]."""
-    lam_eta = np.broadcast_to(np.asarray(noise_prior_mean, dtype=float), (2,))
-    lam_prec = np.broadcast_to(np.asarray(noise_prior_precision, dtype=float), (2,))
-    if not np.all(np.isfinite(lam_eta)):
-        raise AttendInputError("noise_prior_mean: expected finite log-precisions [lambda_z, lambda_w]")
-    if np.any(np.isnan(lam_prec)) or np.any(lam_prec <= 0):
-        raise AttendInputError("noise_prior_precision: expected precisions > 0 (inf holds lambda fixed)")
-    return lam_eta, lam_prec
 
 
 def _start(system: LinearSystem, y: np.ndarray, initial) -> tuple[np.ndarray, np.ndarray]:

@@ -29,8 +29,8 @@ decrease, else halved up to 6 times):
   -N/2 diag(m (p+1), n (p+1)) - P_lambda (as the linear learner; Pi_lambda is this curvature),
   clipped to +-2, up to 8 per iteration; the gradient includes -1/2 tr(Sigma_theta dPi_theta/dlambda).
 
-For a linear f, g this is the F of ``learn_batch(..., top_order="truncate")`` and the two agree
-(tests/perception/test_nonlinear_learning.py). Unknown inputs (an input prior) are not learned here.
+For a linear f, g this is the F of ``learn_batch`` with ``LearningSettings(top_order="truncate")``
+and the two agree (tests/perception/test_nonlinear_learning.py). Unknown inputs (an input prior) are not learned here.
 """
 
 from __future__ import annotations

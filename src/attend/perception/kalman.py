@@ -1,6 +1,6 @@
 """Kalman smoother and filter under the coloured-noise model: the estimator that keeps the past.
 
-The generative model is the one :func:`attend.systems.simulate` samples::
+The generative model is the one :func:`attend.models.linear.simulate` samples::
 
     x[k] = Ad x[k-1] + Bd u[k-1] + dt w[k-1]        y[k] = C x[k] + z[k]
     w = Lw e_w,  z = Lz e_z                          Lw Lw' = inv(Pi_w),  Lz Lz' = inv(Pi_z)
@@ -8,12 +8,14 @@ The generative model is the one :func:`attend.systems.simulate` samples::
     unknown inputs: u = eta + Lu e_u, Lu Lu' = inv(P_v), e_u Gaussian-correlated with
                     autocorrelation rho(tau) = exp(-tau^2 / (4 s_u^2))
 
-Each coloured channel e[k] is written as a small linear model (:func:`attend.noise.noise_state_space`:
-a minimum-phase spectral factor of its autocorrelation, 3 to 14 states, autocorrelation matched to
-~1e-7), and the plant state is augmented with those noise states. The Kalman filter on the
+Each coloured channel e[k] is written as a small linear model (:func:`attend.models.noise.noise_state_space`:
+a minimum-phase spectral factor of its autocorrelation, 3 to 16 states, autocorrelation matched to
+~1e-7 (1e-5 for the inputs' prior), with a white part of 1e-8 of the variance for w and z and of
+1e-12 .. 1e-10 for the inputs' prior where its fit allows: INPUT_WHITE_FLOORS), and the plant
+state is augmented with those noise states. The Kalman filter on the
 augmented state is then the causal posterior mean E[x[k] | y[0..k]] and the Rauch-Tung-Striebel
 smoother the whole-log posterior mean E[x[k] | y[0..N-1]] of that model: up to the accuracy of
-the noise fit, the exact Gaussian posterior (:func:`attend.perception.baselines.exact_posterior`)
+the noise fit, the exact Gaussian posterior (:func:`attend.perception.references.exact_posterior`)
 in O(N). Kernel width 0 is white noise. Unlike the DEM observer, evidence from the whole past
 (and, in the smoother, the whole future) is carried with its precision.
 
@@ -26,10 +28,11 @@ that sample takes the observed rows of H = [C, 0, Lz readout]: the observed rows
 matching rows of the sensor noise, whose states run on); a time stamp that skips k - 1 samples is
 k steps without a measurement in between; steps off dt (jitter) are discretised for their own
 length h: the plant's zero-order hold over h, x += h Lw e_w, and each noise as a continuous-time
-process (:func:`attend.noise.continuous_noise_state_space`: its correlation rho at the true lags).
-Those runs go through :func:`attend.perception.kalman_recursions.varying_pass`, a time-varying
-filter and smoother that takes the steady gain again on stretches of complete, uniform samples;
-with jitter every step costs O(dim^3) (dim: the augmented state's size).
+process (:func:`attend.models.noise.continuous_noise_state_space`: its correlation rho at the true lags,
+white floor 1e-8 for every noise, the inputs' prior included). Those runs go through
+:func:`attend.perception.kalman_recursions.varying_pass`, a time-varying filter and smoother that
+takes the steady gain again on stretches of complete, uniform samples; with jitter every step
+costs O(dim^3) (dim: the augmented state's size).
 """
 
 from __future__ import annotations
@@ -43,7 +46,8 @@ import numpy as np
 from attend._threads import with_single_blas_thread
 from attend._validation import AttendInputError, positive_scalar, precision_matrix, require_finite
 from attend._validation import kernel_width as checked_width
-from attend.noise import (
+from attend.models.linear import LinearSystem, ModelWarning, zero_order_hold
+from attend.models.noise import (
     NoiseStateSpace,
     continuous_noise_state_space,
     kernel_autocorrelation,
@@ -64,7 +68,6 @@ from attend.perception.kalman_recursions import (
     varying_pass,
 )
 from attend.perception.sample_times import SampleGrid, bridge, matrix_with_gaps, sample_grid
-from attend.systems import LinearSystem, ModelWarning, zero_order_hold
 
 __all__ = ["KalmanEstimator", "StateEstimate", "OnlineKalman"]
 
@@ -99,16 +102,44 @@ MAX_WIDTH_SAMPLES = 100
 correlation time and its autocorrelation needs more lags than the noise-model fit affords."""
 
 
-def _channel_model(dt: float, width: float, kind: str, field: str) -> NoiseStateSpace:
+NOISE_WHITE_FLOOR = 1e-8
+"""The white part of the process and sensor noise models (relative variance; the default of
+:func:`attend.models.noise.noise_state_space`)."""
+
+INPUT_WHITE_FLOORS = (1e-12, 1e-10)
+"""White floors tried, smallest first, for the unknown inputs' Gaussian-process prior; the first
+whose spectral-factor fit reproduces rho to INPUT_FIT_ACCURACY is kept, else the noises' 1e-8.
+
+The floor is relative to the prior's variance, and unknown inputs usually have broad priors
+(std e^4 .. e^5 in the AR.Drone settings of issue 29) that the data narrow by orders of magnitude:
+at 1e-8 its white part (std 1e-4 sigma_u, 0.015 for sigma_u = e^5) is comparable to the posterior
+std of a smooth input, and moved the smoother's inputs by up to 0.06 posterior std and their
+std by up to 6 % from the exact posterior (benchmarks/bench_unknown_inputs.py). The inputs reach
+the outputs only through the plant, so the recursion does not need that floor for its
+conditioning (the sensor noise's floor keeps H P H' regular). The fit of the smaller floors is
+accurate to ~1e-6 up to s_u ~ 15 dt (not at every width: then the next floor is used) and not
+beyond, where they are not tried (INPUT_FLOOR_MAX_WIDTH, in sample times)."""
+INPUT_FIT_ACCURACY = 1e-5
+INPUT_FLOOR_MAX_WIDTH = 16
+
+
+def _channel_model(dt: float, width: float, kind: str, field: str) -> tuple[NoiseStateSpace, float]:
+    """(the noise model of one channel, its white floor: relative variance, 0 for white noise)."""
     if width == 0:
-        return white_state_space()
+        return white_state_space(), 0.0
     if width > MAX_WIDTH_SAMPLES * dt:
         raise AttendInputError(
             f"{field}: {width:g} s is {width / dt:.0f} sample times; expected at most {MAX_WIDTH_SAMPLES} "
             f"({MAX_WIDTH_SAMPLES * dt:g} s): noise that smooth is a slowly varying offset, better modelled as a state"
         )
-    sequence = kernel_autocorrelation(dt, width) if kind == "kernel" else sampled_autocorrelation(dt, width)
-    return noise_state_space(sequence)
+    if kind == "kernel":
+        return noise_state_space(kernel_autocorrelation(dt, width)), NOISE_WHITE_FLOOR
+    sequence = sampled_autocorrelation(dt, width)
+    for floor in INPUT_WHITE_FLOORS if width <= INPUT_FLOOR_MAX_WIDTH * dt else ():
+        model = noise_state_space(sequence, white_floor=floor)
+        if model.autocorrelation_error <= INPUT_FIT_ACCURACY:
+            return model, floor
+    return noise_state_space(sequence), NOISE_WHITE_FLOOR
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,7 +182,7 @@ class KalmanEstimator:
         system = self.system
         if not isinstance(system, LinearSystem):
             raise AttendInputError("system: expected an attend.LinearSystem (a python-control StateSpace converts "
-                                   "with attend.interop.from_statespace)")
+                                   "with attend.models.from_statespace)")
         set_ = object.__setattr__
         n, r, m = system.n_states, system.n_inputs, system.n_outputs
         set_(self, "dt", positive_scalar(self.dt, "dt", "s"))
@@ -211,13 +242,14 @@ class KalmanEstimator:
 
     def _build(self) -> dict:
         """The augmented model at the nominal step dt, with the noises sampled every dt (the
-        discrete fits of :func:`attend.noise.noise_state_space`)."""
+        discrete fits of :func:`attend.models.noise.noise_state_space`)."""
         system, dt = self.system, self.dt
         fields = self._model["width_fields"]
-        process = _channel_model(dt, self.process_kernel_width, "kernel", fields["process_kernel_width"])
-        sensor = _channel_model(dt, self.sensor_kernel_width, "kernel", fields["sensor_kernel_width"])
+        process, process_floor = _channel_model(dt, self.process_kernel_width, "kernel", fields["process_kernel_width"])
+        sensor, sensor_floor = _channel_model(dt, self.sensor_kernel_width, "kernel", fields["sensor_kernel_width"])
         unknown = not self._known_mask().all()
-        inputs = _channel_model(dt, self.input_kernel_width, "sampled", "input_kernel_width") if unknown else None
+        inputs, input_floor = _channel_model(dt, self.input_kernel_width, "sampled", "input_kernel_width") \
+            if unknown else (None, None)
         models = {"w": process, "z": sensor, "u": inputs}
         layout = self._layout({name: (model.output, model.stationary_covariance) for name, model in models.items()
                                if model is not None})
@@ -227,7 +259,8 @@ class KalmanEstimator:
         T, Q, Bd_augmented = self._assemble(layout, Ad, Bd, dt, steps)
         return dict(layout, T=T, Q=Q, Ad=Ad, Bd=Bd, Bd_augmented=Bd_augmented,
                     noise_orders={"process": process.order, "sensor": sensor.order,
-                                  "input": None if inputs is None else inputs.order})
+                                  "input": None if inputs is None else inputs.order},
+                    noise_floors={"process": process_floor, "sensor": sensor_floor, "input": input_floor})
 
     def _layout(self, channels: dict) -> dict:
         """Blocks of the augmented state [x; noise states of w, z (and u)] and the maps that do not
@@ -282,7 +315,7 @@ class KalmanEstimator:
 
     def _continuous(self) -> dict:
         """The augmented model for jittered time stamps: every noise a continuous-time process
-        (:func:`attend.noise.continuous_noise_state_space`, autocorrelation rho(tau) at the actual
+        (:func:`attend.models.noise.continuous_noise_state_space`, autocorrelation rho(tau) at the actual
         lags), discretised per step by :meth:`_continuous_step`. Built once."""
         if "continuous" not in self._model:
             widths = {"w": self.process_kernel_width, "z": self.sensor_kernel_width}
@@ -334,6 +367,13 @@ class KalmanEstimator:
     def noise_orders(self) -> dict:
         """Orders of the finite noise models (process, sensor, input; 0 = white)."""
         return dict(self._model["noise_orders"])
+
+    @property
+    def noise_floors(self) -> dict:
+        """White floors of the noise models at the nominal step (process, sensor, input; relative
+        variance, 0 = white noise, None = no unknown inputs): the one approximation of the model
+        (NOISE_WHITE_FLOOR, INPUT_WHITE_FLOORS)."""
+        return dict(self._model["noise_floors"])
 
     # --- data --------------------------------------------------------------------------------
 

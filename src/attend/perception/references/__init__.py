@@ -37,7 +37,8 @@ Identification baselines on the same logs as :func:`attend.perception.learning.i
 The reference for nonlinear models, the particle smoother, is
 :func:`attend.perception.nonlinear_smoothers.particle_smoother`.
 
-Layout: :mod:`.filters` (Kalman filters and smoothers), :mod:`.exact` (the exact posterior),
+Layout: :mod:`.filters` (Kalman filters and smoothers), :mod:`.exact` (the exact posterior), :mod:`.exact_oracle` (the same posterior checked in two
+precisions, for ill-conditioned models),
 :mod:`.identification` (N4SID, EM, error metrics); every public name is re-exported here.
 """
 
@@ -48,6 +49,11 @@ _EXPORTS = {
     "ExactPosterior": "attend.perception.references.exact",
     "coloured_noise_correlation": "attend.perception.references.exact",
     "exact_posterior": "attend.perception.references.exact",
+    "ConditioningWarning": "attend.perception.references.exact",
+    "PosteriorAccuracy": "attend.perception.references.exact",
+    "OraclePosterior": "attend.perception.references.exact_oracle",
+    "OracleAgreement": "attend.perception.references.exact_oracle",
+    "oracle_posterior": "attend.perception.references.exact_oracle",
     "KalmanEstimate": "attend.perception.references.filters",
     "augmented_kalman_filter": "attend.perception.references.filters",
     "kalman_filter": "attend.perception.references.filters",
@@ -73,6 +79,11 @@ __all__ = [
     "augmented_kalman_filter",
     "exact_posterior",
     "coloured_noise_correlation",
+    "ConditioningWarning",
+    "PosteriorAccuracy",
+    "oracle_posterior",
+    "OraclePosterior",
+    "OracleAgreement",
     "n4sid_baseline",
     "em_baseline",
     "continuous_from_discrete",

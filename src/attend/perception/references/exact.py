@@ -16,16 +16,28 @@ from attend.perception.references.filters import _inputs, _std_vector, _system
 
 
 class ConditioningWarning(UserWarning):
-    """exact_posterior's float64 covariance form is not trustworthy on this model: its Cholesky
-    jitter moves the mean, or rounding swallows the posterior variance (see :class:`PosteriorAccuracy`)."""
+    """exact_posterior's float64 covariance form is not trustworthy on this model.
+
+    On models whose outputs are much more precise than their prior spread (tiny sensor noise,
+    broad input priors or x[0], integrators, long windows, smooth noise) the Cholesky jitter,
+    scaled by the outputs' mean prior variance, can exceed the sensor noise or the small
+    eigenvalues of the outputs' covariance, and the variances are differences of numbers up to
+    1e14 apart. exact_posterior checks itself (:class:`PosteriorAccuracy`, its result's
+    ``accuracy``) and warns when the jitter moves the mean by more than JITTER_SHIFT_LIMIT posterior
+    std, or cannot be bounded, or the std is uncertain by more than STD_ROUNDING_LIMIT. Then use
+    :func:`attend.perception.references.exact_oracle.oracle_posterior` (square-root form, checked in
+    double-double) on a short window, or the Kalman smoother: on benchmarks/bench_unknown_inputs.py
+    both are at the posterior where this form is off by up to 10 std."""
 
 
 class PosteriorAccuracy(NamedTuple):
     """exact_posterior's own estimate of how far its float64 result may be from the model's posterior.
 
-    jitter_shift: max over states and inputs of |the mean's first-order change were the Cholesky
-    jitter removed| / posterior std: j |S_zy inv(S + j I)^2 (y - m_y)| (a lower bound of the
-    whole change; j = jitter * mean(diag S_yy), the white variance the jitter adds to every output);
+    jitter_shift: max over states and inputs of |the mean's change were the Cholesky jitter
+    removed| / posterior std, |S_zy (inv(S) - inv(S + j I)) (y - m_y)| summed as a series in
+    j inv(S + j I) (j = jitter * mean(diag S_yy), the white variance the jitter adds to every
+    output); when the series does not converge (jitter_dominates: the jitter is as large as the
+    smallest eigenvalues of S, which float64 cannot resolve) the partial sum, at least the limit;
     jitter_share: j over the smallest per-sample sensor variance (the jitter read as extra sensor
     noise); std_rounding: max of eps prior variance / posterior variance / 2, the relative error
     of a std computed as prior variance minus explained variance (inf where that difference
@@ -34,6 +46,7 @@ class PosteriorAccuracy(NamedTuple):
     jitter_shift: float
     jitter_share: float
     std_rounding: float
+    jitter_dominates: bool = False
 
 
 JITTER_SHIFT_LIMIT = 0.1
@@ -41,6 +54,7 @@ JITTER_SHIFT_LIMIT = 0.1
 many posterior std (first order), or when rounding leaves its std uncertain by more than
 STD_ROUNDING_LIMIT (relative)."""
 STD_ROUNDING_LIMIT = 0.01
+JITTER_TERMS = 12
 
 
 class ExactPosterior(NamedTuple):
@@ -151,16 +165,7 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
     continuous-time: K_ij = rho(t_i - t_j) (w, z, the inputs' prior). white_floor f: coloured noises
     get a white part, K -> (1 - f) K + f I (the Kalman smoother's noise models have f = 1e-8).
     Cost O((N min(m, n))^3) time, O((N (n + m + r))^2) memory: for logs up to a few thousand samples.
-
-    Conditioning: on models whose outputs are much more precise than their prior spread (tiny
-    sensor noise, broad input priors or x[0], integrators, long windows) the jitter, scaled by the
-    outputs' mean prior variance, can exceed the sensor noise, and the variances are differences
-    of numbers 1e14 apart. The result carries its own estimate (``accuracy``) and a
-    ConditioningWarning is raised when the jitter moves the mean by more than JITTER_SHIFT_LIMIT
-    posterior std or the std is uncertain by more than STD_ROUNDING_LIMIT; then use
-    :func:`attend.perception.references.exact_oracle.oracle_posterior` (square-root form, checked
-    in double-double) on a short window, or the Kalman smoother (benchmarks/bench_unknown_inputs.py:
-    both at the posterior where this form is off by up to 0.8 std).
+    Ill-conditioned models: see :class:`ConditioningWarning` (``accuracy`` holds the self-check).
     """
     system = _system(system)
     dt = positive_scalar(dt, "dt", "s")
@@ -220,28 +225,48 @@ def _smallest_noise_variance(system, sz, q, observed) -> float:
 
 def _accuracy(chol, white, zy_cov, z_var, post_var, added, noise_variance) -> PosteriorAccuracy:
     """:class:`PosteriorAccuracy` of the covariance form, and a ConditioningWarning when it is poor.
-    The jitter's first-order effect on the mean: d/dj of S_zy inv(S + j I) r is -S_zy inv(S + j I)^2 r,
-    from two more triangular solves of the same factor."""
+
+    The mean's change were the jitter j removed: S_zy (inv(S) - inv(S + j I)) r = S_zy sum_k j^k
+    inv(S + j I)^(k+1) r (k >= 1), summed from the same Cholesky factor (two triangular solves a
+    term) up to JITTER_TERMS terms, then the remainder as a geometric series; one whose terms do
+    not fall (the jitter is as large as the small eigenvalues of S) counts as a shift above the
+    limit."""
     std = np.sqrt(post_var)
     spread = std > 0
-    shift = 0.0
+    shift, dominates = 0.0, False
     if added > 0 and spread.any():
-        alpha = solve_triangular(chol, white, lower=True, trans="T")  # inv(S) r
-        beta = solve_triangular(chol, solve_triangular(chol, alpha, lower=True), lower=True, trans="T")
-        shift = float(np.max(np.abs(added * (zy_cov @ beta))[spread] / std[spread]))
+        vector = solve_triangular(chol, white, lower=True, trans="T")  # inv(S + j I) r
+        total = np.zeros_like(vector)
+        previous = np.inf
+        for _ in range(JITTER_TERMS):
+            vector = added * solve_triangular(chol, solve_triangular(chol, vector, lower=True), lower=True, trans="T")
+            total += vector
+            term = float(np.max(np.abs(zy_cov @ vector)[spread] / std[spread]))
+            ratio = term / previous if previous > 0 else 0.0
+            previous = term
+            if term < 1e-3 * JITTER_SHIFT_LIMIT:
+                break
+        shift = float(np.max(np.abs(zy_cov @ total)[spread] / std[spread]))
+        dominates = term >= 1e-3 * JITTER_SHIFT_LIMIT and ratio >= 0.95
+        if dominates:  # diverging or stalling: the change cannot be told from inside float64
+            shift = max(shift, JITTER_SHIFT_LIMIT * 1.0001)
+        elif term >= 1e-3 * JITTER_SHIFT_LIMIT:  # converging slowly: add the geometric remainder
+            shift += term * ratio / (1 - ratio)
     with np.errstate(divide="ignore", invalid="ignore"):
         rounding = np.where(post_var > 0, 0.5 * np.finfo(float).eps * z_var / post_var, np.inf)
     informative = z_var > 0
     std_rounding = float(np.max(rounding[informative])) if informative.any() else 0.0
     share = added / noise_variance if noise_variance > 0 else np.inf
-    accuracy = PosteriorAccuracy(shift, float(share), std_rounding)
+    accuracy = PosteriorAccuracy(shift, float(share), std_rounding, bool(dominates))
     if shift > JITTER_SHIFT_LIMIT or std_rounding > STD_ROUNDING_LIMIT:
+        moved = ("is as large as the smallest eigenvalues of the outputs' covariance (the model's noise is "
+                 "smoother or smaller than float64 resolves there), so its effect on the mean cannot be bounded"
+                 if dominates else f"moves the mean by ~{shift:.2g} posterior std")
         warnings.warn(
             f"exact_posterior: the float64 covariance form is not trustworthy on this model: its Cholesky jitter "
-            f"(white output noise of variance {added:.2g}, {share:.2g} x the smallest sensor variance) moves the "
-            f"mean by >= {shift:.2g} posterior std, and rounding leaves the std uncertain by up to "
-            f"{min(std_rounding, 1e300):.2g} (relative); use exact_oracle.oracle_posterior on a short window, or the "
-            "Kalman smoother", ConditioningWarning, stacklevel=3)
+            f"(white output noise of variance {added:.2g}, {share:.2g} x the smallest sensor variance) {moved}; "
+            f"rounding leaves the std uncertain by up to {min(std_rounding, 1e300):.2g} (relative); use "
+            "exact_oracle.oracle_posterior on a short window, or the Kalman smoother", ConditioningWarning, stacklevel=3)
     return accuracy
 
 

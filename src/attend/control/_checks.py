@@ -53,23 +53,29 @@ def evaluated(value, size: int, field: str) -> np.ndarray:
     return array
 
 
-def jacobian_pair(value, rows: int, cols: tuple[int, int], field: str) -> tuple[np.ndarray, np.ndarray]:
-    """(d/dx, d/dv) returned by a user Jacobian: finite matrices of shapes (rows, cols[0]), (rows, cols[1])."""
+def jacobian_pair(value, rows: int, cols: tuple[int, int], field: str,
+                  check_finite: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """(d/dx, d/dv) returned by a user Jacobian: finite matrices of shapes (rows, cols[0]), (rows, cols[1]).
+    check_finite: False leaves finiteness to the caller (shapes are still checked)."""
     try:
         first, second = value
     except (TypeError, ValueError):
         raise AttendInputError(f"{field}: expected a pair (d/dx, d/dv) of matrices") from None
-    out = []
-    for part, width, name in ((first, cols[0], "d/dx"), (second, cols[1], "d/dv")):
-        array = np.asarray(part, dtype=float)
+    return (_jacobian_part(first, rows, cols[0], field, "d/dx", check_finite),
+            _jacobian_part(second, rows, cols[1], field, "d/dv", check_finite))
+
+
+def _jacobian_part(part, rows: int, width: int, field: str, name: str, check_finite: bool) -> np.ndarray:
+    """One matrix of a user Jacobian (reshaped when it holds rows * width values), checked finite."""
+    array = np.asarray(part, dtype=float)
+    if array.shape != (rows, width):
         if array.size == rows * width:
             array = array.reshape(rows, width)
-        if array.shape != (rows, width):
+        else:
             raise AttendInputError(f"{field}: expected {name} of shape {(rows, width)}, got {array.shape}")
-        if not np.all(np.isfinite(array)):
-            raise AttendInputError(f"{field}: {name} holds non-finite values")
-        out.append(array)
-    return out[0], out[1]
+    if check_finite and not np.isfinite(array).all():
+        raise AttendInputError(f"{field}: {name} holds non-finite values")
+    return array
 
 
 def precision_value(value, size: int, field: str) -> np.ndarray:

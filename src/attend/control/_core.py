@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.linalg import expm
+from scipy.linalg.blas import dgemm, dgemv
+
+from attend.control._exponential import AugmentedExponential
 
 
 def causal_embedding_weights(n_orders: int, window: int, dt: float) -> np.ndarray:
@@ -163,3 +166,144 @@ def discrete_transition(J: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarra
     block[:N, N:] = np.eye(N) * dt
     full = expm(block)
     return full[:N, :N], full[:N, N:]
+
+
+def _diagonal_blocks_view(matrix: np.ndarray, row: int, col: int, count: int, height: int, width: int):
+    """The ``count`` blocks (height, width) of ``matrix`` at (row + i height, col + i width), i = 0..count-1, as one
+    writable strided view (count, height, width): writing a block there writes kron(eye(count), block) in place.
+    None when the blocks are empty."""
+    if count == 0 or height == 0 or width == 0:
+        return None
+    rows, cols = matrix.strides
+    return np.lib.stride_tricks.as_strided(matrix[row:, col:], shape=(count, height, width),
+                                           strides=(height * rows + width * cols, rows, cols))
+
+
+class JointFlow:
+    """The joint flow of Z = [x~ (P n); v~ (Q r); a (k)] linearised at the beliefs: :func:`error_jacobian`,
+    :func:`joint_system`, :func:`generalised_errors` and the flow of the D-step and the action in one pass over
+    preallocated arrays (the step that re-linearises every sample)::
+
+        e = [e_y; e_x; e_v],   F = de/dZ = [[E_y, G], [E_x, 0], [E_v, 0]],   Pi~ = blkdiag(Pi~_y, Pi~_x, Pi~_v)
+        J = L - H' F,    flow(Z) = L Z - H' e,    L = blkdiag(D, -kappa P_a I),    H = Pi~ F R
+
+    R = diag(1 on the columns of X, kappa on those of a), so that H' F holds the curvature F' Pi~ F in the rows of X
+    and the action's rows kappa G' Pi~_y [E_y, G] of :func:`joint_system`; with a separate action precision Pi_a the
+    action columns of H are [kappa Pi_a G; 0; 0]. Only the Jacobians of f and g (:meth:`set_jacobians`), dy~/da
+    (:meth:`set_action_jacobian`) and Pi~_y (:meth:`set_sensory_precision`) change; the shift in E_x, E_v = [0, I],
+    Pi~_x, Pi~_v and L are written once. D: :func:`shift_matrix`; Pi_x, Pi_v: kron(S_P, Pi_w), kron(S_Q, P_v); gain:
+    kappa; action_prior_precision: P_a; dt: the sample time [s]."""
+
+    def __init__(self, n: int, r: int, m: int, k: int, P: int, Q: int, D: np.ndarray, Pi_x: np.ndarray,
+                 Pi_v: np.ndarray, gain: float, action_prior_precision: float, dt: float):
+        nX, N = P * n + Q * r, P * n + Q * r + k
+        ry, rx = P * m, P * m + P * n  # first rows of e_x and of e_v in e
+        self.sizes = (n, r, m, k, P, Q)
+        self.dt = dt
+        F = np.zeros((rx + Q * r, N))
+        F[ry:rx, : P * n] = D[: P * n, : P * n]  # the shift D_x of E_x = D_x - kron(I_P, fx)
+        F[rx:, P * n: nX] = np.eye(Q * r)  # E_v = [0, I]
+        self.F = F
+        self._make_views()
+        Pi = np.zeros((F.shape[0], F.shape[0]))
+        Pi[ry:rx, ry:rx] = Pi_x
+        Pi[rx:, rx:] = Pi_v
+        self.Pi = Pi
+        self.L = np.zeros((N, N))
+        self.L[:nX, :nX] = D
+        self._R = np.ones(N)
+        self.set_action_gain(gain, action_prior_precision)
+        self._Pi_a = None  # the action's own precision on e_y (None: Pi~_y)
+        self.G = None
+        self.errors = None  # e of the last flow
+        self.H = np.empty_like(F)  # Pi~ F R of the last linearisation
+        self.J = np.empty((N, N))
+        self._augmented = np.zeros((N + 1, N + 1))
+        self._exponential = AugmentedExponential(N + 1)
+
+    _VIEWS = ("_F_X", "_gx", "_gv", "_fx", "_fv")
+
+    def _make_views(self) -> None:
+        """The views into F written and read every sample: its columns of X and the diagonal blocks of the Jacobians
+        (rebuilt after a copy or unpickling, which would detach them from F)."""
+        n, r, m, k, P, Q = self.sizes
+        F, ry, orders = self.F, P * m, min(P, Q)
+        self._F_X = F[:, : P * n + Q * r]
+        self._gx = _diagonal_blocks_view(F, 0, 0, P, m, n)
+        self._gv = _diagonal_blocks_view(F, 0, P * n, orders, m, r)
+        self._fx = _diagonal_blocks_view(F, ry, 0, P, n, n)
+        self._fv = _diagonal_blocks_view(F, ry, P * n, orders, n, r)
+
+    def __getstate__(self) -> dict:
+        return {key: value for key, value in self.__dict__.items() if key not in self._VIEWS}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._make_views()
+
+    def set_action_gain(self, gain: float, action_prior_precision: float) -> None:
+        """kappa and P_a: the action rows of L and the action entries of R."""
+        n, r, m, k, P, Q = self.sizes
+        nX = P * n + Q * r
+        self.gain, self.action_prior_precision = gain, action_prior_precision
+        self.L[nX:, nX:] = -gain * action_prior_precision * np.eye(k)
+        self._R[nX:] = gain
+
+    def set_jacobians(self, fx, fv, gx, gv) -> None:
+        """Write the Jacobians of f and g at the beliefs into F (E_y = -[kron(I_P, gx), kron(I_PQ, gv)],
+        E_x = [D_x - kron(I_P, fx), -kron(I_PQ, fv)])."""
+        for view, block in ((self._gx, gx), (self._gv, gv), (self._fx, fx), (self._fv, fv)):
+            if view is not None:
+                np.negative(block, out=view)
+
+    def set_action_jacobian(self, G: np.ndarray) -> None:
+        """dy~/da ((P m, k)) into the action columns of F."""
+        n, r, m, k, P, Q = self.sizes
+        self.F[: P * m, P * n + Q * r:] = G
+        self.G = G
+
+    def set_sensory_precision(self, Pi_y: np.ndarray, Pi_a: np.ndarray | None = None) -> None:
+        """Pi~_y ((P m, P m)) into Pi~; Pi_a: the action's precision on e_y (None: Pi~_y)."""
+        ry = Pi_y.shape[0]
+        self.Pi[:ry, :ry] = Pi_y
+        self._Pi_a = Pi_a
+
+    def linearise(self) -> np.ndarray:
+        """J ((N, N)) of the joint flow at the Jacobians, dy~/da and precisions written (also keeps H)."""
+        F, H, J = self.F, self.H, self.J
+        # C-ordered arrays to BLAS as their transposes: H' = F' Pi~' and J' = L' - F' H
+        dgemm(1.0, F.T, self.Pi.T, 0.0, H.T, overwrite_c=1)
+        H *= self._R
+        if self._Pi_a is not None:
+            ry, nX = self._Pi_a.shape[0], F.shape[1] - self.sizes[3]
+            H[:, nX:] = 0.0
+            np.multiply(self._Pi_a @ self.G, self.gain, out=H[:ry, nX:])
+        np.copyto(J, self.L)
+        dgemm(-1.0, F.T, H.T, 1.0, J.T, overwrite_c=1, trans_b=1)
+        return J
+
+    def flow(self, Z: np.ndarray, y_t: np.ndarray, eta_t: np.ndarray, f0: np.ndarray, g0: np.ndarray) -> np.ndarray:
+        """flow(Z) = L Z - H' e at the last linearisation, e the prediction errors of :func:`generalised_errors` (from F
+        and f(x, v), g(x, v) at order 0; kept as ``errors``)."""
+        n, r, m, k, P, Q = self.sizes
+        ry, rx = P * m, P * m + P * n
+        e = self._F_X @ Z[: Z.shape[0] - k]  # the linear part: orders >= 1 of -g~, D x~ - f~, and v~
+        e[:ry] += y_t
+        np.subtract(y_t[:m], g0, out=e[:m])
+        if P > 1:
+            np.subtract(Z[n: 2 * n], f0, out=e[ry: ry + n])
+        else:
+            np.negative(f0, out=e[ry: ry + n])
+        e[rx:] -= eta_t
+        self.errors = e
+        return dgemv(-1.0, self.H.T, e, 1.0, self.L @ Z, overwrite_y=1)
+
+    def increment(self, flow: np.ndarray) -> np.ndarray | None:
+        """dZ = (expm(J dt) - I) inv(J) flow, from the last column of the exponential of [[J, flow], [0, 0]] dt (as
+        :func:`local_linearisation_step`; :class:`AugmentedExponential`); None when J or the flow is not finite."""
+        N = flow.shape[0]
+        block = self._augmented
+        np.multiply(self.J, self.dt, out=block[:N, :N])
+        np.multiply(flow, self.dt, out=block[:N, N])
+        column = self._exponential.last_column(block)
+        return None if column is None else column[:N]

@@ -37,6 +37,7 @@ from attend._validation import AttendInputError, number, positive_scalar, precis
 from attend.control._checks import ClosedLoopDivergence, count, vector
 from attend.control._checks import action_limits as checked_action_limits
 from attend.control._core import (
+    JointFlow,
     causal_embedding_weights,
     relative_degrees,
     sensory_precision,
@@ -44,7 +45,6 @@ from attend.control._core import (
     error_jacobian,
     generalised_errors,
     joint_system,
-    local_linearisation_step,
     shift_matrix,
 )
 from attend.control.model import GenerativeModel
@@ -264,6 +264,12 @@ class ActiveInferenceController:
         if model.is_linear:
             A, B, C, Dm = model.matrices
             self._E = error_jacobian(A, B, C, Dm, P, Q)
+        # the general step's joint flow in preallocated arrays (F, Pi~, J); a linear model's Jacobians are written once
+        self._joint = JointFlow(n, r, m, k, P, Q, self._D, self._Pi_x, self._Pi_v, self.action_gain, pa, self.dt)
+        if model.is_linear:
+            self._joint.set_jacobians(*model.matrices)
+        self._joint_precision = None  # the Pi_z (and action_precision) last written into the joint flow
+        self._joint_action_precision = None
         self._G_fixed = None if self._G_source is not None else self._check_G(action_jacobian)
         self.reset()
 
@@ -450,7 +456,7 @@ class ActiveInferenceController:
             Z = self._general_step(G, y_t, eta, t)
         if self.action_limits is not None:
             np.clip(Z[-self.n_actions:], self.action_limits[0], self.action_limits[1], out=Z[-self.n_actions:])
-        if not (np.isfinite(Z).all() and np.abs(Z).max() <= self.divergence_limit):
+        if not np.abs(Z).max() <= self.divergence_limit:  # also catches NaN (a comparison with NaN is False)
             self._diverged(Z, t)
         self._Z = Z
         self._k += 1
@@ -506,19 +512,18 @@ class ActiveInferenceController:
         return Phi @ self._Z + Gamma_y @ y_t + Gamma_eta @ eta
 
     def _general_step(self, G, y_t, eta, t) -> np.ndarray:
+        """Re-linearise the joint flow at the beliefs (or reuse the last linearisation, ``jacobian_tolerance``) and
+        integrate it over one sample: Z + (expm(J dt) - I) inv(J) flow(Z)."""
         n, r, m, P, Q = self._sizes
-        model, Z = self.model, self._Z
+        model, Z, joint = self.model, self._Z, self._joint
         nX = P * n + Q * r
-        x_t, v_t, a = Z[: P * n], Z[P * n: nX], Z[nX:]
-        x0, v0 = x_t[:n], v_t[:r]
+        x0, v0 = Z[:n], Z[P * n: P * n + r]
         if model.is_linear:
             A, B, C, Dm = model.matrices
             fx, fv, gx, gv = A, B, C, Dm
-            E_y, E_x, E_v = self._E
             f0, g0 = A @ x0 + B @ v0, C @ x0 + Dm @ v0
-        else:
-            fx, fv, gx, gv = model.jacobians(x0, v0)
-            E_y = None  # built below unless the last linearisation is reused
+        else:  # shapes checked here; a non-finite Jacobian makes J non-finite, found by the exponential below
+            fx, fv, gx, gv = model._jacobians(x0, v0, False)
             f0 = np.asarray(model.f(x0, v0), dtype=float).reshape(-1)
             g0 = np.asarray(model.g(x0, v0), dtype=float).reshape(-1)
         precision = self._precision(x0, v0, t)
@@ -530,35 +535,43 @@ class ActiveInferenceController:
                  and np.array_equal(cached["precision"], precision)
                  and all(np.abs(new - old).max(initial=0.0) <= tolerance * max(1.0, np.abs(old).max(initial=0.0))
                          for new, old in zip((fx, fv, gx, gv), cached["jacobians"])))
-        if reuse:
-            Pi_y, Pi_a, J = cached["Pi_y"], cached["Pi_a"], cached["J"]
-            E_y, E_x, E_v = cached["E"]
-            fx, fv, gx, gv = cached["jacobians"]
-        else:
-            if E_y is None:
-                E_y, E_x, E_v = error_jacobian(fx, fv, gx, gv, P, Q)
-            Pi_y = sensory_precision(self._S_by_order, self._orders, precision)
-            Pi_a = Pi_y if self.action_precision is None else sensory_precision(self._S_by_order, self._orders,
-                                                                               self.action_precision)
-            J, _, _, curvature = joint_system(self._D, E_y, E_x, E_v, Pi_y, self._Pi_x, self._Pi_v, G, Pi_a,
-                                              self.action_gain, self.action_prior_precision)
+        if not reuse:  # the joint flow holds the last linearisation's F and Pi~ while it is reused
+            # settings read every sample, as attributes that may be changed between steps
+            if joint.gain != self.action_gain or joint.action_prior_precision != self.action_prior_precision:
+                joint.set_action_gain(self.action_gain, self.action_prior_precision)
+            joint.dt = self.dt
+            joint.set_action_jacobian(G)  # every sample: a function may return its array changed in place
+            last = self._joint_precision  # Pi~_y is rebuilt when Pi_z changes (the model's constant: never)
+            if (last is None or self.action_precision is not self._joint_action_precision
+                    or not (precision is model.sensor_precision and last is precision)
+                    and not np.array_equal(precision, last)):
+                Pi_y = sensory_precision(self._S_by_order, self._orders, precision)
+                Pi_a = (None if self.action_precision is None
+                        else sensory_precision(self._S_by_order, self._orders, self.action_precision))
+                joint.set_sensory_precision(Pi_y, Pi_a)
+                self._joint_action_precision = self.action_precision
+                self._joint_precision = precision if precision is model.sensor_precision else precision.copy()
+            if not model.is_linear:
+                joint.set_jacobians(fx, fv, gx, gv)
+            J = joint.linearise()
             if tolerance is not None:
-                self._general_cache = dict(G=G, precision=precision, jacobians=(fx, fv, gx, gv), E=(E_y, E_x, E_v),
-                                           Pi_y=Pi_y, Pi_a=Pi_a, J=J, integral=None)
-        e_y, e_x, e_v = generalised_errors(x_t, v_t, y_t, eta, f0, g0, fx, fv, gx, gv, P, Q)
-        flow = np.empty_like(Z)
-        flow[:nX] = self._D @ Z[:nX] - (E_y.T @ (Pi_y @ e_y) + E_x.T @ (self._Pi_x @ e_x) + E_v.T @ (self._Pi_v @ e_v))
+                self._general_cache = dict(G=G, precision=precision, jacobians=(fx, fv, gx, gv), J=J.copy(),
+                                           integral=None)
+        flow = joint.flow(Z, y_t, eta, f0, g0)
         if self.precision_gradient and model.state_dependent_precision:
-            flow[:nX] += self._precision_gradient(x0, v0, e_y, t)
-        flow[nX:] = -self.action_gain * (G.T @ (Pi_a @ e_y) + self.action_prior_precision * a)
+            flow[:nX] += self._precision_gradient(x0, v0, joint.errors[: P * m], t)
         if reuse:  # int_0^dt expm(J s) ds, computed at the first reuse of this J, then one product per sample
             if cached["integral"] is None:
-                cached["integral"] = discrete_transition(J, self.dt)[1]
+                cached["integral"] = discrete_transition(cached["J"], self.dt)[1]
             Z = Z + cached["integral"] @ flow
         else:
-            Z = Z + local_linearisation_step(J, flow, self.dt)
+            increment = joint.increment(flow)
+            if increment is None:  # J or the flow is not finite: name a non-finite Jacobian, else diverge
+                model.jacobians(x0, v0)
+                increment = np.full(Z.shape, np.nan)
+            Z = Z + increment
         if self.precision_learning is not None:
-            self._learn(e_y)  # the prediction error before the step absorbed this sample
+            self._learn(joint.errors[: P * m])  # the prediction error before the step absorbed this sample
         return Z
 
     def _attended(self) -> np.ndarray:

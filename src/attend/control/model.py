@@ -149,18 +149,23 @@ class GenerativeModel:
 
     def jacobians(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(fx, fv, gx, gv) = (df/dx, df/dv, dg/dx, dg/dv) at (x, v)."""
+        return self._jacobians(x, v, True)
+
+    def _jacobians(self, x, v, check_finite: bool):
+        """:meth:`jacobians`; check_finite False checks shapes only (the controller's step finds a non-finite
+        Jacobian in its exponential and then calls :meth:`jacobians` to name it)."""
         n, r, m = self.n_states, self.n_causes, self.n_outputs
         if self.matrices is not None:
             A, B, C, D = self.matrices
             return A, B, C, D
         if self.jacobian_f is not None:
-            fx, fv = jacobian_pair(self.jacobian_f(x, v), n, (n, r), "jacobian_f(x, v)")
+            fx, fv = jacobian_pair(self.jacobian_f(x, v), n, (n, r), "jacobian_f(x, v)", check_finite)
         else:
             z = np.concatenate([x, v])
             J = finite_difference(lambda q: self.f(q[:n], q[n:]), z, n)
             fx, fv = J[:, :n], J[:, n:]
         if self.jacobian_g is not None:
-            gx, gv = jacobian_pair(self.jacobian_g(x, v), m, (n, r), "jacobian_g(x, v)")
+            gx, gv = jacobian_pair(self.jacobian_g(x, v), m, (n, r), "jacobian_g(x, v)", check_finite)
         else:
             z = np.concatenate([x, v])
             J = finite_difference(lambda q: self.g(q[:n], q[n:]), z, m)

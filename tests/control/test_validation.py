@@ -201,3 +201,16 @@ def test_world_functions_are_checked():
 def test_precision_learning_options_are_validated(options, match):
     with pytest.raises(AttendInputError, match=match):
         SensorPrecisionLearning(**options)
+
+
+def test_a_model_without_causes_is_accepted_and_runs():
+    """n_causes = 0 (no intention, e.g. a regulator to zero): the model, the controller and a run
+    build; the zero-size cause precision is the empty matrix, not an error."""
+    model = GenerativeModel(f=lambda x, v: -x, g=lambda x, v: x, n_states=1, n_causes=0, n_outputs=1,
+                            sensor_precision=4.0)
+    world = GenerativeProcess(f=lambda x, a: -x + a, g=lambda x, a: x, n_states=1, n_actions=1, n_outputs=1,
+                              initial_states=[1.0])
+    controller = ActiveInferenceController(model, dt=0.05, action_jacobian=[[1.0], [0.0], [0.0]])  # (p + 1) m rows
+    result = run(world, controller, duration=1.0, seed=0)
+    assert np.all(np.isfinite(result.states))
+    assert abs(result.states[-1, 0]) < abs(result.states[0, 0])  # it regulates towards 0

@@ -51,7 +51,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_bank import BANK_SEED, Case, draw_case  # noqa: E402
 
 from attend.perception.kalman import KalmanEstimator  # noqa: E402
-from attend.perception.sample_times import sample_grid  # noqa: E402
+from attend.models.sample_times import sample_grid  # noqa: E402
 from attend.models.linear import ModelWarning  # noqa: E402
 
 TARGET = 1.1

@@ -43,7 +43,7 @@ def main() -> None:
     args = parser.parse_args()
 
     started = time.perf_counter()
-    path = quadrotor._data_dir(args.data)
+    path = quadrotor.data_dir_checked(args.data)
     logs = {f: quadrotor.load_flight(path, f) for f in quadrotor.WIND_FLIGHTS + quadrotor.NO_WIND_FLIGHTS}
     load_time = time.perf_counter() - started
     piece = quadrotor.prepare_slice(logs[quadrotor.WIND_FLIGHTS[0]], 400, 639)

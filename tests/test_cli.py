@@ -220,14 +220,14 @@ def test_debug_is_accepted_before_or_after_the_command(tmp_path):
 
 
 def test_internal_errors_are_not_blamed_on_the_user(tmp_path, capsys, monkeypatch):
-    from attend import io
+    from attend import workflows
 
     model, log = _files(tmp_path)
 
     def bug(*args, **kwargs):
         raise ValueError("an internal slip")
 
-    monkeypatch.setattr(io, "estimate_from_files", bug)
+    monkeypatch.setattr(workflows, "estimate_from_files", bug)
     assert main(["estimate", str(model), str(log), "--out", str(tmp_path / "e.csv")]) == 1
     err = capsys.readouterr().err
     assert err.startswith("attend: internal error: ValueError: an internal slip; please report it")

@@ -131,3 +131,20 @@ def test_models_import_nothing_from_the_rest_of_attend():
 def test_the_models_check_sees_imports_inside_functions():
     tree = ast.parse("def f():\n    from attend.perception.dem import DEMObserver\nimport attend.io\nfrom attend import rhythm")
     assert sorted(_attend_imports(tree)) == ["attend.io", "attend.perception.dem", "attend.rhythm"]
+
+
+#: What attend.io (reading, validating and writing files) may import: itself, the models it reads
+#: into, and the shared helpers. Running estimators and learners on the files is attend.workflows'.
+IO_MAY_IMPORT = ("attend.io", "attend.models", "attend._validation", "attend._lazy", "attend.constants")
+
+
+def test_io_reads_and_writes_files_and_runs_no_estimator():
+    """No module of attend.io imports perception, action, control, rhythm, the workflows that run
+    estimators on its files, the experiments or the command line: not at module level, not inside
+    a function, not for type annotations."""
+    outside = []
+    for path in sorted((PACKAGE / "io").rglob("*.py")):
+        for name in _attend_imports(ast.parse(path.read_text(encoding="utf-8"))):
+            if not any(name == allowed or name.startswith(allowed + ".") for allowed in IO_MAY_IMPORT):
+                outside.append(f"{path.relative_to(PACKAGE.parent)} imports {name}")
+    assert not outside, "\n".join(outside)

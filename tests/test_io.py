@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from attend import io
+from attend import io, workflows
 from attend._validation import AttendInputError
 from attend.data import demo_paths
 from conftest import MASS_SPRING_LEARNING_MODEL, model_file_text
@@ -35,14 +35,14 @@ def _refused(tmp_path, model_text: str, message: str) -> None:
     model_path, log_path = _write(tmp_path, model_text)
     with pytest.raises(AttendInputError, match=message):
         model = io.read_model(model_path)
-        io.estimate_from_files(model, io.read_log(log_path))
+        workflows.estimate_from_files(model, io.read_log(log_path))
 
 
 def test_round_trip_estimate(tmp_path):
     model_path, log_path = _write(tmp_path)
     model = io.read_model(model_path)
     log = io.read_log(log_path)
-    observer, estimate = io.estimate_from_files(model, log)
+    observer, estimate = workflows.estimate_from_files(model, log)
     assert estimate.states.shape == (50, 2) and estimate.inputs.shape == (50, 1)
     out = io.write_estimates(tmp_path / "out.csv", log, model.system, estimate)
     header = out.read_text().splitlines()[0].split(",")
@@ -59,14 +59,14 @@ def test_spm_conventions_from_the_model_file(tmp_path):
     spm = MODEL.replace("kernel_width = 0.5", 'kernel_width = 0.5\nmethod = "dem"\nintegration = "spm"\nedges = "clamp"')
     model_path, log_path = _write(tmp_path, spm)
     model, log = io.read_model(model_path), io.read_log(log_path)
-    observer, estimate = io.estimate_from_files(model, log)
+    observer, estimate = workflows.estimate_from_files(model, log)
     assert (observer.integration, observer.edges) == ("spm", "clamp")
     direct = DEMObserver(model.system, 0.1, kernel_width=0.5, sensor_precision=2980.0, process_precision=2980.0,
                          input_prior_precision=[0.01], embedding_order=4, input_order=2, integration="spm",
                          edges="clamp")
     np.testing.assert_allclose(estimate.states, direct.estimate(log.matrix(["y1", "y2"]), np.zeros((50, 1))).states,
                                rtol=1e-12, atol=1e-12)
-    _, default = io.estimate_from_files(io.read_model(_write(tmp_path, MODEL.replace(
+    _, default = workflows.estimate_from_files(io.read_model(_write(tmp_path, MODEL.replace(
         "kernel_width = 0.5", 'kernel_width = 0.5\nmethod = "dem"'))[0]), log)
     assert np.max(np.abs(default.states - estimate.states)) > 1e-6
 
@@ -78,8 +78,8 @@ def test_demo_matches_shared_flight(quadrotor_data):
     shared = io.read_log(quadrotor_data / "exp_21_WW_WM_1.csv")
     demo = io.read_log(demo_log)
     np.testing.assert_array_equal(demo.columns["meas_phi"], shared.columns["meas_phi"])
-    _, from_demo = io.estimate_from_files(model, demo)
-    _, from_shared = io.estimate_from_files(model, shared)
+    _, from_demo = workflows.estimate_from_files(model, demo)
+    _, from_shared = workflows.estimate_from_files(model, shared)
     np.testing.assert_allclose(from_demo.states, from_shared.states)
     # the roll rate is estimated from the angle alone: compare with the measured rate
     error = from_shared.states[10:-10, 1] - shared.columns["state_phi_dot"][10:-10]
@@ -118,7 +118,7 @@ def test_bad_model_files_name_the_field(tmp_path, edit, message):
 def test_bad_logs_name_the_problem(tmp_path):
     model_path, log_path = _write(tmp_path, header="t,y1,z2")
     with pytest.raises(AttendInputError, match="missing the declared column 'y2'"):
-        io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
+        workflows.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
     t = np.arange(50) * 0.1
     t[20:] += 0.03
     model_path, log_path = _write(tmp_path, rows=np.column_stack([t, t, t]))
@@ -128,17 +128,17 @@ def test_bad_logs_name_the_problem(tmp_path):
     rows[7, 1] = np.nan
     model_path, log_path = _write(tmp_path, rows=rows)
     with pytest.raises(AttendInputError, match="line 9 .sample 8., column .y1.: expected a finite number"):
-        io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
+        workflows.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
     model_path, log_path = _write(tmp_path, rows=np.column_stack([np.arange(1) * 0.1, np.ones(1), np.ones(1)]))
     with pytest.raises(AttendInputError, match="at least 2 samples"):
-        io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
+        workflows.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
     dem = MODEL.replace("kernel_width = 0.5", "kernel_width = 0.5\nmethod = \"dem\"")
     model_path, log_path = _write(tmp_path, dem, rows=np.column_stack([np.arange(3) * 0.1, np.ones(3), np.ones(3)]))
     with pytest.raises(AttendInputError, match="at least 5 samples"):
-        io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
+        workflows.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
     model_path, log_path = _write(tmp_path, rows=np.column_stack([np.arange(50) * 0.2, np.ones(50), np.ones(50)]))
     with pytest.raises(AttendInputError, match="dt = 0.1 s but the log"):
-        io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
+        workflows.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
     log_path.write_text("")
     with pytest.raises(AttendInputError, match="empty"):
         io.read_log(log_path)
@@ -188,7 +188,7 @@ def test_log_errors_name_the_file_line_and_column(tmp_path):
     rows[4, 2] = 2e150
     model_path, log_path = _write(tmp_path, rows=rows)
     with pytest.raises(AttendInputError, match=rf"{log_path}: line 6 \(sample 5\), column 'y2': expected a value within"):
-        io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
+        workflows.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
     log_path.write_text("t,y1,y1\n0,1,2\n")
     with pytest.raises(AttendInputError, match=rf"{log_path}: header: the name 'y1' appears twice"):
         io.read_log(log_path)
@@ -205,14 +205,14 @@ def test_log_errors_name_the_file_line_and_column(tmp_path):
     # unused columns may hold anything numeric, even NaN
     rows = np.column_stack([np.arange(50) * 0.1, np.ones(50), np.ones(50), np.full(50, np.nan)])
     model_path, log_path = _write(tmp_path, rows=rows, header="t,y1,y2,spare")
-    io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
+    workflows.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
 
 
 def test_a_three_row_log_names_the_file(tmp_path):
     dem = MODEL.replace("kernel_width = 0.5", "kernel_width = 0.5\nmethod = \"dem\"")
     model_path, log_path = _write(tmp_path, dem, rows=np.column_stack([np.arange(3) * 0.1, np.ones(3), np.ones(3)]))
     with pytest.raises(AttendInputError, match=rf"{log_path}: expected at least 5 samples"):
-        io.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
+        workflows.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
 
 
 def test_identify_checks_the_learning_section_against_the_files(tmp_path):
@@ -221,7 +221,7 @@ def test_identify_checks_the_learning_section_against_the_files(tmp_path):
     model_path, log_path = _write(tmp_path, model, rows=np.column_stack([t, np.sin(t), np.cos(t), np.sin(2 * t)]),
                                   header="t,y1,y2,u")
     with pytest.raises(AttendInputError, match=rf"{model_path}: \[learning\] free"):
-        io.identify_from_files(io.read_model(model_path), io.read_log(log_path))
+        workflows.identify_from_files(io.read_model(model_path), io.read_log(log_path))
 
 
 def test_identify_auto_order_is_not_moved_by_a_few_rough_samples(tmp_path):
@@ -230,7 +230,7 @@ def test_identify_auto_order_is_not_moved_by_a_few_rough_samples(tmp_path):
     them (order 6 moved A[2,1] from -0.57 to -2.59 on this log); at 0.72 samples (the quadrotor
     flights) "auto" stays at 6."""
     from attend import mass_spring_damper, simulate
-    from attend.io.learned import auto_identification_order, identify_from_files
+    from attend.workflows.identify import auto_identification_order, identify_from_files
     from attend.io.logs import Log
 
     assert auto_identification_order(0.006, 1 / 120) == 6 and auto_identification_order(0.5, 0.1) == 2

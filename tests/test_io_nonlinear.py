@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from attend import io
+from attend import io, workflows
 from attend._validation import AttendInputError
 from attend.cli import main
 
@@ -108,7 +108,7 @@ def test_pendulum_from_files_estimates_states_and_the_push(tmp_path, method):
     model = io.read_model(model_path)
     assert model.nonlinear and model.method == method
     log = io.read_log(log_path)
-    estimator, estimate = io.estimate_from_files(model, log)
+    estimator, estimate = workflows.estimate_from_files(model, log)
     inner = slice(10, -10)
     theta_error = estimate.states[inner, 0] - truth.states[inner, 0]
     assert np.sqrt(np.mean(theta_error**2)) < 0.05  # rad; the sensor noise is 0.05 per component
@@ -146,7 +146,7 @@ def test_the_default_smoothers_std_is_calibrated_under_the_files_coloured_noise(
                                    measurement_std=1.0, initial_state=[1.0, 1.0, 24.0], seed=seed)
         np.savetxt(tmp_path / "log.csv", np.column_stack([np.arange(400) * 0.01, truth.outputs]), delimiter=",",
                    header="t,y1,y2,y3", comments="", fmt="%.10g")
-        _, estimate = io.estimate_from_files(model, io.read_log(tmp_path / "log.csv"))
+        _, estimate = workflows.estimate_from_files(model, io.read_log(tmp_path / "log.csv"))
         inner = slice(10, -10)
         inside.append(np.mean(np.abs(estimate.states - truth.states)[inner] < 2 * estimate.state_std[inner], axis=0))
     assert np.all((np.mean(inside, axis=0) > 0.90) & (np.mean(inside, axis=0) < 0.99)), np.mean(inside, axis=0)
@@ -172,7 +172,7 @@ def test_spm_integration_from_a_nonlinear_model_file(tmp_path):
     extra = 'method = "dem"\nembedding_order = 6\nintegration = "spm"\nedges = "clamp"\ninitial_state = [1.0, 1.0, 24.0]\n'
     model_path, log_path, _ = _lorenz_files(tmp_path, LORENZ_TOML + extra)
     model, log = io.read_model(model_path), io.read_log(log_path)
-    estimator, estimate = io.estimate_from_files(model, log)
+    estimator, estimate = workflows.estimate_from_files(model, log)
     dem = estimator.dem()
     assert (dem.integration, dem.edges) == ("spm", "clamp")
     direct = NonlinearDEM(dem.system, dem.dt, kernel_width=dem.kernel_width, sensor_precision=dem.sensor_precision,
@@ -190,7 +190,7 @@ def test_path_mode_from_a_nonlinear_model_file(tmp_path, capsys):
     extra = 'method = "dem"\nembedding_order = 6\nstates = "path"\n'
     model_path, log_path, truth = _lorenz_files(tmp_path, LORENZ_TOML + extra)
     model, log = io.read_model(model_path), io.read_log(log_path)
-    estimator, estimate = io.estimate_from_files(model, log)
+    estimator, estimate = workflows.estimate_from_files(model, log)
     dem = estimator.dem()
     assert dem.states == "path"
     direct = NonlinearDEM(dem.system, dem.dt, kernel_width=dem.kernel_width, sensor_precision=dem.sensor_precision,
@@ -211,7 +211,7 @@ def test_the_files_motion_reaches_nonlinear_dem(tmp_path):
     for extra, motion in (('motion = "path"\n', "path"), ("", "linearized")):
         model_path, log_path, _ = _lorenz_files(tmp_path, LORENZ_TOML + 'method = "dem"\nembedding_order = 6\n' + extra)
         model, log = io.read_model(model_path), io.read_log(log_path)
-        estimator, estimate = io.estimate_from_files(model, log)
+        estimator, estimate = workflows.estimate_from_files(model, log)
         dem = estimator.dem()
         assert dem.motion == motion
         direct = NonlinearDEM(dem.system, dem.dt, kernel_width=dem.kernel_width, sensor_precision=dem.sensor_precision,
@@ -229,7 +229,7 @@ def test_path_mode_takes_the_files_initial_state_as_a_prior(tmp_path):
         extra = f'method = "dem"\nembedding_order = 6\nstates = "path"\ninitial_state = [1.0, 1.0, 24.0]\n{std_line}'
         model_path, log_path, _ = _lorenz_files(tmp_path, LORENZ_TOML + extra, samples=80)
         model, log = io.read_model(model_path), io.read_log(log_path)
-        estimator, estimate = io.estimate_from_files(model, log)
+        estimator, estimate = workflows.estimate_from_files(model, log)
         dem = estimator.dem()
         direct = NonlinearDEM(dem.system, dem.dt, kernel_width=dem.kernel_width, sensor_precision=dem.sensor_precision,
                               process_precision=dem.process_precision, embedding_order=6, states="path").estimate(
@@ -278,7 +278,7 @@ def g(x, v):
     log = io.read_log(log_path)
     for method in ("ukf", "dem"):
         parsed = io.ModelFile(**{**parsed.__dict__, "method": method})
-        _, estimate = io.estimate_from_files(parsed, log)
+        _, estimate = workflows.estimate_from_files(parsed, log)
         if method == "ukf":  # the measured input is the column minus its operating point, std 0
             np.testing.assert_allclose(estimate.inputs[:, 1], log.columns["sin"] - 0.5)
             assert np.all(estimate.input_std[:, 1] == 0)
@@ -371,7 +371,7 @@ def test_vectorized_model_files_give_the_same_estimates(tmp_path):
                                                                                 f"vectorized = {flag}"), samples=80)
         model = io.read_model(model_path)
         assert model.system.vectorized == (flag == "true")
-        estimates.append(io.estimate_from_files(model, io.read_log(log_path))[1])
+        estimates.append(workflows.estimate_from_files(model, io.read_log(log_path))[1])
     np.testing.assert_allclose(estimates[1].states, estimates[0].states, rtol=0, atol=1e-10)
     np.testing.assert_allclose(estimates[1].inputs, estimates[0].inputs, rtol=0, atol=1e-10)
 

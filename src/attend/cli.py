@@ -111,7 +111,8 @@ def _add_estimate(add_command) -> None:
     )
     estimate.add_argument("model", nargs="?", help="model file (TOML), see README for the format")
     estimate.add_argument("log", nargs="?", help="log file (CSV with a header and a time column in seconds; missing "
-                          "values, skipped and jittered time stamps are accepted: docs/command-line.md)")
+                          "values, skipped and jittered time stamps are accepted: docs/command-line.md), or a ROS bag (.bag, .mcap, .db3 "
+                          "or a ROS 2 bag folder) with topics and fields named in the model's [log.columns]")
     estimate.add_argument("--demo", action="store_true",
                           help="use the bundled quadrotor roll model and flight (exp_21, wind on) instead of MODEL and LOG")
     estimate.add_argument("--out", default="estimates.csv",
@@ -185,7 +186,8 @@ def _add_identify(add_command) -> None:
     )
     identify.add_argument("model", help="model file (TOML) with a [learning] section; all inputs measured "
                           "(nonlinear models: unknown inputs allowed)")
-    identify.add_argument("log", help="log file (CSV, uniform time column in seconds)")
+    identify.add_argument("log", help="log file (CSV, uniform time column in seconds), or a ROS bag "
+                          "([log.columns] in the model file)")
     identify.add_argument("--out", default="learned_model.toml",
                           help="learned model file, usable by 'attend estimate' (default: %(default)s)")
     identify.add_argument("--no-progress", action="store_true", help="hide the progress bar")
@@ -441,9 +443,8 @@ def _check_search_options(args) -> None:
 
 
 def _command_estimate(args) -> int:
-    from attend import io
+    from attend import io, workflows
     from attend.data import demo_paths
-    from attend.io.irregular import estimate_with_gaps, has_gaps
 
     if args.demo:
         model_path, log_path = demo_paths()
@@ -452,7 +453,7 @@ def _command_estimate(args) -> int:
     else:
         raise AttendInputError("estimate: expected MODEL and LOG paths (or --demo)")
     model = io.read_model(model_path)
-    log = io.read_log(log_path, model.time_column, gaps=True)
+    log = io.read_log(log_path, model, gaps=True)  # a CSV, or a ROS bag ([log.columns])
     if not model.nonlinear:
         model.system.check()
     output_file(args.out, "--out", "estimates.csv")
@@ -461,16 +462,19 @@ def _command_estimate(args) -> int:
     started = time.perf_counter()
     gaps = None
     with progress_bars(not args.no_progress and sys.stderr.isatty()):
-        if has_gaps(model, log):  # missing values, skipped or jittered time stamps
-            observer, estimate, gaps = estimate_with_gaps(model, log)
+        if workflows.has_gaps(model, log):  # missing values, skipped or jittered time stamps
+            observer, estimate, gaps = workflows.estimate_with_gaps(model, log)
         else:
-            observer, estimate = io.estimate_from_files(model, log)
+            observer, estimate = workflows.estimate_from_files(model, log)
     elapsed = time.perf_counter() - started
-    _warn_if_spread_implausible(model, log, estimate)
+    choice = getattr(observer, "input_width_choice", None)  # the unknown inputs' width, chosen from the log
+    _warn_if_spread_implausible(model, log, estimate, None if choice is None else choice.width)
     out = io.write_estimates(args.out, log, model.system, estimate)
     duration = log.time[-1] - log.time[0] + log.dt
     print(f"estimated {len(log.time)} samples ({duration:.2f} s of log) in {elapsed * 1e3:.1f} ms -> {out}")
     print("  " + _describe_estimator(observer))
+    if log.origin:  # a bag: its grid, resampling rule and time stamps
+        print("  " + log.origin)
     if gaps:
         print("  " + gaps)
     if model.nonlinear and not model.system.vectorized and model.dem_backend != "jax" and elapsed > 5.0:
@@ -485,19 +489,22 @@ def _command_estimate(args) -> int:
         measured = [j for j, spec in enumerate(model.inputs) if spec.known]
         path = plot_estimates(args.plot, log.time, model.system, estimate, measured, DEMO_UNITS if args.demo else None)
         print(f"  figure -> {path}")
+    if choice is not None and not choice.flat:  # how, once everything is written (a flat likelihood was a warning)
+        print(f"attend: {choice.describe()}", file=sys.stderr)
     return 0
 
 
-def _warn_if_spread_implausible(model, log, estimate) -> None:
+def _warn_if_spread_implausible(model, log, estimate, input_kernel_width=None) -> None:
     """One warning per state or unknown input whose estimate swings far beyond what the data and the
-    model support (:mod:`attend.perception.spread_check`), whatever the estimator."""
+    model support (:mod:`attend.perception.spread_check`), whatever the estimator; input_kernel_width:
+    the inputs' prior width chosen from the log when the file gives none [s]."""
     import numpy as np
 
     from attend.models.linear import ModelWarning
     from attend.perception.spread_check import check_estimate, describe
 
     with np.errstate(all="ignore"):
-        findings = check_estimate(model, log, estimate)
+        findings = check_estimate(model, log, estimate, input_kernel_width=input_kernel_width)
     for finding in findings:
         warnings.warn(f"{model.path}: {describe(finding)}", ModelWarning, stacklevel=2)
 
@@ -548,8 +555,14 @@ def _describe_estimator(estimator) -> str:
         start = "initial state known ([observer] initial_state)"
     else:
         start = "initial state from [observer] initial_state and initial_state_std"
+    inputs = ""
+    if estimator.input_kernel_width is not None:
+        how = "chosen from the log" if estimator.input_width_choice is not None else "[observer] input_kernel_width"
+        if estimator.input_width_choice is not None and estimator.input_width_choice.flat:
+            how = "the process width: the log does not decide it"
+        inputs = f", input prior width {estimator.input_kernel_width:g} s ({how})"
     return (f"method kalman (Kalman smoother under the coloured-noise model): process width "
-            f"{estimator.process_kernel_width:g} s, sensor width {estimator.sensor_kernel_width:g} s; "
+            f"{estimator.process_kernel_width:g} s, sensor width {estimator.sensor_kernel_width:g} s{inputs}; "
             f"noise models: {noise}; {start}; [observer] method = \"dem\" selects the paper's DEM observer")
 
 

@@ -1,6 +1,6 @@
 """`attend identify`: the command's run, its report and its exit status (linear models: DEM's
-D, E and M steps, :func:`attend.io.identify_from_files`; nonlinear models: path-mode learning,
-:mod:`attend.io.learned_nonlinear`)."""
+D, E and M steps, :func:`attend.workflows.identify_from_files`; nonlinear models: path-mode
+learning, :func:`attend.workflows.identify_nonlinear`)."""
 
 from __future__ import annotations
 
@@ -16,15 +16,15 @@ def command_identify(args) -> int:
 
     import numpy as np
 
-    from attend import io
+    from attend import io, workflows
 
     model = io.read_model(args.model)
-    log = io.read_log(args.log, model.time_column)
+    log = io.read_log(args.log, model)  # a CSV, or a ROS bag ([log.columns])
     output_file(args.out, "--out", "learned_model.toml")
     if model.nonlinear:
         return _identify_nonlinear(args, model, log)
     started = time.perf_counter()
-    result = io.identify_from_files(model, log, progress=not args.no_progress)
+    result = workflows.identify_from_files(model, log, progress=not args.no_progress)
     elapsed = time.perf_counter() - started
     print(result.table())
     accepted = ", ".join(f"{step}: {count}" for step, count in result.steps_accepted.items())
@@ -39,7 +39,7 @@ def command_identify(args) -> int:
         note = ("UNSTABLE (reported, not enforced: learning does not constrain A's stability)"
                 if np.max(eig.real) > 0 else "stable")
         print(f"eigenvalues of the learned A [1/s]: {listed}: {note}")
-    problems = io.check_learned_model(model, log, result)
+    problems = workflows.check_learned_model(model, log, result)
     if result.converged and not problems:
         path = io.write_learned_model(args.out, model, result)
         print(f"learned model -> {path}")
@@ -60,17 +60,18 @@ def command_identify(args) -> int:
 
 def _identify_nonlinear(args, model, log) -> int:
     """`attend identify` on a nonlinear model file: path-mode learning of [learning] free
-    (attend.io.learned_nonlinear); exit 3 when it did not converge (the file is then written only
-    with --allow-unconverged)."""
-    from attend.io import learned_nonlinear
+    (attend.workflows.identify_nonlinear); exit 3 when it did not converge (the file is then written
+    only with --allow-unconverged)."""
+    from attend import io
+    from attend.workflows.identify_nonlinear import identify_nonlinear, table
 
     started = time.perf_counter()
-    names, result = learned_nonlinear.identify_nonlinear(model, log)
-    print(learned_nonlinear.table(names, result))
+    names, result = identify_nonlinear(model, log)
+    print(table(names, result))
     print(f"{result.message} (path mode, noise precisions from [observer]); "
           f"std: the estimator's spread (docs/nonlinear.md); {time.perf_counter() - started:.2f} s")
     if result.converged or args.allow_unconverged:
-        path = learned_nonlinear.write_learned_nonlinear(args.out, model, names, result)
+        path = io.write_learned_nonlinear(args.out, model, names, result)
         print(f"learned model{'' if result.converged else ' (NOT converged, --allow-unconverged)'} -> {path}")
     if result.converged:
         return 0

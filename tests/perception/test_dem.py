@@ -12,6 +12,7 @@ from attend.models.generalized import embed
 from attend.models.linear import ModelWarning, simulate
 from attend.models.problems import convolution_model, mass_spring_damper
 from attend.perception.dem import DEMObserver
+from attend.perception.dem_flow import start_state
 from attend.perception.recurrence import _sequential, linear_recurrence
 
 
@@ -311,14 +312,14 @@ def test_start_has_higher_orders_at_their_prior_mean():
     y = rng.standard_normal((50, 4))
     eta = np.full((50, 1), 0.3)
     X = observer.estimate(y, eta, keep_generalized=True)
-    start = observer._start_state(np.hstack([y, eta]), 0, edge=False)
+    start = start_state(observer, np.hstack([y, eta]), 0, edge=False)
     n, n_x = 2, observer.n_state_coordinates
     assert np.all(start[n:n_x] == 0.0)  # state derivatives at 0
     np.testing.assert_allclose(start[n_x + 1:], 0.0, atol=1e-12)  # eta constant: derivatives 0
     assert np.all(np.isfinite(X.states))
     # the constructor's initial_state sets order 0 of the states
     given = _observer(embedding_order=6, initial_state=[0.25, -0.5])
-    np.testing.assert_array_equal(given._start_state(np.hstack([y, eta]), 0, edge=True)[:2], [0.25, -0.5])
+    np.testing.assert_array_equal(start_state(given, np.hstack([y, eta]), 0, edge=True)[:2], [0.25, -0.5])
     with pytest.raises(AttendInputError, match="initial_state: expected 2 order-0 states"):
         _observer(initial_state=[1.0, 2.0, 3.0])
 

@@ -439,8 +439,8 @@ def test_input_kernel_width_sets_the_input_smoothness():
                            input_prior_precision=0.1, embedding_order=6, input_order=2)
     slow = NonlinearDEM(system, 0.05, kernel_width=0.1, sensor_precision=400.0, process_precision=4.0,
                         input_prior_precision=0.1, embedding_order=6, input_order=2, input_kernel_width=0.7)
-    np.testing.assert_allclose(same._matrices["Vv"], default._matrices["Vv"])
-    assert slow._matrices["S_d"][2, 2] > 10 * default._matrices["S_d"][2, 2]
+    np.testing.assert_allclose(same.generalized_matrices()["Vv"], default.generalized_matrices()["Vv"])
+    assert slow.generalized_matrices()["S_d"][2, 2] > 10 * default.generalized_matrices()["S_d"][2, 2]
     with pytest.raises(AttendInputError, match="input_kernel_width"):
         NonlinearDEM(system, 0.05, kernel_width=0.1, sensor_precision=400.0, process_precision=4.0,
                      input_prior_precision=0.1, input_kernel_width=0.0)

@@ -119,7 +119,7 @@ def test_misfit_ratio_equals_the_numpy_check(lorenz_log):
                        backend="jax")
     with jax_backend._double_precision(jax):
         generalized = dem.estimate(lorenz_log.outputs, keep_generalized=True).generalized
-        signals = dem._signals(lorenz_log.outputs, None)
+        signals = dem.checked_signals(lorenz_log.outputs, None)
         y_tilde, u_tilde = jax_backend.embedded_rows(dem, signals)
         compiled = jax_backend._misfit(dem, generalized, y_tilde, u_tilde)
         reference = sample_misfit(dem, signals, generalized)

@@ -27,13 +27,13 @@ def lorenz_case():
 def test_a_well_specified_log_has_a_misfit_ratio_near_one(lorenz_case):
     dem, log = lorenz_case
     estimate = dem.estimate(log.outputs, keep_generalized=True)
-    ratio = sample_misfit(dem, dem._signals(log.outputs, None), estimate.generalized)
+    ratio = sample_misfit(dem, dem.checked_signals(log.outputs, None), estimate.generalized)
     assert 0.2 < ratio < 2.5  # docs: 0.40-0.44 on Lorenz
 
 
 def test_an_estimate_near_the_data_passes_and_one_far_from_it_is_an_error(lorenz_case):
     dem, log = lorenz_case
-    signals = dem._signals(log.outputs, None)
+    signals = dem.checked_signals(log.outputs, None)
     no_inputs = np.zeros((len(signals), 0))
     check_excursion(dem, signals, log.states, no_inputs, "test")  # the truth: within ~1 scale
     scale = np.ptp(log.outputs[:, 1]) + 1.0  # y2's range plus its noise std (Pi_z = 1)

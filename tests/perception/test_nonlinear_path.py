@@ -238,7 +238,7 @@ def test_the_smoother_start_is_the_unscented_smoother_with_the_documented_settin
     from attend.perception.nonlinear_smoothers import input_random_walk_variance, unscented_kalman
 
     dem, log = _pendulum_case()
-    signals = dem._signals(log.outputs, None)
+    signals = dem.checked_signals(log.outputs, None)
     prior = (np.array([0.5, 0.0]), np.array([1 / 0.05**2, 1 / 0.2**2]))
     states, inputs = smoother_start(dem, signals, prior, start=None)
     substeps = smoother_substeps(dem, d_step_basis(dem, signals, None))
@@ -256,8 +256,8 @@ def test_the_prior_on_x0_is_the_d_steps_start_as_wide_as_its_states_or_its_widen
     from attend.perception.nonlinear.path_starts import d_step_basis, initial_state_prior
 
     dem, log = _pendulum_case()
-    signals = dem._signals(log.outputs, None)
-    start = dem._sample_estimate(signals, True, None, check=False)
+    signals = dem.checked_signals(log.outputs, None)
+    start = dem.dstep_estimate(signals, True, None, check=False)
     assert d_step_basis(dem, signals, start)[1]  # a log from the model: the D-step is trusted
     mean, std = initial_state_prior(dem, signals, d_step_basis(dem, signals, start))
     np.testing.assert_allclose(mean, start.states[0])
@@ -274,14 +274,14 @@ def test_the_prior_on_x0_is_the_d_steps_start_as_wide_as_its_states_or_its_widen
                     seed=1)
     held_dem = NonlinearDEM(system, 0.05, kernel_width=0.25, sensor_precision=1 / 2.6e-4**2,
                             process_precision=1 / 1e-5**2, known_inputs=True)
-    held_signals = held_dem._signals(held.outputs, u)
-    held_start = held_dem._sample_estimate(held_signals, True, None, check=False)
+    held_signals = held_dem.checked_signals(held.outputs, u)
+    held_start = held_dem.dstep_estimate(held_signals, True, None, check=False)
     assert not d_step_basis(held_dem, held_signals, held_start)[1]
     mean, std = initial_state_prior(held_dem, held_signals, d_step_basis(held_dem, held_signals, held_start))
     first_mean, first_std = initial_state_prior(held_dem, held_signals, d_step_basis(held_dem, held_signals, None))
     np.testing.assert_allclose(mean, first_mean)
     np.testing.assert_allclose(std, first_std)
-    local = held_dem._sample_estimate(held_signals[:28], False, None, check=False).state_std[0]
+    local = held_dem.dstep_estimate(held_signals[:28], False, None, check=False).state_std[0]
     assert np.all(std > 3 * local)  # widened: the misfit ratio is far above 1
 
 
@@ -292,7 +292,7 @@ def test_no_smoother_start_without_a_positive_definite_precision():
     singular = NonlinearDEM(dem.system, dem.dt, kernel_width=dem.kernel_width, sensor_precision=dem.sensor_precision,
                             process_precision=np.diag([400.0, 0.0]), input_prior_precision=0.135, embedding_order=6,
                             input_order=2, input_kernel_width=0.7, states="path")
-    assert smoother_start(singular, singular._signals(log.outputs, None), None, start=None) is None
+    assert smoother_start(singular, singular.checked_signals(log.outputs, None), None, start=None) is None
 
 
 def test_path_mode_keeps_the_start_with_the_larger_free_energy(monkeypatch):
@@ -421,7 +421,7 @@ def test_the_first_samples_prior_is_widened_capped_and_refused_by_its_misfit(mon
         return initial_state_prior(dem, signals, (fake, False))
 
     dem, log = _pendulum_case()
-    signals = dem._signals(log.outputs, None)
+    signals = dem.checked_signals(log.outputs, None)
     states = np.array([[0.5, -2.0]] * 28)
     fake = DEMEstimate(np.arange(28) * dem.dt, states, np.zeros((28, 1)), np.array([[0.01, 0.02]] * 28),
                        np.zeros((28, 1)), np.zeros((28, 3)))

@@ -37,13 +37,13 @@ def test_lean_step_equals_the_reference_step(case, flow_time, substeps):
     size = dem.n_state_coordinates + dem.n_input_coordinates
     m, r = dem.system.n_outputs, dem.system.n_inputs
     workspace = StepWorkspace(dem)
-    scale = dem._matrices["order_scale"] if flow_time == "samples" else np.ones(size)
+    scale = dem.generalized_matrices()["order_scale"] if flow_time == "samples" else np.ones(size)
     for _ in range(3):  # the workspace's arrays are reused: several different states in a row
         X = rng.standard_normal(size) / scale ** 0.5  # higher orders larger, as in real runs
         X[: dem.system.n_states] = rng.uniform(-2, 2, dem.system.n_states)
         y_tilde = rng.standard_normal(m * (dem.embedding_order + 1))
         u_tilde = rng.standard_normal(r * (dem.input_order + 1))
-        X_ref, curvature_ref = dem._step(X, y_tilde, u_tilde)
+        X_ref, curvature_ref = dem.dstep(X, y_tilde, u_tilde)
         # rounding differs (sums in another order) and the stiff flow (|J| ~ 1e5) amplifies it
         X_new, curvature = workspace.step(X, y_tilde, u_tilde, substeps)
         np.testing.assert_allclose(X_new, X_ref, rtol=1e-9, atol=1e-12 * np.abs(X_ref).max())

@@ -470,6 +470,36 @@ class ActiveInferenceController:
             f"max sensor precision {np.max(np.diag(precision)):.3g}; lower action_gain or dt, or check the sign of "
             "dy~/da (action_jacobian)")
 
+    @property
+    def action_jacobian_source(self) -> str:
+        """Where dy~/da comes from: "matrix" (given, constant), "function" (of the beliefs and the
+        action, each sample) or "process" (the world's, which :func:`attend.control.run` passes
+        each sample)."""
+        if self._G_fixed is not None:
+            return "matrix"
+        return "process" if self._G_source == "process" else "function"
+
+    def linear_update(self, process=None):
+        """The agent's step as one constant linear map, or None where it is not one (a nonlinear
+        or state-dependent model, learned or scheduled precision, dy~/da from a function):
+
+            Z[k+1] = Phi Z[k] + Gamma_y y~[k] (+ the prior's constant term),
+            y~[k] = embed @ (the last ``window`` samples of y, flattened oldest first).
+
+        Returns (Phi, Gamma_y, embed, window). process: the world whose dy~/da at its initial
+        state is used when the source is "process" (None: then no map is returned)."""
+        if not self._fast or self.precision_learning is not None:
+            return None
+        if self._G_fixed is not None:
+            G = self._G_fixed
+        elif self._G_source == "process" and process is not None:
+            P = self._sizes[3]
+            G = self._check_G(process.action_jacobian(process.initial_states, np.zeros(process.n_actions), P - 1))
+        else:
+            return None
+        _, Phi, Gamma_y, _, _, _ = self._fast_matrices(G)
+        return Phi, Gamma_y, self._embed_full, self._buffer_length
+
     def _fast_matrices(self, G) -> tuple:
         """(G, Phi, Gamma_y, Gamma_eta, learned log-precision, precision) of the exact linear step
         Z+ = Phi Z + Gamma_y y~ + Gamma_eta eta~ at the current precision (no state changes)."""
@@ -523,7 +553,7 @@ class ActiveInferenceController:
             fx, fv, gx, gv = A, B, C, Dm
             f0, g0 = A @ x0 + B @ v0, C @ x0 + Dm @ v0
         else:  # shapes checked here; a non-finite Jacobian makes J non-finite, found by the exponential below
-            fx, fv, gx, gv = model._jacobians(x0, v0, False)
+            fx, fv, gx, gv = model.jacobians(x0, v0, check_finite=False)
             f0 = np.asarray(model.f(x0, v0), dtype=float).reshape(-1)
             g0 = np.asarray(model.g(x0, v0), dtype=float).reshape(-1)
         precision = self._precision(x0, v0, t)

@@ -87,7 +87,7 @@ def run(process: GenerativeProcess, controller, duration: float, *, seed: int | 
                belief_states=np.full((n_samples, n_b), np.nan), belief_causes=np.full((n_samples, r_b), np.nan),
                sensor_precision=np.full((n_samples, m), np.nan), free_energy=np.full(n_samples, np.nan),
                step_seconds=np.empty(n_samples))
-    from_process = active and controller._G_source == "process"
+    from_process = active and controller.action_jacobian_source == "process"
     p = controller.model.embedding_order if active else 0
     fixed_G = process.action_jacobian(world.x, np.zeros(k), p) if from_process and process.is_linear else None
     clock = _time.perf_counter
@@ -130,24 +130,20 @@ def closed_loop_spectral_radius(process: GenerativeProcess, controller: ActiveIn
 
     Loop state [x[k]; the embedding window; Z[k]]: y[k] = C x[k] + D a[k-1], window shifted in,
     Z[k+1] = Phi Z[k] + Gamma_y y~[k] (+ prior), x[k+1] = Ad x[k] + Bd a[k]."""
-    if not (process.is_linear and isinstance(controller, ActiveInferenceController) and controller._fast
-            and controller.precision_learning is None):
+    if not (process.is_linear and isinstance(controller, ActiveInferenceController)):
         return None
     if process.action_limits is not None or controller.action_limits is not None:
         return None
-    n, r, m, P, Q = controller._sizes
-    if controller._G_fixed is not None:
-        G = controller._G_fixed
-    elif controller._G_source == "process":
-        G = controller._check_G(process.action_jacobian(process.initial_states, np.zeros(process.n_actions), P - 1))
-    else:
+    update = controller.linear_update(process)
+    if update is None:
         return None
-    _, Phi, Gamma_y, _, _, _ = controller._fast_matrices(G)
+    Phi, Gamma_y, embed, W = update  # y~ = embed @ window (window flattened sample-major)
     from attend.models.linear import zero_order_hold
 
     A, B, C, Dw = process.matrices
     Ad, Bd = zero_order_hold(A, B, controller.dt)
-    nw, W, k = A.shape[0], controller._buffer_length, process.n_actions
+    m = controller.model.n_outputs
+    nw, k = A.shape[0], process.n_actions
     N = Phi.shape[0]
     sizes = (nw, W * m, N)
     total = sum(sizes)
@@ -163,7 +159,6 @@ def closed_loop_spectral_radius(process: GenerativeProcess, controller: ActiveIn
     Buf = np.zeros((W * m, total))
     Buf[:, ib] = shift
     Buf[(W - 1) * m:, :] += Y
-    embed = controller._embed_full  # y~ = embed @ window (window flattened sample-major)
     Znext = np.zeros((N, total))
     Znext[:, iz] = Phi
     Znext += Gamma_y @ embed @ Buf

@@ -147,13 +147,11 @@ class GenerativeModel:
             raise AttendInputError(f"cause_prior(t): returned non-finite values at t = {time} s")
         return out
 
-    def jacobians(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(fx, fv, gx, gv) = (df/dx, df/dv, dg/dx, dg/dv) at (x, v)."""
-        return self._jacobians(x, v, True)
-
-    def _jacobians(self, x, v, check_finite: bool):
-        """:meth:`jacobians`; check_finite False checks shapes only (the controller's step finds a non-finite
-        Jacobian in its exponential and then calls :meth:`jacobians` to name it)."""
+    def jacobians(self, x: np.ndarray, v: np.ndarray,
+                  check_finite: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(fx, fv, gx, gv) = (df/dx, df/dv, dg/dx, dg/dv) at the states x and causes v; check_finite
+        False checks shapes only (the controller's step finds a non-finite Jacobian in its
+        exponential and then calls this again with the check to name it)."""
         n, r, m = self.n_states, self.n_causes, self.n_outputs
         if self.matrices is not None:
             A, B, C, D = self.matrices

@@ -99,7 +99,7 @@ def identify_roll_disturbance(data_dir=None, flights=None, first: int = 400, las
     samples). The result averages variances and kernel widths over the flights."""
     from attend.experiments import quadrotor
 
-    path = quadrotor._data_dir(data_dir)
+    path = quadrotor.data_dir_checked(data_dir)
     names = quadrotor.WIND_FLIGHTS if flights is None else tuple(flights)
     per_flight = {}
     for name in names:

@@ -151,7 +151,9 @@ def default_data_dir() -> Path:
     return candidates[0]
 
 
-def _data_dir(data_dir) -> Path:
+def data_dir_checked(data_dir) -> Path:
+    """The folder of the quadrotor flight logs (data_dir, or the shared data when None), checked to
+    hold every flight; an AttendInputError naming what is missing otherwise."""
     path = default_data_dir() if data_dir is None else Path(data_dir)
     missing = [f for f in WIND_FLIGHTS + NO_WIND_FLIGHTS if not (path / f"{f}.csv").is_file()]
     if missing:
@@ -527,7 +529,7 @@ def run(quick: bool = True, progress: bool = True, data_dir=None) -> ExperimentR
     example slice and the motor-1 traces, all :func:`plot` needs.
     """
     started = time.perf_counter()
-    path = _data_dir(data_dir)
+    path = data_dir_checked(data_dir)
 
     def say(message):
         if progress:

@@ -1,4 +1,6 @@
-"""Model files (TOML) and logs (CSV) with validation; CSV output of estimates.
+"""Model files (TOML) and logs (CSV) read and validated; estimates (CSV) and learned model files
+(TOML) written. Reading and writing only: what `attend estimate` and `attend identify` run on the
+files is :mod:`attend.workflows`.
 
 Model file (all times in seconds)::
 
@@ -77,16 +79,14 @@ columns named in the model file (other columns are ignored).
 """
 
 from attend.constants import KNOWN_INPUT_PRECISION  # noqa: F401 (importable from attend.io as before)
-from attend.io.estimates import estimate_from_files
-from attend.io.learned import LEARNING_EXAMPLE  # noqa: F401
-from attend.io.learned import check_learned_model, identify_from_files, write_learned_model
+from attend.io.learned import write_learned_model, write_learned_nonlinear
 from attend.io.logs import Log, read_log, write_estimates
 from attend.io.model import InputSpec, ModelFile
 from attend.io.model_file import NONLINEAR_KNOWN_INPUT_PRECISION, NONLINEAR_METHOD, read_model  # noqa: F401
 
 __all__ = [
-    "InputSpec", "Log", "ModelFile", "check_learned_model", "estimate_from_files",
-    "identify_from_files", "read_log", "read_model", "write_estimates", "write_learned_model",
+    "InputSpec", "Log", "ModelFile", "read_log", "read_model", "write_estimates", "write_learned_model",
+    "write_learned_nonlinear",
 ]
 
 for _name in __all__:  # their public home: the API reference and pickles name attend.io

@@ -14,28 +14,31 @@ from attend._validation import LARGEST_MAGNITUDE, AttendInputError, unique_names
 from attend.io.fields import _read_text
 from attend.models.linear import LinearSystem
 
-if TYPE_CHECKING:  # only named in annotations: reading a log loads no estimator
-    from attend.perception.dem import DEMEstimate
+if TYPE_CHECKING:  # only named in annotations
+    from attend.io.model import ModelFile
 
 
 @dataclass(frozen=True)
 class Log:
-    """A CSV log: time [s] (N,), and named columns (name -> (N,) values); path: the CSV file
-    (errors name it); line_numbers: (N,) the file line of each sample (None: line k + 2)."""
+    """A log: time [s] (N,), and named columns (name -> (N,) values); path: the CSV file or bag
+    (errors name it); line_numbers: (N,) the file line of each sample (None: line k + 2 of a CSV);
+    origin: how the samples were made when they are not the rows of a CSV ("": a CSV; a bag: its
+    grid, resampling rule and time stamps, :mod:`attend.io.bags`)."""
 
     time: np.ndarray
     columns: dict[str, np.ndarray]
     path: str = ""
     line_numbers: np.ndarray | None = None  # line of each sample in the file (errors name it)
+    origin: str = ""  # a bag's grid and resampling (attend.io.bags); "" for a CSV
 
     @property
     def dt(self) -> float:
         """Sample time [s]: the mean step of a uniform log; with gaps or jitter the nominal step
-        (:func:`attend.perception.sample_times.nominal_step`: gaps counted in whole samples)."""
+        (:func:`attend.models.sample_times.nominal_step`: gaps counted in whole samples)."""
         mean = float((self.time[-1] - self.time[0]) / (len(self.time) - 1))
         if self.uniform:
             return mean
-        from attend.perception.sample_times import nominal_step
+        from attend.models.sample_times import nominal_step
 
         return nominal_step(self.time)
 
@@ -49,7 +52,9 @@ class Log:
 
     @property
     def labels(self) -> list[str]:
-        """How errors name each sample: "line L" of the file."""
+        """How errors name each sample: "line L" of a CSV, "sample k (t = T s)" of a bag."""
+        if self.origin and self.line_numbers is None:
+            return [f"sample {k + 1} (t = {t:.6g} s)" for k, t in enumerate(self.time)]
         lines = self.line_numbers if self.line_numbers is not None else np.arange(len(self.time)) + 2
         return [f"line {line}" for line in lines]
 
@@ -60,13 +65,13 @@ class Log:
         absent = [name for name in names if name not in self.columns]
         if absent:
             raise AttendInputError(
-                f"{self.path}: CSV is missing the declared column{'s' if len(absent) > 1 else ''} "
-                f"{', '.join(map(repr, absent))}; it has {', '.join(self.columns)}"
+                f"{self.path}: {'the log' if self.origin else 'CSV'} is missing the declared column"
+                f"{'s' if len(absent) > 1 else ''} {', '.join(map(repr, absent))}; it has {', '.join(self.columns)}"
             )
-        lines = self.line_numbers if self.line_numbers is not None else np.arange(len(self.time)) + 2
+        labels = self.labels
         for name in names:
             values = self.columns[name]
-            _check_log_column(np.where(np.isnan(values), 0.0, values) if missing else values, self.path, name, lines)
+            _check_log_column(np.where(np.isnan(values), 0.0, values) if missing else values, self.path, name, labels)
         return np.column_stack([self.columns[name] for name in names]) if names else np.zeros((len(self.time), 0))
 
 
@@ -74,19 +79,31 @@ UNIFORM_STEP_TOLERANCE = 1e-4
 """Relative deviation from the mean step below which a log's time stamps count as uniform."""
 
 
-def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: float = UNIFORM_STEP_TOLERANCE,
-             gaps: bool = False) -> Log:
+def read_log(path: str | Path, time_column: str | ModelFile = "t", *,
+             relative_tolerance: float = UNIFORM_STEP_TOLERANCE, gaps: bool = False) -> Log:
     """Read a CSV log with a header; check the time column is present, finite and uniform.
 
-    path: the CSV file; time_column: the name of its time column [s]. UTF-8 with or without a
-    BOM, LF or CRLF line ends. Every cell must be a number; values beyond +-1e150 are errors.
+    path: the CSV file, or a ROS bag (.bag, .mcap, .db3, or a ROS 2 bag folder), read with
+    :func:`attend.io.bags.read_bag` onto one uniform grid (this needs the model file's
+    [log.columns]); time_column: the name of the time column [s], or the parsed model file
+    (:class:`ModelFile`: its [log] time_column and, for a bag, its topics, fields and grid).
+    CSV: UTF-8 with or without a BOM, LF or CRLF line ends. Every cell must be a number; values beyond +-1e150 are errors.
     Time stamps count as uniform when every step is within ``relative_tolerance`` of the mean step.
     gaps=True (`attend estimate`): a log with missing samples and jitter is accepted: empty
     cells read as NaN (missing), time stamps need only increase strictly (errors name the lines
-    where they repeat or go backwards); :mod:`attend.perception.sample_times` says how the
+    where they repeat or go backwards); :mod:`attend.models.sample_times` says how the
     estimators treat skipped stamps and uneven steps.
     """
     path = Path(path)
+    layout = None
+    if not isinstance(time_column, str):  # a ModelFile: its [log] section says how to read the log
+        time_column, layout = time_column.time_column, time_column.bag_layout
+    from attend.io.bags import is_bag, read_bag
+
+    if is_bag(path):
+        return read_bag(path, layout, time_column, gaps=gaps)
+    if path.is_dir():
+        raise AttendInputError(f"log: {path} is a directory; expected a CSV file, or a ROS 2 bag folder (with metadata.yaml)")
     text = _read_text(path, "log")
     try:
         lines = list(csv.reader(_text_io.StringIO(text, newline=None)))
@@ -120,9 +137,9 @@ def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: fl
     line_numbers = np.array([line for line, _ in rows])
     columns = {name: values[:, j] for j, name in enumerate(header)}
     time = columns[time_column]
-    _check_log_column(time, path, time_column, line_numbers)
+    _check_log_column(time, path, time_column, [f"line {line}" for line in line_numbers])
     if gaps and len(time) >= 2:
-        from attend.perception.sample_times import check_time_stamps
+        from attend.models.sample_times import check_time_stamps
 
         check_time_stamps(time, len(time), float(np.min(np.abs(np.diff(time)))) or 1.0,
                           f"{path}: column {time_column!r}", [f"line {line}" for line in line_numbers])
@@ -141,24 +158,26 @@ def read_log(path: str | Path, time_column: str = "t", *, relative_tolerance: fl
     return Log(time, columns, str(path), line_numbers)
 
 
-def _check_log_column(values: np.ndarray, path, name: str, line_numbers: np.ndarray) -> None:
-    """NaN, inf and values beyond +-1e150 are errors naming the file, line and column."""
+def _check_log_column(values: np.ndarray, path, name: str, labels: list[str]) -> None:
+    """NaN, inf and values beyond +-1e150 are errors naming the file, sample (labels: "line L" or
+    "sample k (t = T s)" of each) and column."""
     bad = ~np.isfinite(values) | (np.abs(values) > LARGEST_MAGNITUDE)
     if bad.any():
         row = int(np.argmax(bad))
         expected = "a finite number" if not np.isfinite(values[row]) else f"a value within +-{LARGEST_MAGNITUDE:.0e}"
+        sample = "" if labels[row].startswith("sample") else f" (sample {row + 1})"
         raise AttendInputError(
-            f"{path}: line {line_numbers[row]} (sample {row + 1}), column {name!r}: expected {expected}, got {values[row]:.6g}"
+            f"{path}: {labels[row]}{sample}, column {name!r}: expected {expected}, got {values[row]:.6g}"
         )
 
 
 
-def write_estimates(path: str | Path, log: Log, system: LinearSystem, estimate: DEMEstimate) -> Path:
+def write_estimates(path: str | Path, log: Log, system: LinearSystem, estimate) -> Path:
     """CSV with time, each state and input estimate, and their standard deviations.
 
     path: the CSV to write (parent folders created); log: the :class:`Log` estimated (its time
-    column [s] is written); system: names the state and input columns; estimate: states (N, n),
-    inputs (N, r) and their stds. Returns the path."""
+    column [s] is written); system: names the state and input columns; estimate: any estimator's
+    result with states (N, n), inputs (N, r) and their stds state_std, input_std. Returns the path."""
     path = Path(path)
     header = ["t"]
     header += list(system.state_names) + list(system.input_names)

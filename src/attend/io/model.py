@@ -4,9 +4,13 @@ describes is built by :mod:`attend.perception.file_estimators`."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from attend.models.linear import LinearSystem
 from attend.models.nonlinear import NonlinearSystem
+
+if TYPE_CHECKING:  # only named in annotations
+    from attend.io.bags import BagLayout
 
 
 @dataclass(frozen=True)
@@ -54,7 +58,10 @@ class ModelFile:
     trajectory, a smoother; :mod:`attend.perception.nonlinear.path`); dem_backend: nonlinear DEM's
     "numpy" or "jax" (:mod:`attend.perception.nonlinear.jax_backend`); dem_motion: nonlinear DEM's
     generalised motion, "linearized" (SPM's) or "path" (f~ along the path, keeping its curvature);
-    None: the default of each use (estimate: "linearized"; identify's learn_path: "path").
+    None: the default of each use (estimate: "linearized"; identify's learn_path: "path");
+    bag_layout: how a ROS bag or MCAP file becomes the log ([log] rate_hz, grid_topic, resample,
+    stamps, max_gap and [log.columns], :class:`attend.io.bags.BagLayout`; None: the file has no
+    [log.columns], CSV logs only).
     """
 
     system: LinearSystem
@@ -83,6 +90,7 @@ class ModelFile:
     dem_states: str = "sample"
     dem_backend: str = "numpy"
     dem_motion: str | None = None
+    bag_layout: BagLayout | None = None
 
     @property
     def nonlinear(self) -> bool:

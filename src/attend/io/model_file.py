@@ -22,6 +22,7 @@ from attend._validation import (
     unique_names,
 )
 from attend.constants import KNOWN_INPUT_PRECISION
+from attend.io.bags import bag_layout
 from attend.io.fields import _check_keys, _file_number, _matrix, _read_text, _text, _text_list
 from attend.io.model import InputSpec, ModelFile
 from attend.io.python_model import _model_size, _probe, _python_model
@@ -45,7 +46,7 @@ _SECTIONS = {
         "known_input_precision", "initial_state", "initial_state_std", "integration", "edges", "states",
         "backend", "motion",
     },
-    "log": {"time_column"},
+    "log": {"time_column", "rate_hz", "dt", "grid_topic", "resample", "stamps", "max_gap", "columns"},  # io.bags
     "learning": {
         "free", "free_prior_precision", "known_prior_precision", "noise_prior_mean",
         "noise_prior_precision", "max_iterations", "tolerance", "states", "top_order",
@@ -96,6 +97,9 @@ def read_model(path: str | Path) -> ModelFile:
     if dt is not None:
         dt = positive_scalar(dt, f"{path}: [model] dt", "seconds")
     time_column = _text(data.get("log", {}).get("time_column", "t"), f"{path}: [log] time_column")
+    used = {name: "[outputs] columns" for name in outputs}
+    used.update({spec.column: f"[[inputs]] {spec.name!r} column" for spec in inputs if spec.known})
+    layout = bag_layout(data.get("log", {}), path, dt, used)  # None: no [log.columns] (CSV logs only)
     learning = dict(data.get("learning", {}))
     _check_learning(learning, f"{path}: [learning]", nonlinear)
     return ModelFile(
@@ -127,6 +131,7 @@ def read_model(path: str | Path) -> ModelFile:
         dem_states=observer.get("states", "sample"),
         dem_backend=observer.get("backend", "numpy"),
         dem_motion=observer.get("motion"),
+        bag_layout=layout,
     )
 
 

@@ -54,6 +54,12 @@ class _UserFunction:
         self.function, self.name, self.size, self.what = function, name, size, what
         self.source, self.parameters = source, parameters
 
+    def with_parameters(self, parameters) -> "_UserFunction":
+        """The same function of the same file, checked the same way, called with ``parameters``
+        (a dict) as its third argument instead of this one's (path-mode learning replaces the
+        learned entries)."""
+        return _UserFunction(self.function, self.name, self.size, self.what, self.source, parameters)
+
     def _where(self, error: BaseException) -> str:
         import traceback
 

@@ -11,6 +11,8 @@
   D and the embedding of a sampled series;
 - :mod:`.parameters`: the parameter vector theta = [vec(A); vec(B); vec(C)] and its names;
 - :mod:`.problems`: the paper's reference systems (presets) and the mass-spring-damper bank.
+- :mod:`.sample_times`: time stamps of sampled signals: gaps (missing samples), jitter and the
+  grid the estimators run on (read by the log readers of attend.io and by the estimators).
 
 This layer imports nothing from the rest of attend (perception, action, control, rhythm, io, the
 experiments, the command line): estimators, learners and controllers build on it.

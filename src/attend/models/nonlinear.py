@@ -110,13 +110,21 @@ class NonlinearSystem:
 
     # evaluation ------------------------------------------------------------------------------
 
-    def _call(self, function, x, v):
+    def call_with_parameters(self, function, x, v):
+        """``function(x, v)``, or ``function(x, v, parameters)`` when the system has parameters:
+        f, g or an analytic Jacobian called as the system calls them, nothing converted or checked
+        (for (n, K) columns of a vectorized system, or arrays traced by JAX). function: f, g,
+        jacobian_f or jacobian_g; x: the states; v: the inputs."""
         return function(x, v) if self.parameters is None else function(x, v, self.parameters)
 
-    def _value(self, which: str, x, v) -> np.ndarray:
+    def evaluate(self, which: str, x, v) -> np.ndarray:
+        """f(x, v) (``which`` = "f") or g(x, v) ("g") at float arrays x (n,) and v (r,) taken as
+        they are: :meth:`flow` and :meth:`observe` without converting their arguments (the inner
+        loops of the estimators). The value is a float (n,) or (m,) array; a failure of the user's
+        function or a wrong shape is an AttendInputError naming f or g."""
         function, size = (self.f, self.n_states) if which == "f" else (self.g, self.n_outputs)
         try:
-            value = np.asarray(self._call(function, x, v), dtype=float)
+            value = np.asarray(self.call_with_parameters(function, x, v), dtype=float)
         except AttendInputError:
             raise
         except Exception as error:  # the user's function failed: say which and where
@@ -129,27 +137,30 @@ class NonlinearSystem:
 
     def flow(self, x, v=None) -> np.ndarray:
         """f(x, v) [state unit / s]."""
-        return self._value("f", np.asarray(x, dtype=float), self._inputs(v))
+        return self.evaluate("f", np.asarray(x, dtype=float), self.input_vector(v))
 
     def observe(self, x, v=None) -> np.ndarray:
         """g(x, v) [output unit]."""
-        return self._value("g", np.asarray(x, dtype=float), self._inputs(v))
+        return self.evaluate("g", np.asarray(x, dtype=float), self.input_vector(v))
 
-    def _inputs(self, v):
+    def input_vector(self, v) -> np.ndarray:
+        """The inputs ``v`` as a float (n_inputs,) array; None: zeros (an autonomous system's empty
+        array)."""
         return np.zeros(self.n_inputs) if v is None else np.asarray(v, dtype=float).reshape(self.n_inputs)
 
     def jacobians(self, x, v=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(fx, fv, gx, gv) at (x, v): analytic when given, else finite differences."""
-        return self._jacobians(np.asarray(x, dtype=float), self._inputs(v))
+        return self.evaluate_jacobians(np.asarray(x, dtype=float), self.input_vector(v))
 
-    def _jacobians(self, x, v) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`jacobians` at float arrays x (n,), v (r,) (no conversion)."""
+    def evaluate_jacobians(self, x, v) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`jacobians` at float arrays x (n,) and v (r,) taken as they are (no conversion:
+        the inner loops of the estimators)."""
         n, r, m = self.n_states, self.n_inputs, self.n_outputs
         out = []
         for which, analytic, size in (("f", self.jacobian_f, n), ("g", self.jacobian_g, m)):
             if analytic is not None:
                 try:
-                    dx, dv = self._call(analytic, x, v)
+                    dx, dv = self.call_with_parameters(analytic, x, v)
                     dx, dv = np.asarray(dx, dtype=float), np.asarray(dv, dtype=float)
                     if dx.shape != (size, n) or dv.shape != (size, r):
                         dx, dv = dx.reshape(size, n), dv.reshape(size, r)
@@ -161,9 +172,9 @@ class NonlinearSystem:
                 if self.vectorized:  # columns, shape-checked; complex steps keep their dtype
                     joint = lambda z, w=which: evaluate_columns(self, w, z, dtype=None)  # noqa: E731
                 elif self.jacobian_method == "complex":
-                    joint = lambda z, fn=function: np.asarray(self._call(fn, z[:n], z[n:]))  # noqa: E731
+                    joint = lambda z, fn=function: np.asarray(self.call_with_parameters(fn, z[:n], z[n:]))  # noqa: E731
                 else:
-                    joint = lambda z, w=which: self._value(w, z[:n], z[n:])  # noqa: E731
+                    joint = lambda z, w=which: self.evaluate(w, z[:n], z[n:])  # noqa: E731
                 jac = finite_difference_jacobian(joint, np.concatenate([x, v]), method=self.jacobian_method,
                                                  vectorized=self.vectorized)
                 dx, dv = jac[:, :n], jac[:, n:]
@@ -178,7 +189,7 @@ def evaluate_columns(system: "NonlinearSystem", which: str, z: np.ndarray, dtype
     n = system.n_states
     function, size = (system.f, n) if which == "f" else (system.g, system.n_outputs)
     try:
-        values = np.asarray(system._call(function, z[:n], z[n:]), dtype=dtype)
+        values = np.asarray(system.call_with_parameters(function, z[:n], z[n:]), dtype=dtype)
     except AttendInputError:
         raise
     except Exception as error:
@@ -200,7 +211,7 @@ def evaluate_many(system: "NonlinearSystem", x, v):
     C, n = x.shape
     if not (system.vectorized and system.jacobian_f is None and system.jacobian_g is None
             and system.jacobian_method == "central"):
-        calls = [(system._value("f", xc, vc), system._value("g", xc, vc), *system._jacobians(xc, vc))
+        calls = [(system.evaluate("f", xc, vc), system.evaluate("g", xc, vc), *system.evaluate_jacobians(xc, vc))
                  for xc, vc in zip(x, v)]
         return tuple(np.array([call[i] for call in calls]).reshape((C,) + shape)
                      for i, shape in enumerate(_shapes(system)))

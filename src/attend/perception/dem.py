@@ -58,7 +58,8 @@ from attend.perception.dem_analysis import (
     start_influence,
     start_time_constant,
 )
-from attend.perception.dem_flow import flow_matrices, known_input_error, start_state
+from attend.perception.dem_flow import (centre_samples, flow_matrices, known_input_error, samples_after_centre,
+                                        start_state)
 from attend.perception.dem_online import OnlineDEM
 from attend.perception.recurrence import linear_recurrence
 
@@ -344,6 +345,12 @@ class DEMObserver:
             values.append(smoothness_condition(d + 1, self.input_kernel_width, self.dt))
         return float(max(values))
 
+    @property
+    def order0_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """(rows of the order-0 states, rows of the unknown inputs (none with known inputs)) in
+        the generalised state X = [x~; v~] of this observer."""
+        return self._readout(self.embedding_order)
+
     def _readout(self, p: int) -> tuple[np.ndarray, np.ndarray]:
         n, r = self.system.n_states, self.system.n_inputs
         n_x = n * (p + 1)
@@ -377,14 +384,13 @@ class DEMObserver:
     @property
     def delay(self) -> int:
         """Samples of the future the embedding window needs: the online estimate lags by this."""
-        return max(self._after(self.embedding_order + 1), self._after(self.input_order + 1)) + self.window_offset
-
-    @staticmethod
-    def _after(window: int) -> int:
-        return window - 1 - window // 2
+        return max(samples_after_centre(self.embedding_order + 1),
+                   samples_after_centre(self.input_order + 1)) + self.window_offset
 
     def generalized_matrices(self) -> dict[str, np.ndarray]:
-        """C~, A~, B~, D_x, D_v, Vy, W, Vv, A_obs, B_obs, Pi_X (see the module docstring)."""
+        """C~, A~, B~, D_x, D_v, Vy, W, Vv, A_obs, B_obs, Pi_X (see the module docstring) and the
+        flow's transition, window_gain, order0_gain, offsets and spectral radius, by name (a new
+        dict; the arrays are the observer's own: read them, do not change them)."""
         return dict(self._matrices)
 
     def _build(self, p: int) -> dict[str, np.ndarray]:
@@ -431,10 +437,6 @@ class DEMObserver:
             )
         return np.hstack([y, u])
 
-    def _start_state(self, signals: np.ndarray, row: int, edge: bool) -> np.ndarray:
-        """Where the flow starts at row ``row`` (see :func:`attend.perception.dem_flow.start_state`)."""
-        return start_state(self, signals, row, edge)
-
     def _edge_rows(self, n_samples: int, start: int, stop: int) -> np.ndarray:
         """Rows in [start, stop) whose embedding window reaches past the log (relative indices)."""
         if self.edges == "clamp":
@@ -442,9 +444,6 @@ class DEMObserver:
         offsets = self._matrices["offsets"]
         rows = np.arange(start, stop)
         return np.flatnonzero((rows + offsets[0] < 0) | (rows + offsets[-1] > n_samples - 1))
-
-    def _centre_samples(self, signals: np.ndarray, rows: np.ndarray) -> np.ndarray:
-        return signals[np.clip(rows + self.window_offset, 0, signals.shape[0] - 1)]
 
     @with_single_blas_thread
     def estimate(self, outputs, inputs=None, *, keep_generalized: bool = False,
@@ -462,8 +461,8 @@ class DEMObserver:
         Row k is the estimate at sample k (it uses samples up to k + delay).
         keep_generalized: also return every generalised state X_t (memory O(N dim X)).
         initial_state: the full generalised start X0 (dim X,); default: order 0 from the first
-        sample, higher orders at their prior mean (see :meth:`_start_state`; the constructor's
-        ``initial_state`` sets its order-0 states).
+        sample, higher orders at their prior mean (see :func:`attend.perception.dem_flow.start_state`;
+        the constructor's ``initial_state`` sets its order-0 states).
         Raises AttendInputError when the log is shorter than DRIFT_FACTOR start time constants
         (analysis().start_time_constant): the start would still matter at its end; and, for an
         observer that is not stable (spectral radius rho >= 1), when its slowest mode grows
@@ -497,7 +496,7 @@ class DEMObserver:
                 raise AttendInputError(f"initial_state: expected the generalised start X0 of size {size}, "
                                        f"got shape {np.shape(initial_state)}")
             require_finite(state, "initial_state")
-        states, inputs_out, generalized = self._run(signals, state, keep_generalized, segment)
+        states, inputs_out, generalized = self.run_flow(signals, state, keep_generalized, segment)
         analysis = self.analysis()
         if analysis.unobservable:
             warnings.warn(
@@ -516,8 +515,13 @@ class DEMObserver:
         input_std = np.broadcast_to(input_std, (n_samples, r))
         return DEMEstimate(np.arange(n_samples) * self.dt, states, inputs_out, state_std, input_std, generalized)
 
-    def _run(self, signals: np.ndarray, state, keep_generalized: bool, segment: int):
-        """The flow over the whole log: (states (N, n), inputs (N, r), generalised X or None)."""
+    def run_flow(self, signals: np.ndarray, state=None, keep_generalized: bool = False, segment: int = 1 << 14):
+        """The flow over a whole log, without :meth:`estimate`'s checks and standard deviations:
+        (states (N, n), inputs (N, r), every generalised state X (N, dim X) or None).
+
+        signals: (N, m + r) samples [y, u] (outputs, then the measured inputs or the input prior);
+        state: the generalised start X0 (dim X,), or None for :func:`attend.perception.dem_flow.start_state`;
+        keep_generalized: also return every X; segment: samples per segment (memory O(segment))."""
         mats = self._matrices
         n_samples = signals.shape[0]
         n, r = self.system.n_states, self.system.n_inputs
@@ -533,9 +537,9 @@ class DEMObserver:
             drive = windows @ gain_t
             edge = self._edge_rows(n_samples, start, stop)
             if len(edge):
-                drive[edge] = self._centre_samples(signals, start + edge) @ mats["order0_gain"].T
+                drive[edge] = centre_samples(signals, start + edge, self.window_offset) @ mats["order0_gain"].T
             if state is None:
-                state = self._start_state(signals, start, len(edge) > 0 and edge[0] == 0)
+                state = start_state(self, signals, start, len(edge) > 0 and edge[0] == 0)
             X = linear_recurrence(mats["transition"], drive, state)
             if self.integration == "spm":  # row k: the state before the step with sample k
                 X, state = np.vstack([state[None, :], X[:-1]]), X[-1]

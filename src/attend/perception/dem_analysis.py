@@ -337,8 +337,8 @@ def not_informed_by_outputs(observer) -> np.ndarray:
 
     observer: the DEMObserver; returns one flag per order-0 state and unknown input.
     """
-    mats = observer._matrices
-    rows_x, rows_v = observer._readout(observer.embedding_order)
+    mats = observer.generalized_matrices()
+    rows_x, rows_v = observer.order0_rows
     indices = np.concatenate([rows_x, rows_v])
     Pi_X = mats["Pi_X"]
     without = Pi_X.copy()
@@ -361,8 +361,8 @@ def observer_error_std(observer, names) -> tuple[np.ndarray, np.ndarray, tuple]:
     names of the states and unknown inputs, in order. Returns (std, prior variances, names of
     the uninformed ones).
     """
-    mats, system, n = observer._matrices, observer.system, observer.system.n_states
-    rows_x, rows_v = observer._readout(observer.embedding_order)
+    mats, system, n = observer.generalized_matrices(), observer.system, observer.system.n_states
+    rows_x, rows_v = observer.order0_rows
     lag = 1 if getattr(observer, "integration", "attend") == "spm" else 0  # row k reports X[k - 1]
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         error_x, error_v, prior_x, prior_v = steady_state_error_variance(

@@ -160,10 +160,23 @@ def known_input_error(observer, signals: np.ndarray, segment: int) -> np.ndarray
     with np.errstate(over="ignore", invalid="ignore"):
         response[1:] = linear_recurrence(Ad, u[:-1] @ Bd.T, np.zeros(n))
         clean = np.hstack([response @ system.C.T, u])
-        states = observer._run(clean, None, False, segment)[0]
+        states = observer.run_flow(clean, None, False, segment)[0]
     middle = slice(signals.shape[0] // 10, signals.shape[0] - signals.shape[0] // 10)
     error = np.mean((states[middle] - response[middle]) ** 2, axis=0)
     return np.where(np.isfinite(error), error, np.inf)
+
+
+def samples_after_centre(window: int) -> int:
+    """How many samples of an embedding window of ``window`` samples lie after its centre sample
+    (sample window // 2 of the window)."""
+    return window - 1 - window // 2
+
+
+def centre_samples(signals: np.ndarray, rows: np.ndarray, window_offset: int) -> np.ndarray:
+    """The samples the embedding windows of ``rows`` are centred on: rows + window_offset, clamped
+    to the log. signals: (N, m + r) samples [y, u]; rows: row indices; window_offset: the
+    observer's (0: centred)."""
+    return signals[np.clip(rows + window_offset, 0, signals.shape[0] - 1)]
 
 
 def fold_embedding(observer, gain: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray]:
@@ -178,7 +191,7 @@ def fold_embedding(observer, gain: np.ndarray, p: int) -> tuple[np.ndarray, np.n
     Ey = embedding_weights(p + 1, observer.dt)  # (p+1 orders, p+1 samples)
     Eu = embedding_weights(d + 1, observer.dt)
     first = -max((p + 1) // 2, (d + 1) // 2)
-    last = max(observer._after(p + 1), observer._after(d + 1))
+    last = max(samples_after_centre(p + 1), samples_after_centre(d + 1))
     offsets = np.arange(first, last + 1)
     width = m + r
     folded = np.zeros((gain.shape[0], len(offsets) * width))
@@ -215,10 +228,10 @@ def start_state(observer, signals: np.ndarray, row: int, edge: bool) -> np.ndarr
     n, r, m = system.n_states, system.n_inputs, system.n_outputs
     A, B, C = system.A, system.B, system.C
     Pz, Pw, Pv = observer.sensor_precision, observer.process_precision, observer.input_prior_precision
-    sample = observer._centre_samples(signals, np.array([row]))[0]
+    sample = centre_samples(signals, np.array([row]), observer.window_offset)[0]
     y, u = sample[:m], sample[m:]
     p, d = observer.embedding_order, observer.input_order
-    X = np.zeros(observer._matrices["transition"].shape[0])
+    X = np.zeros(observer.n_state_coordinates + observer.n_input_coordinates)
     if observer.known_inputs:
         if observer.initial_state is not None:
             X[:n] = observer.initial_state

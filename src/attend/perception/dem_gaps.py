@@ -1,7 +1,7 @@
 """DEM on logs with missing values and irregular time stamps.
 
 DEM's embedding needs samples on a uniform grid, so a log with gaps or jitter is brought to one:
-every column bridged on the log's grid (:func:`attend.perception.sample_times.bridge`: linear in
+every column bridged on the log's grid (:func:`attend.models.sample_times.bridge`: linear in
 time, at most BRIDGED_GAP missing samples in a row, a longer gap an error naming its rows),
 resampled onto t_0 + k dt (k = 0 .. ceil((t_end - t_0) / dt)) by linear interpolation, estimated
 there, and the estimates and their standard deviations interpolated back to the log's stamps.
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from attend._validation import AttendInputError
-from attend.perception.sample_times import bridge, matrix_with_gaps, sample_grid
+from attend.models.sample_times import bridge, matrix_with_gaps, sample_grid
 
 
 def estimate_with_gaps(observer, outputs, inputs, time, **options):

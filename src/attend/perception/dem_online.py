@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from attend._validation import AttendInputError, numeric_array, require_finite
+from attend.perception.dem_flow import start_state
 from attend.perception.sample_window import push_sample
 
 if TYPE_CHECKING:
@@ -25,9 +26,10 @@ class OnlineDEM:
 
     def __init__(self, observer: "DEMObserver"):
         self.observer = observer
-        mats = observer._matrices
+        mats = observer.generalized_matrices()
         self._transition = mats["transition"]
         self._gain = mats["window_gain"]
+        self._order0_gain = mats["order0_gain"]
         offsets = mats["offsets"]
         self._before = int(-offsets[0])
         self._window = len(offsets)
@@ -41,15 +43,14 @@ class OnlineDEM:
         self._order0 = observer.edges == "order0"
 
     def _advance(self, edge: bool) -> tuple[np.ndarray, np.ndarray]:
-        mats = self.observer._matrices
         if edge:
             data = self._buffer[self._before]
-            drive = mats["order0_gain"] @ data
+            drive = self._order0_gain @ data
         else:
             data = self._buffer.reshape(-1)
             drive = self._gain @ data
         if self._state is None:
-            self._state = self.observer._start_state(self._buffer, self._before, edge)
+            self._state = start_state(self.observer, self._buffer, self._before, edge)
         before = self._state
         self._state = self._transition @ self._state + drive
         reported = before if self.observer.integration == "spm" else self._state  # docs/spm.md

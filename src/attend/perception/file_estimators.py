@@ -18,14 +18,16 @@ if TYPE_CHECKING:  # imported where it is built: a nonlinear model file loads no
     from attend.perception.dem import DEMObserver
 
 
-def file_estimator(model: ModelFile, dt: float):
+def file_estimator(model: ModelFile, dt: float, outputs=None, signals=None, time=None):
     """The estimator the model file describes (``[observer] method``), for logs sampled every ``dt``
     s: :func:`file_nonlinear_estimator` for a nonlinear model, else :func:`file_kalman_estimator`
-    or :func:`file_dem_observer`. model: the parsed :class:`attend.io.model.ModelFile`."""
+    or :func:`file_dem_observer`. model: the parsed :class:`attend.io.model.ModelFile`; outputs
+    (N, m), signals (N, r) and time (N,) [s]: the log the estimator will run on (optional), from
+    which the Kalman smoother chooses the unknown inputs' prior width when the file gives none."""
     if model.nonlinear:
         return file_nonlinear_estimator(model, dt)
     if model.method == "kalman":
-        return file_kalman_estimator(model, dt)
+        return file_kalman_estimator(model, dt, outputs, signals, time)
     return file_dem_observer(model, dt)
 
 
@@ -56,23 +58,58 @@ def file_nonlinear_estimator(model: ModelFile, dt: float) -> NonlinearFileEstima
     return estimator
 
 
-def file_kalman_estimator(model: ModelFile, dt: float):
+def file_kalman_estimator(model: ModelFile, dt: float, outputs=None, signals=None, time=None):
     """The coloured-noise Kalman smoother of the model file ``model``, for logs sampled every ``dt``
-    s: measured inputs drive the model, the others are estimated."""
+    s: measured inputs drive the model, the others are estimated.
+
+    When some inputs are unknown, the file gives no ``input_kernel_width`` and the log is passed
+    (outputs (N, m), NaN where missing; signals (N, r): the measured inputs and the unknown ones'
+    prior means; time (N,) [s] or None), the inputs' prior width is the maximum of the log's
+    likelihood over a grid (:func:`attend.perception.input_width.choose_input_width`), recorded in
+    the estimator's ``input_width_choice``; a flat likelihood keeps the process width with a
+    ModelWarning naming input_kernel_width. Without the log: the process width."""
     from attend.perception.kalman import KalmanEstimator
 
     known = [spec.known for spec in model.inputs]
     prior = None if all(known) else np.array([1.0 if s.known else s.prior_precision for s in model.inputs])
+    settings = dict(sensor_precision=model.sensor_precision, process_precision=model.process_precision,
+                    kernel_width=model.kernel_width, process_kernel_width=model.process_kernel_width,
+                    sensor_kernel_width=model.sensor_kernel_width, input_prior_precision=prior,
+                    known_inputs=known if model.inputs else True, initial_state=model.initial_state,
+                    initial_state_std=model.initial_state_std)
     try:
-        return KalmanEstimator(model.system, dt, sensor_precision=model.sensor_precision,
-                               process_precision=model.process_precision, kernel_width=model.kernel_width,
-                               process_kernel_width=model.process_kernel_width,
-                               sensor_kernel_width=model.sensor_kernel_width, input_prior_precision=prior,
-                               input_kernel_width=model.input_kernel_width,
-                               known_inputs=known if model.inputs else True, initial_state=model.initial_state,
-                               initial_state_std=model.initial_state_std)
+        estimator = KalmanEstimator(model.system, dt, input_kernel_width=model.input_kernel_width, **settings)
+        if all(known) or model.input_kernel_width is not None or outputs is None:
+            return estimator
+        return _with_chosen_input_width(estimator, settings, outputs, signals, time, model.path)
     except AttendInputError as error:
         raise AttendInputError(f"{model.path}: [observer] {error}") from None
+
+
+def _with_chosen_input_width(estimator, settings: dict, outputs, signals, time, path: str):
+    """The Kalman smoother of ``settings`` at the input width of largest likelihood on the log
+    (``estimator``: the one at the process width, which is also the fallback; path: the model
+    file, named in the flat-likelihood warning)."""
+    import warnings
+
+    from attend.models.linear import ModelWarning
+    from attend.perception.input_width import choose_input_width
+
+    def build(width):
+        if np.isclose(width, estimator.input_kernel_width, rtol=1e-12, atol=0.0):
+            return estimator
+        with warnings.catch_warnings():  # the observability note was given once, by ``estimator``
+            warnings.simplefilter("ignore", ModelWarning)
+            return type(estimator)(estimator.system, estimator.dt, input_kernel_width=width, **settings)
+
+    choice = choose_input_width(lambda width: build(width).innovation_terms(outputs, signals, time=time),
+                                estimator.dt, estimator.input_kernel_width)
+    if choice.flat:
+        warnings.warn(f"{path}: {choice.warning()}", ModelWarning, stacklevel=4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ModelWarning)
+        return type(estimator)(estimator.system, estimator.dt, input_kernel_width=choice.width,
+                               input_width_choice=choice, **settings)
 
 
 def file_dem_observer(model: ModelFile, dt: float) -> DEMObserver:
@@ -218,8 +255,8 @@ class NonlinearFileEstimator:
         try:
             with warnings.catch_warnings():  # of the D-step, which only helps start the smoother here
                 warnings.simplefilter("ignore", ModelWarning)
-                checked = dem._signals(outputs, signals)
-                basis = d_step_basis(dem, checked, dem._sample_estimate(checked, True, None, check=False))
+                checked = dem.checked_signals(outputs, signals)
+                basis = d_step_basis(dem, checked, dem.dstep_estimate(checked, True, None, check=False))
                 substeps = smoother_substeps(dem, basis)
                 if initial is None:
                     dem_start, dem_followed = initial_state_prior(dem, checked, basis), basis[1]

@@ -64,7 +64,10 @@ from attend.perception.kalman_recursions import (
     _smoothed_means,
     _smoother_variances,
     _steady_predicted_covariance,
+    InnovationTerms,
+    innovation_terms,
     steady_gain,
+    varying_innovation_terms,
     varying_pass,
 )
 from attend.perception.sample_times import SampleGrid, bridge, matrix_with_gaps, sample_grid
@@ -159,7 +162,11 @@ class KalmanEstimator:
     initial_state: prior mean of x[0] (default 0) and initial_state_std its standard deviation
     (0: known; default: known when initial_state is given, else unknown: a broad prior, 100 times
     the scale of the state seen through C in the first sample, or of the sensor noise if larger).
+    input_width_choice: how input_kernel_width was chosen from a log when a model file gave none
+    (an :class:`attend.perception.input_width.InputWidthChoice`, set by
+    :func:`attend.perception.file_estimators.file_kalman_estimator`; None: given or the default).
     Logs with missing values (NaN) and irregular time stamps: :meth:`estimate` (see the module).
+    :meth:`log_likelihood`: log p(y) of a log under the model.
     """
 
     system: LinearSystem
@@ -175,6 +182,7 @@ class KalmanEstimator:
     known_inputs: bool = True
     initial_state: np.ndarray | None = None
     initial_state_std: np.ndarray | float | None = None
+    input_width_choice: object = field(default=None, repr=False, compare=False)
     _model: dict = field(default_factory=dict, repr=False)
 
     @with_single_blas_thread
@@ -453,8 +461,8 @@ class KalmanEstimator:
             grid = sample_grid(np.arange(y.shape[0]) * self.dt, self.dt)
         return self._run_on_grid(y, u, smooth, grid)
 
-    def _run_uniform(self, y: np.ndarray, u: np.ndarray, smooth: bool) -> StateEstimate:
-        """Every sample present, uniform steps: the steady-gain shortcut of kalman_recursions."""
+    def _uniform_filter(self, y: np.ndarray, u: np.ndarray):
+        """(gain schedule, predicted means, innovations) of the filter on a complete, uniform log."""
         N = y.shape[0]
         model = self._model
         T, H = model["T"], model["H"]
@@ -465,6 +473,14 @@ class KalmanEstimator:
         drive = np.zeros((N, model["dim"]))
         drive[:, model["slices"]["x"]] = u @ model["Bd"].T  # b[k] = Bd u[k] enters x[k+1]
         predicted, innovations = _predicted_means(schedule, T, H, y, drive, mean0)
+        return schedule, predicted, innovations
+
+    def _run_uniform(self, y: np.ndarray, u: np.ndarray, smooth: bool) -> StateEstimate:
+        """Every sample present, uniform steps: the steady-gain shortcut of kalman_recursions."""
+        N = y.shape[0]
+        model = self._model
+        T, H = model["T"], model["H"]
+        schedule, predicted, innovations = self._uniform_filter(y, u)
         if smooth:
             readout = _smoothed_means(schedule, T, H, predicted, innovations, model["output_map"])
             covariance_diag = _smoother_variances(schedule, T, H, model["output_map"], N)
@@ -473,8 +489,39 @@ class KalmanEstimator:
             covariance_diag = _filter_variances(schedule, H, model["output_map"], N)
         return self._result(readout, covariance_diag, u, np.arange(N) * self.dt, smooth)
 
-    def _run_on_grid(self, y: np.ndarray, u: np.ndarray, smooth: bool, grid: SampleGrid) -> StateEstimate:
-        """Missing values and irregular time stamps: the time-varying recursions on the grid."""
+    def log_likelihood(self, outputs, inputs=None, *, time=None) -> float:
+        """log p(y) of the log under this model: the sum over samples of log N(nu[k]; 0, S[k]), the
+        Kalman filter's innovations nu[k] = y[k] - E[y[k] | y[0..k-1]] and their covariances S[k]
+        (the prediction-error decomposition; exact for the augmented linear Gaussian model, whose
+        noise fits match the kernels to ~1e-7). The marginal likelihood of the settings, e.g. of
+        input_kernel_width (:mod:`attend.perception.input_width`).
+
+        outputs, inputs and time as :meth:`estimate`; missing outputs (NaN) are left out of y.
+        """
+        return self.innovation_terms(outputs, inputs, time=time).log_likelihood
+
+    @with_single_blas_thread
+    def innovation_terms(self, outputs, inputs=None, *, time=None) -> InnovationTerms:
+        """The parts of :meth:`log_likelihood` (sums of log det S[k] and of nu[k]' inv(S[k]) nu[k],
+        the number of measured values): scaling every covariance of the model by 1 / lambda scales
+        S[k] alike and leaves nu[k] as it is, so log p(y | lambda) follows from them in closed form.
+        outputs, inputs and time as :meth:`estimate`."""
+        y, u = self._signals(outputs, inputs)
+        grid = None if time is None else sample_grid(time, self.dt, y.shape[0])
+        complete = np.all(np.isfinite(y)) and np.all(np.isfinite(u))
+        if complete and (grid is None or (grid.uniform and not grid.inserted)):
+            schedule, _, innovations = self._uniform_filter(y, u)
+            return innovation_terms(schedule, self._model["H"], innovations)
+        if grid is None:
+            grid = sample_grid(np.arange(y.shape[0]) * self.dt, self.dt)
+        layout, step_model, steady, y_grid, observed, _ = self._grid_model(y, u, grid)
+        mean0, cov0 = self._initial(y_grid, layout)
+        return varying_innovation_terms(step_model, layout["H"], np.where(observed, y_grid, 0.0), observed, mean0,
+                                        cov0, steady, layout["slices"].values())
+
+    def _grid_model(self, y: np.ndarray, u: np.ndarray, grid: SampleGrid):
+        """(layout, step_model, steady gain, y on the grid, its observed mask, u on the grid) of a log
+        with missing values or irregular time stamps (see :func:`varying_pass`)."""
         if not np.isfinite(y).any():
             raise AttendInputError("outputs: every value is missing (NaN); expected some measured outputs")
         names = [self.system.input_names[j] for j in range(self.system.n_inputs)]
@@ -498,6 +545,11 @@ class KalmanEstimator:
             def step_model(k):
                 T, Q, Bd_augmented = self._continuous_step(steps[k - 1])
                 return T, Q, Bd_augmented @ u_grid[k - 1]
+        return layout, step_model, steady, y_grid, observed, u_grid
+
+    def _run_on_grid(self, y: np.ndarray, u: np.ndarray, smooth: bool, grid: SampleGrid) -> StateEstimate:
+        """Missing values and irregular time stamps: the time-varying recursions on the grid."""
+        layout, step_model, steady, y_grid, observed, u_grid = self._grid_model(y, u, grid)
         mean0, cov0 = self._initial(y_grid, layout)
         readout, covariance_diag = varying_pass(step_model, layout["H"], np.where(observed, y_grid, 0.0), observed,
                                                 mean0, cov0, layout["output_map"], smooth, steady,

@@ -19,7 +19,7 @@ from attend.perception.kalman_recursions import (
     _steady_predicted_covariance,
     steady_gain,
 )
-from attend.perception.sample_times import SHORTEST_STEP, UNIFORM_TOLERANCE
+from attend.models.sample_times import SHORTEST_STEP, UNIFORM_TOLERANCE
 
 if TYPE_CHECKING:
     from attend.perception.kalman import KalmanEstimator

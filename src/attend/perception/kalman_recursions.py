@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve
+from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
 from attend._validation import AttendInputError
 from attend.perception.recurrence import linear_recurrence
@@ -457,3 +457,121 @@ def _varying_smoother(step_model, H, O, predicted, scaled, records, is_steady, s
                 settled = calm >= 3
             previous = variances[k]
     return means, variances
+
+
+# --- the log-likelihood of the log: the prediction-error decomposition ----------------------------
+#
+# log p(y[0..N-1]) = sum_k log N(nu[k]; 0, S[k]), S[k] = H_o P_p[k] H_o' (the observed rows H_o),
+# exact for the linear Gaussian model the filter runs on: the innovations are independent.
+
+_LOG_2PI = float(np.log(2 * np.pi))
+
+
+def _jittered_cholesky(S: np.ndarray) -> np.ndarray:
+    """Lower Cholesky factor of S, with the white variance of :func:`_innovation_weight` (1e-12 ..
+    1e-8 of its mean diagonal) added only when S needs it."""
+    S = 0.5 * (S + S.T)
+    scale = max(float(np.mean(np.abs(np.diag(S)))), 1e-300)
+    for jitter in (0.0, 1e-12, 1e-10, 1e-8):
+        try:
+            return np.linalg.cholesky(S + jitter * scale * np.eye(len(S)))
+        except np.linalg.LinAlgError:
+            continue
+    raise AttendInputError("sensor_precision: the predicted outputs' covariance is singular; check "
+                           "sensor_precision and C")
+
+
+def _gaussian_terms(S: np.ndarray, innovations: np.ndarray) -> tuple[float, float]:
+    """(log det S, sum over the rows nu of ``innovations`` of nu' inv(S) nu)."""
+    factor = _jittered_cholesky(S)
+    white = solve_triangular(factor, np.atleast_2d(innovations).T, lower=True)
+    return 2.0 * float(np.sum(np.log(np.diag(factor)))), float(np.sum(white**2))
+
+
+class InnovationTerms(NamedTuple):
+    """The parts of log p(y) = -0.5 (log_determinant + quadratic + count log(2 pi)): the sums over
+    samples of log det S[k] and of nu[k]' inv(S[k]) nu[k], and the number of measured values."""
+
+    log_determinant: float
+    quadratic: float
+    count: int
+
+    @property
+    def log_likelihood(self) -> float:
+        """log p(y) [nats]."""
+        return -0.5 * (self.log_determinant + self.quadratic + self.count * _LOG_2PI)
+
+
+def innovation_terms(schedule: _GainSchedule, H, innovations) -> InnovationTerms:
+    """:class:`InnovationTerms` of a complete, uniform log from the filter's innovations nu (N, m)
+    and the predicted covariances of its gain schedule (the steady one from the schedule's end on)."""
+    N, m = innovations.shape
+    head = min(len(schedule.predicted), N)
+    log_determinant = quadratic = 0.0
+    for k in range(head):
+        logdet, value = _gaussian_terms(H @ schedule.predicted[k] @ H.T, innovations[k])
+        log_determinant, quadratic = log_determinant + logdet, quadratic + value
+    if head < N:
+        logdet, value = _gaussian_terms(H @ schedule.predicted[-1] @ H.T, innovations[head:])
+        log_determinant, quadratic = log_determinant + (N - head) * logdet, quadratic + value
+    return InnovationTerms(log_determinant, quadratic, N * m)
+
+
+def varying_innovation_terms(step_model, H, y, observed, mean0, P0, steady: SteadyGain | None = None,
+                             blocks=None, patience: int = 3) -> InnovationTerms:
+    """:class:`InnovationTerms` of the measured values of a log with gaps or jitter: the forward
+    pass of :func:`varying_pass` (same arguments; the steady gain taken on the same rule) over the
+    samples with a measured channel."""
+    N = y.shape[0]
+    blocks = [slice(None)] if blocks is None else list(blocks)
+    if steady is not None:
+        steady_factor = _jittered_cholesky(H @ steady.predicted @ H.T)
+        steady_logdet = 2.0 * float(np.sum(np.log(np.diag(steady_factor))))
+    on_steady, calm, plateau = False, 0, _Plateau()
+    a_f = P_f = None
+    log_determinant = quadratic = 0.0
+    count = 0
+    for k in range(N):
+        rows = np.flatnonzero(observed[k])
+        full = rows.size == H.shape[0]
+        if k == 0:
+            a, P = mean0, P0
+        else:
+            T, Q, b = step_model(k)
+            a = T @ a_f + b
+            if on_steady:
+                P = None
+            else:
+                P = T @ P_f @ T.T + Q
+                P = 0.5 * (P + P.T)
+        if on_steady and not full:
+            on_steady, calm, plateau, P = False, 0, _Plateau(), steady.predicted.copy()
+        if on_steady:
+            nu = y[k] - H @ a
+            white = solve_triangular(steady_factor, nu, lower=True)
+            log_determinant, quadratic = log_determinant + steady_logdet, quadratic + float(white @ white)
+            count += nu.size
+            a_f = a + steady.gain @ nu
+            continue
+        if rows.size:
+            Ho = H[rows]
+            nu = y[k, rows] - Ho @ a
+            logdet, value = _gaussian_terms(Ho @ P @ Ho.T, nu)
+            log_determinant, quadratic = log_determinant + logdet, quadratic + value
+            count += rows.size
+            W = _innovation_weight(Ho, P)
+            K = P @ W
+            a_f = a + K @ nu
+            P_f = _joseph(P, K, Ho)
+        else:
+            K = np.zeros((P.shape[0], 0))
+            a_f, P_f = a, P
+        if steady is not None and full:
+            distance = _blockwise_distance(K, steady.gain, blocks)
+            calm = calm + 1 if distance <= STEADY_TOLERANCE else 0
+            if plateau.reached(distance):
+                calm = patience
+            on_steady = calm >= patience
+        else:
+            calm = 0
+    return InnovationTerms(log_determinant, quadratic, count)

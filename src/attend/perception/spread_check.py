@@ -261,11 +261,13 @@ def spread_findings(system, dt: float, outputs: np.ndarray, states: np.ndarray, 
     return implausible_spreads(states, inputs, references, reference_labels, names, settings, limit)
 
 
-def check_estimate(model, log, estimate) -> list[SpreadFinding]:
+def check_estimate(model, log, estimate, input_kernel_width: float | None = None) -> list[SpreadFinding]:
     """The spread check of ``attend estimate``: :func:`spread_findings` on an estimate of a model file.
 
     model: the :class:`attend.io.ModelFile`; log: the :class:`attend.io.Log` (its outputs by the
-    model's output columns); estimate: the estimator's result (states (N, n), inputs (N, r)).
+    model's output columns); estimate: the estimator's result (states (N, n), inputs (N, r));
+    input_kernel_width: s_u [s] the estimator used when the file gives none (chosen from the log,
+    :mod:`attend.perception.input_width`; None: the file's, or the process width).
     """
     states = np.asarray(estimate.states, float)
     r = model.system.n_inputs
@@ -273,6 +275,8 @@ def check_estimate(model, log, estimate) -> list[SpreadFinding]:
     process_width = model.process_kernel_width if model.process_kernel_width is not None else width
     sensor_width = model.sensor_kernel_width if model.sensor_kernel_width is not None else width
     input_width = model.input_kernel_width if model.input_kernel_width is not None else process_width
+    if model.input_kernel_width is None and input_kernel_width is not None:
+        input_width = input_kernel_width
     drive = np.zeros((len(states), r))
     for j, spec in enumerate(model.inputs):
         drive[:, j] = (log.matrix([spec.column], missing=True)[:, 0] - spec.operating_point if spec.known

@@ -1,5 +1,5 @@
 """The D-step of :class:`attend.perception.nonlinear.NonlinearDEM` with its arrays kept between
-samples (:class:`StepWorkspace`): the same equations as ``NonlinearDEM._step`` for
+samples (:class:`StepWorkspace`): the same equations as ``NonlinearDEM.dstep`` for
 motion="linearized" and integration="attend", with fewer NumPy calls per sample.
 
 The step works in the flow's units: X_s = S X with S = diag(dt^k) (k the order of each coordinate;
@@ -38,7 +38,7 @@ class StepWorkspace:
     estimator: the :class:`NonlinearDEM` (motion="linearized", integration="attend")."""
 
     def __init__(self, estimator):
-        mats = estimator._matrices
+        mats = estimator.generalized_matrices()
         n, r, p, d, top = mats["sizes"]
         m = estimator.system.n_outputs
         self.estimator, self.system = estimator, estimator.system
@@ -73,7 +73,7 @@ class StepWorkspace:
         n, r, m, n_x, n_y = self.n, self.r, self.m, self.n_x, self.n_y
         system = self.system
         x0, v0 = X[:n], X[n_x: n_x + r] if self.estimates_inputs else u_tilde[:r]
-        fx, fv, gx, gv = system._jacobians(x0, v0)
+        fx, fv, gx, gv = system.evaluate_jacobians(x0, v0)
         views, (factor_x, factor_v) = self.views, self.factors
         np.multiply(gx, factor_x, out=views["gx"])
         np.multiply(fx, factor_x, out=views["fx"])
@@ -82,8 +82,8 @@ class StepWorkspace:
             np.multiply(fv, factor_v, out=views["fv"])
         errors = self.jacobian @ X_scaled  # orders >= 1: y~ - g~, x~' - f~ with y~ and eta~ added below
         errors[:n_y] += y_tilde
-        np.subtract(y_tilde[:m], system._value("g", x0, v0), out=errors[:m])
-        f0 = system._value("f", x0, v0)
+        np.subtract(y_tilde[:m], system.evaluate("g", x0, v0), out=errors[:m])
+        f0 = system.evaluate("f", x0, v0)
         if self.p:
             np.subtract(X[n: 2 * n], f0, out=errors[n_y: n_y + n])
         else:  # order 0 is the top order: its motion error is -f
@@ -118,7 +118,7 @@ class StepWorkspace:
                 -0.5 * products[size, size])
 
     def step(self, X, y_tilde, u_tilde, substeps: int):
-        """One D-step over dt / substeps (NonlinearDEM._step): returns (X, curvature), the curvature
+        """One D-step over dt / substeps (NonlinearDEM.dstep): returns (X, curvature), the curvature
         in the flow's units (inv(S) E' Pi E inv(S); the order-0 entries are E' Pi E's own).
         X: the generalised state; y_tilde, u_tilde: the embedded data; substeps: per sample."""
         X_scaled = X * self.scale

@@ -153,7 +153,8 @@ class NonlinearDEM:
     # construction ----------------------------------------------------------------------------
 
     @property
-    def _estimates_inputs(self) -> bool:
+    def estimates_inputs(self) -> bool:
+        """True when the generalised state X holds unknown inputs v~ (inputs not measured, r > 0)."""
         return not self.known_inputs and self.system.n_inputs > 0
 
     @property
@@ -164,7 +165,7 @@ class NonlinearDEM:
     @property
     def n_input_coordinates(self) -> int:
         """Size of v~: r (d + 1), or 0 with known inputs."""
-        return self.system.n_inputs * (self.input_order + 1) if self._estimates_inputs else 0
+        return self.system.n_inputs * (self.input_order + 1) if self.estimates_inputs else 0
 
     @staticmethod
     def _after(window: int) -> int:
@@ -174,6 +175,17 @@ class NonlinearDEM:
     def delay(self) -> int:
         """Samples of the future the embedding window needs: the online estimate lags by this."""
         return int(self._matrices["offsets"][-1])
+
+    def generalized_matrices(self) -> dict:
+        """The D-step's constant arrays by name (a new dict; the arrays are the estimator's own: read
+        them, do not change them): the embedding window's ``offsets`` (relative to the row) and the
+        positions of the output and input windows in it (``y_positions``, ``u_positions``), the
+        embedding weights ``Ey``, ``Eu``, the precisions ``Vy``, ``W``, ``Vv`` and their blocks
+        ``Pi``, the shift operators ``D_X``, ``Dx``, ``Dy``, ``Du``, the constant part of E = de/dX
+        (``E_template``, ``E_u_template``, ``E_places``), ``sizes`` (n, r, p, d, min(p, d) + 1),
+        ``estimates_inputs``, the ``reported`` coordinates of X (order-0 states and unknown inputs),
+        and ``order_scale`` (dt^k of each coordinate)."""
+        return dict(self._matrices)
 
     def _build(self) -> dict:
         n, r, m = self.system.n_states, self.system.n_inputs, self.system.n_outputs
@@ -298,7 +310,7 @@ class NonlinearDEM:
         flat[places["gx"]] = -gx
         flat[places["fx"]] = -fx
         E_u = None
-        if self._estimates_inputs:
+        if self.estimates_inputs:
             flat[places["gv"]] = -gv
             flat[places["fv"]] = -fv
             if data_jacobian:
@@ -319,7 +331,7 @@ class NonlinearDEM:
         E[:n_y, :n_x] = -Gx
         E[n_y: n_y + n_x, :n_x] = mats["Dx"] - Fx
         E_u = None
-        if self._estimates_inputs:
+        if self.estimates_inputs:
             E[:n_y, n_x:] = -Gv
             E[n_y: n_y + n_x, n_x:] = -Fv
             E_u = mats["E_u_template"] if data_jacobian else None
@@ -376,8 +388,9 @@ class NonlinearDEM:
         free_energy = -0.5 * e @ weighted_e
         return gradient, curvature, free_energy
 
-    def _step(self, X, y_tilde, u_tilde):
-        """One D-step over dt: X + (expm(J dt) - I) inv(J) (D X + dF/dX); returns (X, curvature)."""
+    def dstep(self, X, y_tilde, u_tilde):
+        """One D-step over dt: X + (expm(J dt) - I) inv(J) (D X + dF/dX); returns (X, curvature).
+        X: the generalised state; y_tilde, u_tilde: the sample's embedded data (see :meth:`errors`)."""
         gradient, curvature, _ = self._gradient_curvature(X, y_tilde, u_tilde)
         D_X = self._matrices["D_X"]
         size = X.shape[0]
@@ -398,10 +411,11 @@ class NonlinearDEM:
                 increment = expm_last_column(block)
         return X + increment, curvature
 
-    def _step_spm(self, X, y_tilde, u_tilde):
+    def dstep_spm(self, X, y_tilde, u_tilde):
         """spm_DEM's D-step over dt/substeps: [X; y~; u~] flowed jointly by the exponential of
         [[J, -E' Pi de/dy~, -E' Pi de/du~], [0, D, 0], [0, 0, D]] (class docstring); in sample
-        units with flow_time="samples". Returns (X, y~, u~ at the end of the step, curvature)."""
+        units with flow_time="samples". Returns (X, y~, u~ at the end of the step, curvature).
+        X: the generalised state; y_tilde, u_tilde: the embedded data at the start of the step."""
         mats = self._matrices
         e, E, Pi, E_u = self._errors(X, y_tilde, u_tilde, data_jacobian=True)
         weighted_e, weighted_E = self._weighted(e, E, Pi)
@@ -429,7 +443,7 @@ class NonlinearDEM:
         moved = [part + increment[sizes[i]: sizes[i + 1]] / scales[i] for i, part in enumerate(parts)]
         return moved[0], moved[1], moved[2], curvature
 
-    def _guess_state(self, guess) -> np.ndarray:
+    def generalized_guess(self, guess) -> np.ndarray:
         """A generalised state from ``guess``: order-0 states (n,) with the rest 0, a full X, or zeros."""
         size = self.n_state_coordinates + self.n_input_coordinates
         X = np.zeros(size)
@@ -454,11 +468,15 @@ class NonlinearDEM:
         evaluate = self._gradient_curvature
         if self.motion == "linearized" and self.integration == "attend":  # the same, with fewer calls
             evaluate = StepWorkspace(self).gradient_curvature
-        return gauss_newton_start(lambda X: evaluate(X, y_tilde, u_tilde), self._guess_state(guess), iterations)
+        return gauss_newton_start(lambda X: evaluate(X, y_tilde, u_tilde), self.generalized_guess(guess), iterations)
 
     # data --------------------------------------------------------------------------------------
 
-    def _signals(self, outputs, inputs) -> np.ndarray:
+    def checked_signals(self, outputs, inputs) -> np.ndarray:
+        """The log as the D-step reads it: (N, m + r) samples [y, u] after checking the shapes, the
+        inputs' finiteness and that there are enough samples for the embedding window. outputs:
+        (N, m); inputs: (N, r) measured inputs (known_inputs=True) or the input prior mean eta
+        (None: zeros)."""
         system = self.system
         m, r = system.n_outputs, system.n_inputs
         y = as_matrix(outputs, "outputs", cols=m if np.ndim(outputs) == 2 else 1)
@@ -482,8 +500,10 @@ class NonlinearDEM:
                                    f"order {minimum - 1}), got {y.shape[0]}")
         return np.hstack([y, u])
 
-    def _embed_row(self, window: np.ndarray, edge: bool, centre: np.ndarray):
-        """(y~, u~) of one row from its raw window (n_offsets, m + r), or the order-0 edge row."""
+    def embed_row(self, window: np.ndarray, edge: bool, centre: np.ndarray):
+        """(y~, u~) of one row from its raw window (n_offsets, m + r) of samples [y, u], or with
+        ``edge`` (a window reaching past the log, edges="order0") the row's own sample ``centre``
+        (m + r,) at order 0 with zero derivatives."""
         mats = self._matrices
         m, r = self.system.n_outputs, self.system.n_inputs
         p, d = self.embedding_order, self.input_order
@@ -500,7 +520,9 @@ class NonlinearDEM:
             u_t = mats["Eu"] @ window[first_u: first_u + d + 1, m:]
         return y_t.ravel(), u_t.ravel()
 
-    def _check(self, X, sample: int) -> None:
+    def check_divergence(self, X, sample: int) -> None:
+        """Raise an AttendInputError naming what to change when the generalised state X of sample
+        ``sample`` has left the model's range (|order-0 estimate| > divergence_limit, or not finite)."""
         order0 = X[self._matrices["reported"]]
         # X @ X is finite when all of X is (one call; its overflow falls back to the exact test)
         if np.abs(order0).max() > self.divergence_limit or not (isfinite(X @ X) or np.isfinite(X).all()):
@@ -511,12 +533,13 @@ class NonlinearDEM:
                 "process_precision relative to sensor_precision, check f/g and their Jacobians, start "
                 "nearer the data (initial_state), or raise divergence_limit if such values are expected.")
 
-    def _outputs(self, X, curvature, u_tilde):
-        """(order-0 states, inputs, curvature) of a sample; the std comes later from the curvature
-        (:meth:`_with_std`, many samples in one call)."""
+    def order0_estimate(self, X, curvature, u_tilde):
+        """(order-0 states, inputs, curvature) of a sample from its generalised state X, the
+        curvature E' Pi E of its D-step and its embedded inputs u_tilde (the inputs when they are
+        measured); the std comes later from the curvature (many samples in one call)."""
         n, r = self.system.n_states, self.system.n_inputs
         n_x = self.n_state_coordinates
-        if self._estimates_inputs:
+        if self.estimates_inputs:
             return X[:n], X[n_x: n_x + r], curvature
         return X[:n], u_tilde[:r], curvature
 
@@ -528,7 +551,7 @@ class NonlinearDEM:
         n, r = self.system.n_states, self.system.n_inputs
         std = np.sqrt(np.clip(inverse_diagonals(np.array([row[2] for row in rows]),
                                                        self._matrices["reported"]), 0, None))
-        input_std = std[:, n:] if self._estimates_inputs else np.zeros((len(rows), r))
+        input_std = std[:, n:] if self.estimates_inputs else np.zeros((len(rows), r))
         return [(row[0], row[1], std[i, :n], input_std[i], row[3]) for i, row in enumerate(rows)]
 
     def estimate(self, outputs, inputs=None, *, keep_generalized: bool = False, initial_state=None,
@@ -546,7 +569,7 @@ class NonlinearDEM:
         (:mod:`attend.perception.nonlinear.path`). keep_generalized: also return
         the generalised state [x~; v~] of every sample (``generalized``, (N, n (p + 1) + r (d + 1))).
         """
-        signals = self._signals(outputs, inputs)
+        signals = self.checked_signals(outputs, inputs)
         if self.states == "path":
             return estimate_path(self, signals, initial_state, initial_state_std=initial_state_std,
                                  keep_generalized=keep_generalized)
@@ -555,23 +578,25 @@ class NonlinearDEM:
                                    "takes initial_state as the guess where its start is sought)")
         if self.backend == "jax":
             return estimate_with_jax(self, signals, initial_state, keep_generalized)
-        return self._sample_estimate(signals, keep_generalized, initial_state)
+        return self.dstep_estimate(signals, keep_generalized, initial_state)
 
-    def _sample_estimate(self, signals, keep_generalized: bool, initial_state, check: bool = True) -> DEMEstimate:
-        """The D-step over validated ``signals`` (N, m + r) (see :meth:`estimate`); check: warn when
-        the log is far from the model, and raise when the estimate has left the data
-        (:mod:`attend.perception.nonlinear.misfit`)."""
+    def dstep_estimate(self, signals, keep_generalized: bool = False, initial_state=None,
+                       check: bool = True) -> DEMEstimate:
+        """The D-step (states="sample") over ``signals`` (N, m + r) checked by :meth:`checked_signals`,
+        whatever ``states`` and ``backend`` say (see :meth:`estimate` for keep_generalized and
+        initial_state); check: warn when the log is far from the model, and raise when the estimate
+        has left the data (:mod:`attend.perception.nonlinear.misfit`)."""
         online = OnlineNonlinearDEM(self, initial_state=initial_state)
         rows, pending = [], []
         with single_blas_thread():  # small matrices: one BLAS thread is 10-20x faster (attend._threads)
             for sample in steps(signals, "NonlinearDEM D-step"):
-                out = online._push(sample)
+                out = online.push_row(sample)
                 if out is not None:
                     pending.append(out)
                 if len(pending) == 32:  # the std of a chunk of samples in one call (the stack stays in cache)
                     rows.extend(self._with_std(pending))
                     pending = []
-            pending.extend(online._flush())
+            pending.extend(online.flush_rows())
             rows.extend(self._with_std(pending))
             if check:
                 warn_if_misfit(sample_misfit(self, signals, [row[4] for row in rows]), "NonlinearDEM", 3)

@@ -25,6 +25,8 @@ final checks stay in NumPy. Lorenz (n = 3, p = 6): ~2e4 samples/s against the Nu
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from attend._validation import AttendInputError
@@ -36,6 +38,8 @@ from attend.perception.nonlinear.misfit import (CHECKED_WINDOWS, check_excursion
 #: samples per compiled call (the last chunk is padded with rows that are skipped)
 CHUNK = 128
 BACKENDS = ("numpy", "jax")
+#: each estimator's compiled functions (built at its first estimate), kept as long as the estimator
+_COMPILED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _import_jax():
@@ -75,7 +79,7 @@ def embedded_rows(estimator, signals: np.ndarray) -> tuple[np.ndarray, np.ndarra
     windows clamped at the log's ends (first and last samples repeated), rows whose window reaches
     past the log as order 0 alone with edges="order0". estimator: the NonlinearDEM; signals:
     (N, m + r) outputs and inputs."""
-    mats = estimator._matrices
+    mats = estimator.generalized_matrices()
     m, r = estimator.system.n_outputs, estimator.system.n_inputs
     p, d = estimator.embedding_order, estimator.input_order
     offsets = mats["offsets"]
@@ -100,7 +104,7 @@ def _traced(system, which: str):
     function, size = (system.f, system.n_states) if which == "f" else (system.g, system.n_outputs)
 
     def traced(x, v):
-        value = jnp.asarray(system._call(function, x, v))
+        value = jnp.asarray(system.call_with_parameters(function, x, v))
         if value.size != size:
             raise AttendInputError(f"{which}: expected {size} values (a 1-D array), got shape {value.shape}")
         return jnp.reshape(value, (size,))
@@ -143,7 +147,7 @@ def _functions(estimator):
     jax = _import_jax()
     jnp = jax.numpy
 
-    mats, system = estimator._matrices, estimator.system
+    mats, system = estimator.generalized_matrices(), estimator.system
     n, r, p, d, top = mats["sizes"]
     n_x, n_v = estimator.n_state_coordinates, estimator.n_input_coordinates
     template, D_X = mats["E_template"], mats["D_X"]
@@ -246,17 +250,17 @@ def _gauss_newton(jax, evaluate, X, y_tilde, u_tilde, iterations: int = 20, halv
 
 
 def _compiled(estimator) -> dict:
-    """The estimator's compiled functions (built once, kept in its matrices): run(X0, Y~, U~, real)
+    """The estimator's compiled functions (built once, kept in _COMPILED): run(X0, Y~, U~, real)
     -> (X after the chunk, X rows, curvatures, variances of the reported coordinates) over CHUNK
     rows; start(X, y~, u~) -> the start of the flow (Gauss-Newton from X); misfit(X rows, Y~, U~)
     -> the misfit ratio of each row; observe(X rows, V rows) -> g at each row. estimator: the
     NonlinearDEM."""
-    cached = estimator._matrices.get("jax")
+    cached = _COMPILED.get(estimator)
     if cached is not None:
         return cached
     jax = _import_jax()
     (step, evaluate, misfit, observe), substeps = _functions(estimator), estimator.substeps
-    reported = estimator._matrices["reported"]
+    reported = estimator.generalized_matrices()["reported"]
 
     def advance(X, y_tilde, u_tilde):
         for _ in range(substeps):
@@ -274,7 +278,7 @@ def _compiled(estimator) -> dict:
 
     compiled = dict(run=jax.jit(run), start=jax.jit(lambda X, y, u: _gauss_newton(jax, evaluate, X, y, u)),
                     misfit=jax.jit(jax.vmap(misfit)), observe=jax.jit(jax.vmap(observe)))
-    estimator._matrices["jax"] = compiled
+    _COMPILED[estimator] = compiled
     return compiled
 
 
@@ -331,21 +335,21 @@ def _estimate(estimator, signals, initial_state, keep_generalized: bool) -> DEME
     system = estimator.system
     n, r = system.n_states, system.n_inputs
     y_tilde, u_tilde = embedded_rows(estimator, signals)
-    start = _call(_compiled(estimator)["start"], estimator._guess_state(initial_state), y_tilde[0], u_tilde[0])
+    start = _call(_compiled(estimator)["start"], estimator.generalized_guess(initial_state), y_tilde[0], u_tilde[0])
     generalized, curvatures, variances = _flow(estimator, start, y_tilde, u_tilde)
-    reported = estimator._matrices["reported"]
+    reported = estimator.generalized_matrices()["reported"]
     bad = ~np.isfinite(generalized).all(axis=1) | (np.abs(generalized[:, reported]).max(axis=1)
                                                    > estimator.divergence_limit)
     if bad.any():
         first = int(np.argmax(bad))
-        estimator._check(generalized[first], first)
+        estimator.check_divergence(generalized[first], first)
     singular = ~np.isfinite(variances).all(axis=1)  # not positive definite: the NumPy route's fallback
     if singular.any():
         variances[singular] = inverse_diagonals(curvatures[singular], reported)
     std = np.sqrt(np.clip(variances, 0, None))
     warn_if_misfit(_misfit(estimator, generalized, y_tilde, u_tilde), "NonlinearDEM", 4)
     n_x = estimator.n_state_coordinates
-    if estimator._estimates_inputs:
+    if estimator.estimates_inputs:
         inputs, input_std = generalized[:, n_x: n_x + r], std[:, n:]
     else:
         inputs, input_std = u_tilde[:, :r], np.zeros((len(signals), r))

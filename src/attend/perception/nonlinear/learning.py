@@ -382,8 +382,8 @@ def _start(problem: _Problem, theta0: np.ndarray, state_iterations: int) -> _Poi
                        process_precision=np.exp(lam[1]), embedding_order=problem.p, input_order=problem.p,
                        known_inputs=True, motion=problem.motion)
     try:
-        signals = dem._signals(problem.raw[0], problem.raw[1] if problem.model.n_inputs else None)
-        estimate = dem._sample_estimate(signals, True, None, check=False)  # (no misfit check at the start's theta)
+        signals = dem.checked_signals(problem.raw[0], problem.raw[1] if problem.model.n_inputs else None)
+        estimate = dem.dstep_estimate(signals, True, None, check=False)  # (no misfit check at the start's theta)
     except AttendInputError as error:
         raise AttendInputError(f"{error} {_where(problem, theta0, 0, 'start')}") from None
     mu = estimate.generalized[problem.used]

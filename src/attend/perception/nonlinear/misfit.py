@@ -48,7 +48,7 @@ def misfit_rows(dem, n_samples: int) -> np.ndarray:
     """The samples the misfit ratio averages over: those whose embedding window lies in the log,
     every k-th so that there are about CHECKED_WINDOWS (fewer than 2 CHECKED_WINDOWS). dem: the
     NonlinearDEM; n_samples: the log's length."""
-    offsets = dem._matrices["offsets"]
+    offsets = dem.generalized_matrices()["offsets"]
     rows = np.arange(-offsets[0], n_samples - offsets[-1])
     return rows[:: max(1, len(rows) // CHECKED_WINDOWS)]
 
@@ -57,13 +57,13 @@ def sample_misfit(dem, signals: np.ndarray, generalized: np.ndarray) -> float:
     """The misfit ratio of the D-step's estimates: 1/2 e' Pi~ e over 1/2 dim(e), averaged over up
     to CHECKED_WINDOWS samples whose embedding window lies in the log. dem: the NonlinearDEM;
     signals: (N, m + r) outputs and inputs; generalized: (N, dim X) its generalised estimates."""
-    offsets = dem._matrices["offsets"]
+    offsets = dem.generalized_matrices()["offsets"]
     rows = misfit_rows(dem, len(signals))
     if len(rows) == 0:
         return np.nan
     costs = []
     for k in rows:
-        y_tilde, u_tilde = dem._embed_row(signals[k + offsets], False, signals[k])
+        y_tilde, u_tilde = dem.embed_row(signals[k + offsets], False, signals[k])
         e, _, blocks = dem.errors(generalized[k], y_tilde, u_tilde)
         start, cost = 0, 0.0
         for block in blocks:

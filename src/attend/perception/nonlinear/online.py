@@ -25,7 +25,7 @@ class OnlineNonlinearDEM:
 
     def __init__(self, estimator: NonlinearDEM, initial_state=None):
         self.estimator = estimator
-        mats = estimator._matrices
+        mats = estimator.generalized_matrices()
         offsets = mats["offsets"]
         self._before = int(-offsets[0])
         self._lead = int(offsets[-1])
@@ -46,7 +46,7 @@ class OnlineNonlinearDEM:
         est = self.estimator
         row = self._row
         edge = self._order0 and (row < self._before or at_end)
-        y_t, u_t = est._embed_row(self._buffer, edge, self._buffer[self._before])
+        y_t, u_t = est.embed_row(self._buffer, edge, self._buffer[self._before])
         if est.integration == "spm":
             return self._advance_spm(y_t, u_t)
         if self._state is None:
@@ -54,30 +54,33 @@ class OnlineNonlinearDEM:
         X = self._state
         workspace = self._workspace
         for _ in range(est.substeps):
-            X, curvature = est._step(X, y_t, u_t) if workspace is None else workspace.step(X, y_t, u_t, est.substeps)
-        est._check(X, row)
+            X, curvature = est.dstep(X, y_t, u_t) if workspace is None else workspace.step(X, y_t, u_t, est.substeps)
+        est.check_divergence(X, row)
         self._state = X
         self._row += 1
-        return (*est._outputs(X, curvature, u_t), X.copy())
+        return (*est.order0_estimate(X, curvature, u_t), X.copy())
 
     def _advance_spm(self, y_t, u_t):
         """integration="spm": report the state reached before this sample, then step with the
         data moving along their generalised motion (substeps continue the motion)."""
         est = self.estimator
         if self._state is None:
-            self._state = est._guess_state(self._guess)
+            self._state = est.generalized_guess(self._guess)
         reported = X = self._state
         y_moving, u_moving = y_t, u_t
         for substep in range(est.substeps):
-            X, y_moving, u_moving, curvature_step = est._step_spm(X, y_moving, u_moving)
+            X, y_moving, u_moving, curvature_step = est.dstep_spm(X, y_moving, u_moving)
             if substep == 0:
                 curvature = curvature_step
-        est._check(X, self._row)
+        est.check_divergence(X, self._row)
         self._state = X
         self._row += 1
-        return (*est._outputs(reported, curvature, u_t), reported.copy())
+        return (*est.order0_estimate(reported, curvature, u_t), reported.copy())
 
-    def _push(self, sample):
+    def push_row(self, sample):
+        """Feed the checked sample k (m + r,) and return the raw row of sample k - delay, (states,
+        inputs, curvature, X) without copies, or None while the window fills (the batch D-step's
+        loop; :meth:`step` is the checked form)."""
         # before the first sample, the window holds the first sample repeated (as in batch mode)
         if self._count:
             self._buffer[:-1] = self._buffer[1:]
@@ -89,7 +92,8 @@ class OnlineNonlinearDEM:
             return None
         return self._advance(at_end=False)
 
-    def _flush(self):
+    def flush_rows(self):
+        """The raw rows (as :meth:`push_row`) still waiting for future samples, end samples repeated."""
         out = []
         for _ in range(min(self._lead, self._count)):
             self._buffer[:-1] = self._buffer[1:].copy()
@@ -108,10 +112,10 @@ class OnlineNonlinearDEM:
         if sample.shape[0] != self._m + self._r:
             raise AttendInputError(f"step: expected {self._m} outputs and {self._r} inputs")
         require_finite(sample, "step sample")
-        out = self._push(sample)
+        out = self.push_row(sample)
         return None if out is None else (out[0].copy(), out[1].copy())
 
     @with_single_blas_thread
     def finish(self):
         """Flush the estimates still waiting for future samples (end samples repeated)."""
-        return [(row[0].copy(), row[1].copy()) for row in self._flush()]
+        return [(row[0].copy(), row[1].copy()) for row in self.flush_rows()]

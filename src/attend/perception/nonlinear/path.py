@@ -59,7 +59,7 @@ class _Layout:
     to the generalised coordinates X_c. dem: the :class:`NonlinearDEM`; n_samples: N."""
 
     def __init__(self, dem, n_samples: int):
-        mats = dem._matrices
+        mats = dem.generalized_matrices()
         n, r, p, d, _ = mats["sizes"]
         self.n, self.r = n, r
         self.estimates_inputs = mats["estimates_inputs"]
@@ -107,7 +107,7 @@ def _linearized_errors(dem, X_all, y_tilde, u_tilde, jacobians: bool):
     numbers): only f, g and their Jacobians are called per window (all windows in one call of f and
     one of g for a vectorized system, :func:`attend.models.nonlinear.evaluate_many`).
     Returns (e (C, n_e), E or None)."""
-    mats, system = dem._matrices, dem.system
+    mats, system = dem.generalized_matrices(), dem.system
     n, r, p, d, top = mats["sizes"]
     C = len(X_all)
     x = X_all[:, : n * (p + 1)].reshape(C, p + 1, n)
@@ -494,7 +494,7 @@ def estimate_path(dem, signals: np.ndarray, initial_state=None, *, initial_state
     """
     m, r = dem.system.n_outputs, dem.system.n_inputs
     prior = _initial_prior(dem.system.n_states, initial_state, initial_state_std)
-    start = dem._sample_estimate(signals, dem.path_starts == "both", initial_state, check=False)
+    start = dem.dstep_estimate(signals, dem.path_starts == "both", initial_state, check=False)
     with single_blas_thread():
         problem = _Problem(dem, signals[:, :m], signals[:, m:], prior)
         layout = problem.layout

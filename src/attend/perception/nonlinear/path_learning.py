@@ -246,7 +246,7 @@ def _start(dem, signals: np.ndarray):
             warnings.simplefilter("ignore", ModelWarning)  # a misfit at the starting theta is expected
             return estimate_path(dem, signals, uncertainty_draws=0)
     except AttendInputError:
-        return dem._sample_estimate(signals, False, None, check=False)
+        return dem.dstep_estimate(signals, False, None, check=False)
 
 
 def learn_path(model, outputs, inputs, dt: float, *, kernel_width: float, sensor_precision, process_precision,
@@ -294,7 +294,7 @@ def learn_path(model, outputs, inputs, dt: float, *, kernel_width: float, sensor
                             input_kernel_width=input_kernel_width if unknown else None, motion=motion)
 
     dem = build(theta)
-    signals = dem._signals(outputs, inputs)
+    signals = dem.checked_signals(outputs, inputs)
     m = model.n_outputs
     setup = _Setup(model, build, signals[:, :m], signals[:, m:], eta, P, active, 1.0 / (embedding_order + 1))
     with single_blas_thread():

@@ -74,7 +74,7 @@ def d_step_basis(dem, signals: np.ndarray, start):
         except AttendInputError:
             pass
     count = min(len(signals), 4 * (max(dem.embedding_order, dem.input_order) + 1))
-    return dem._sample_estimate(signals[:count], True, None, check=False), False
+    return dem.dstep_estimate(signals[:count], True, None, check=False), False
 
 
 def initial_state_prior(dem, signals: np.ndarray, basis) -> tuple[np.ndarray, np.ndarray]:

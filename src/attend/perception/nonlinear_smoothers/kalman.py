@@ -105,7 +105,7 @@ def rk4_substeps(system: NonlinearSystem, dt: float, states, inputs, limit: int 
 def _fastest_rate(system: NonlinearSystem, x, u) -> float:
     """rho(df/dx) at (x, u) [1/s], the spectral radius of the state Jacobian (NaN where it is not finite)."""
     with np.errstate(all="ignore"):
-        fx = system._jacobians(np.asarray(x, dtype=float), np.asarray(u, dtype=float))[0]
+        fx = system.evaluate_jacobians(np.asarray(x, dtype=float), np.asarray(u, dtype=float))[0]
     return float(np.max(np.abs(np.linalg.eigvals(fx)))) if np.all(np.isfinite(fx)) else np.nan
 
 
@@ -136,10 +136,10 @@ def _rk4(system: NonlinearSystem, x, u, dt: float, substeps: int, w=None, call=N
     call: f of the state (default: the system's f at u, unchecked for columns)."""
     h = dt / substeps
     if call is None and x.ndim == 2:
-        call = lambda state: system._call(system.f, state, u)  # noqa: E731
+        call = lambda state: system.call_with_parameters(system.f, state, u)  # noqa: E731
     elif call is None:  # system.flow(state, u), with x and u converted once instead of at every stage
-        x, v = np.asarray(x, dtype=float), system._inputs(u)
-        call = lambda state: system._value("f", state, v)  # noqa: E731
+        x, v = np.asarray(x, dtype=float), system.input_vector(u)
+        call = lambda state: system.evaluate("f", state, v)  # noqa: E731
     extra = 0.0 if w is None else w
     for _ in range(substeps):
         k1 = call(x) + extra

@@ -112,7 +112,7 @@ def particle_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, 
         if k > 0:
             x = _propagate(system, model, x, noises, k, substeps, (w_hist, v_hist))
         u_now = _inputs(model, noises[1], k, P)
-        residual = (model.y[k][:, None] - np.asarray(system._call(system.g, x, u_now), dtype=float)) / model.sz[:, None]
+        residual = (model.y[k][:, None] - np.asarray(system.call_with_parameters(system.g, x, u_now), dtype=float)) / model.sz[:, None]
         predicted, variance = z_hist.predict(k)
         log_w = log_w - 0.5 * np.sum((residual - predicted) ** 2, axis=0) / variance
         z_hist.push(residual)

@@ -284,7 +284,7 @@ def _input_prior(system, inputs, input_prior_mean, input_prior_std, N):
 
 def _measured_outputs(system, outputs) -> tuple[np.ndarray, np.ndarray]:
     """(y (N, m) with 0 where missing, observed (N, m)): NaN marks a missing output."""
-    from attend.perception.sample_times import matrix_with_gaps
+    from attend.models.sample_times import matrix_with_gaps
 
     y = matrix_with_gaps(outputs, "outputs", system.n_outputs)
     if y.shape[0] < 1:
@@ -316,7 +316,7 @@ def _sample_times(time, N: int, dt: float):
     """The (N,) irregular sample times [s], checked (None: uniform, k dt)."""
     if time is None:
         return None
-    from attend.perception.sample_times import check_time_stamps
+    from attend.models.sample_times import check_time_stamps
 
     return check_time_stamps(time, N, float(np.min(np.diff(time))) if N > 1 else dt)
 

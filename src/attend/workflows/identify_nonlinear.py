@@ -5,24 +5,18 @@ The model file's [learning] ``free`` names scalar entries of the parameters dict
 receive (from the Python file, or [model] parameters); their current values are the prior means,
 ``free_prior_precision`` their prior precision (default 0: flat). The noise precisions are the
 [observer]'s (known, not learned); unknown inputs ([[inputs]] without a column) are estimated
-under their priors while learning. The learned model file holds the new values in [model]
-parameters, so `attend estimate` uses them, and their error bars in [learned].
+under their priors while learning. The learned model file (:func:`attend.io.write_learned_nonlinear`)
+holds the new values in [model] parameters, so `attend estimate` uses them, and their error bars
+in [learned].
 """
 
 from __future__ import annotations
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
-from pathlib import Path
-
 import numpy as np
 
 from attend._validation import AttendInputError
-from attend.io.estimates import _check_samples
-from attend.io.logs import Log
-from attend.io.python_model import _UserFunction
+from attend.io import Log
+from attend.workflows.estimate import checked_sample_time
 
 #: [learning] keys that nonlinear identification reads (the others are the linear learner's)
 NONLINEAR_LEARNING_KEYS = ("free", "free_prior_precision", "max_iterations", "tolerance")
@@ -30,17 +24,17 @@ NONLINEAR_LEARNING_KEYS = ("free", "free_prior_precision", "max_iterations", "to
 
 class _WithFree:
     """The user's f or g with the free entries of its parameters replaced by theta (names: the
-    free entries, in theta's order; user: the file's checked function)."""
+    free entries, in theta's order; user: the file's checked f or g, as :mod:`attend.io.python_model`
+    reads it)."""
 
-    def __init__(self, user: _UserFunction, names: tuple[str, ...]):
+    def __init__(self, user, names: tuple[str, ...]):
         self.user, self.names = user, names
 
     def __call__(self, x, v, theta):
         if self.user.parameters is None:  # this function takes no parameters
             return self.user(x, v)
-        parameters = {**self.user.parameters, **{name: float(value) for name, value in zip(self.names, theta)}}
-        return _UserFunction(self.user.function, self.user.name, self.user.size, self.user.what, self.user.source,
-                             parameters)(x, v)
+        free = {name: float(value) for name, value in zip(self.names, theta)}
+        return self.user.with_parameters({**self.user.parameters, **free})(x, v)
 
 
 def _free_names(model, learning: dict) -> tuple[tuple[str, ...], np.ndarray]:
@@ -87,7 +81,7 @@ def identify_nonlinear(model, log: Log):
                                       system.n_inputs, system.n_outputs, parameter_names=names)
     order = 6 if model.embedding_order == "auto" else int(model.embedding_order)
     window = max(order, model.input_order) + 1
-    dt = _check_samples(model, log, 3 * window, f"3 embedding windows of order {window - 1}")
+    dt = checked_sample_time(model, log, 3 * window, f"3 embedding windows of order {window - 1}")
     p = file_nonlinear_order(model, dt)
     outputs = log.matrix(model.output_columns)
     signals = np.zeros((len(log.time), system.n_inputs))
@@ -120,24 +114,3 @@ def table(names, result) -> str:
              zip(names, result.parameters, result.parameter_std)]
     return "\n".join(rows)
 
-
-def write_learned_nonlinear(path, model, names, result) -> Path:
-    """A model file with the learned values in [model] parameters (used by `attend estimate`) and
-    [learned] parameter_names, parameters, parameter_std, ... . path: the TOML to write; model:
-    the model file learned from (its other sections kept); names, result: of :func:`identify_nonlinear`."""
-    import tomli_w
-
-    data = tomllib.loads(Path(model.path).read_text(encoding="utf-8-sig"))
-    parameters = data["model"].setdefault("parameters", {})
-    parameters.update({name: float(value) for name, value in zip(names, result.parameters)})
-    data.pop("learned", None)
-    learned = {"learned": {
-        "parameter_names": list(names), "parameters": [float(v) for v in result.parameters],
-        "parameter_std": [float(v) for v in result.parameter_std], "converged": bool(result.converged),
-        "iterations": int(result.iterations), "message": str(result.message)}}
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    header = ("# Learned by `attend identify` (nonlinear: path mode, learn_path): [model] parameters holds the\n"
-              "# learned values; [learned] their error bars (the estimator's spread, docs/nonlinear.md).\n")
-    path.write_text(header + tomli_w.dumps(data) + "\n" + tomli_w.dumps(learned))
-    return path

@@ -1,4 +1,5 @@
-"""Running a model file's estimator on a log (`attend estimate`)."""
+"""`attend estimate` on a uniform, complete log: the model file's estimator run on it, its
+result checked (finite estimates, every state and unknown input informed by the outputs)."""
 
 from __future__ import annotations
 
@@ -7,8 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from attend._validation import AttendInputError
-from attend.io.logs import Log
-from attend.io.model import ModelFile
+from attend.io import Log, ModelFile
 from attend.perception.file_estimators import file_estimator, file_nonlinear_order
 from attend.perception.nonlinear.start_search import AmbiguousStartError
 
@@ -16,8 +16,10 @@ if TYPE_CHECKING:  # only named in annotations: each estimator is imported where
     from attend.perception.dem import DEMEstimate, DEMObserver
 
 
-def _check_samples(model: ModelFile, log: Log, minimum: int, why: str) -> float:
-    """The log's sample time, after checking its length and the model's dt against it."""
+def checked_sample_time(model: ModelFile, log: Log, minimum: int, why: str) -> float:
+    """The log's sample time [s], after checking that the log has at least ``minimum`` samples
+    (``why``: what needs them, named in the error) and that the model file's [model] dt, when
+    given, is the log's (to 1e-4 relative). model: the parsed model file; log: the uniform log."""
     if len(log.time) < minimum:
         raise AttendInputError(f"{log.path}: expected at least {minimum} samples ({why}), got {len(log.time)}")
     dt = log.dt
@@ -28,9 +30,9 @@ def _check_samples(model: ModelFile, log: Log, minimum: int, why: str) -> float:
     return dt
 
 
-def _observer_of(model: ModelFile, dt: float) -> DEMObserver:
-    try:
-        return file_estimator(model, dt)
+def _observer_of(model: ModelFile, dt: float, outputs=None, signals=None) -> DEMObserver:
+    try:  # the log lets the Kalman smoother choose the unknown inputs' prior width when the file gives none
+        return file_estimator(model, dt, outputs, signals)
     except AttendInputError as error:  # in the file's words: P_v is the [[inputs]] prior_precision
         message = str(error).replace("input_prior_precision", "[[inputs]] prior_precision")
         raise AttendInputError(f"{model.path}: [observer] {message}") from None
@@ -47,16 +49,16 @@ def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEst
             signals[:, j] = spec.prior_mean
     if model.nonlinear and model.method == "dem":
         window = max(file_nonlinear_order(model, log.dt), model.input_order) + 1
-        dt = _check_samples(model, log, max(2, window), f"the embedding window of order {window - 1}")
+        dt = checked_sample_time(model, log, max(2, window), f"the embedding window of order {window - 1}")
     elif model.nonlinear:
-        dt = _check_samples(model, log, 2, "the unscented Kalman smoother")
+        dt = checked_sample_time(model, log, 2, "the unscented Kalman smoother")
     elif model.method == "dem":
         order = model.learning_order  # "auto" picks p <= 6
         window = max(order, model.input_order) + 1
-        dt = _check_samples(model, log, max(2, window), f"the embedding window of order {window - 1}")
+        dt = checked_sample_time(model, log, max(2, window), f"the embedding window of order {window - 1}")
     else:
-        dt = _check_samples(model, log, 2, "the Kalman smoother")
-    observer = _observer_of(model, dt)
+        dt = checked_sample_time(model, log, 2, "the Kalman smoother")
+    observer = _observer_of(model, dt, outputs, signals)
     with np.errstate(over="ignore", invalid="ignore"):
         if model.nonlinear:
             try:

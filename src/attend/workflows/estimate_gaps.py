@@ -1,7 +1,7 @@
-"""Running a model file's estimator on a log with gaps or jitter (`attend estimate`).
+"""`attend estimate` on a log with gaps or jitter: the model file's estimator run on it.
 
 A log read with ``read_log(..., gaps=True)`` may have empty or NaN cells and time stamps that skip
-samples or jitter (:mod:`attend.perception.sample_times`). The linear estimators take such logs:
+samples or jitter (:mod:`attend.models.sample_times`). The linear estimators take such logs:
 
 - method "kalman": no update for a missing output at that sample; skipped stamps are steps
   without a measurement; each step is discretised for its own length (jitter);
@@ -18,11 +18,10 @@ from __future__ import annotations
 import numpy as np
 
 from attend._validation import AttendInputError
-from attend.io.logs import Log
-from attend.io.model import ModelFile
+from attend.io import Log, ModelFile
 from attend.models.noise import GAUSSIAN_SPECTRUM_DENOMINATOR
+from attend.models.sample_times import BRIDGED_GAP, SampleGrid, bridge, describe, sample_grid
 from attend.perception.file_estimators import file_estimator
-from attend.perception.sample_times import BRIDGED_GAP, SampleGrid, bridge, describe, sample_grid
 
 JITTERED_DT_TOLERANCE = 1e-2
 """Relative distance between [model] dt and a jittered log's nominal step that is accepted (the
@@ -97,7 +96,7 @@ def estimate_with_gaps(model: ModelFile, log: Log):
     if model.method == "dem":
         bridge(grid, outputs, f"{log.path}: column", list(model.output_columns), labels=log.labels)
     try:
-        observer = file_estimator(model, dt)
+        observer = file_estimator(model, dt, outputs, signals, log.time)
     except AttendInputError as error:  # as estimate_from_files: P_v is the [[inputs]] prior_precision
         message = str(error).replace("input_prior_precision", "[[inputs]] prior_precision")
         raise AttendInputError(message if message.startswith(str(model.path)) else
@@ -124,7 +123,10 @@ def _check_estimate(model: ModelFile, log: Log, estimate) -> None:
 
 
 def summary(grid: SampleGrid, outputs: np.ndarray, bridged_inputs: int, method: str) -> str:
-    """One line: samples missing, jitter handled, and how (per method)."""
+    """One line: samples missing, jitter handled, and how (per method). grid: the log's
+    :class:`attend.models.sample_times.SampleGrid`; outputs: (N, m) the output columns (NaN:
+    missing); bridged_inputs: how many missing measured-input values were interpolated; method:
+    the model file's [observer] method."""
     missing_rows = int(np.sum(~np.isfinite(outputs).all(axis=1)))
     if method == "dem":
         how = "resampled onto t0 + k dt"

@@ -1,0 +1,230 @@
+"""The Kalman filter's log-likelihood against the dense Gaussian density of the outputs, and the
+unknown inputs' prior width chosen from the log (attend.perception.input_width). Figures on
+logs the model fits poorly: benchmarks/bench_unknown_inputs_misfit.py."""
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.stats import multivariate_normal
+
+import attend
+from attend.models.linear import ModelWarning
+from attend.models.noise import autocorrelation
+from attend.perception.input_width import (
+    FLAT_LOG_LIKELIHOOD,
+    choose_input_width,
+    input_width_grid,
+    profiled_log_likelihood,
+)
+from attend.perception.kalman import KalmanEstimator
+from attend.perception.references.exact import coloured_noise_correlation
+from attend.perception.references.exact_oracle import correlation_root
+
+OSCILLATOR = attend.LinearSystem(np.array([[0.0, 1.0], [-2.0, -0.5]]), np.array([[0.0], [1.0]]),
+                                 np.array([[1.0, 0.0]]))
+
+
+def dense_output_density(system, dt, N, *, process_std, sensor_std, process_width, sensor_width, input_mean=None,
+                         input_std=None, input_width=None, known_inputs=None, initial_mean, initial_std):
+    """(mean, covariance) of the stacked outputs y = [y[0]; ...; y[N-1]] under the model, built
+    densely: x = Phi x[0] + L (Bd u + dt w), w coloured with the simulator's kernel correlation,
+    unknown inputs a Gaussian process with rho(tau) = exp(-tau^2 / (4 s_u^2)) sampled at the lags,
+    y = (I kron C) x + z."""
+    n, r = system.n_states, system.n_inputs
+    Ad, Bd = system.discretize(dt)
+    powers = [np.linalg.matrix_power(Ad, k) for k in range(N)]
+    Phi = np.vstack(powers)
+    L = np.zeros((N * n, N * n))
+    for k in range(1, N):
+        for j in range(k):
+            L[k * n:(k + 1) * n, j * n:(j + 1) * n] = powers[k - 1 - j]
+    Bbig = np.kron(np.eye(N), Bd)
+    drive_cov = np.kron(coloured_noise_correlation(N, dt, process_width), np.diag((dt * np.asarray(process_std)) ** 2))
+    if known_inputs is not None:
+        drive_mean = Bbig @ np.asarray(known_inputs).reshape(-1)
+    else:
+        lags = dt * (np.arange(N)[:, None] - np.arange(N)[None, :])
+        drive_cov = drive_cov + Bbig @ np.kron(autocorrelation(lags, input_width), np.diag(np.square(input_std))) @ Bbig.T
+        drive_mean = Bbig @ np.tile(input_mean, N)
+    x_cov = L @ drive_cov @ L.T + Phi @ np.diag(np.square(initial_std)) @ Phi.T
+    x_mean = Phi @ initial_mean + L @ drive_mean
+    Cbig = np.kron(np.eye(N), system.C)
+    y_cov = Cbig @ x_cov @ Cbig.T + np.kron(coloured_noise_correlation(N, dt, sensor_width),
+                                            np.diag(np.square(sensor_std)))
+    return Cbig @ x_mean, 0.5 * (y_cov + y_cov.T)
+
+
+@pytest.mark.parametrize("widths", [(0.1, 0.1, 0.2), (0.0, 0.05, 0.1), (0.05, 0.0, 0.6), (0.1, 0.1, 0.025)])
+def test_log_likelihood_is_the_dense_gaussian_density_of_the_outputs(widths):
+    s_w, s_z, s_u = widths
+    dt, N = 0.1, 50
+    sw, sz, su, eta = np.array([0.1, 0.3]), np.array([0.05]), np.array([2.0]), np.array([0.3])
+    m0, s0 = np.array([0.2, -0.1]), np.array([1.0, 0.5])
+    rng = np.random.default_rng(1)
+    log = attend.simulate(OSCILLATOR, rng.normal(size=(N, 1)), dt, process_kernel_width=s_w, sensor_kernel_width=s_z,
+                          process_std=sw, measurement_std=sz, initial_state=[0.5, 0.0], seed=3)
+    mean, cov = dense_output_density(OSCILLATOR, dt, N, process_std=sw, sensor_std=sz, process_width=s_w,
+                                     sensor_width=s_z, input_mean=eta, input_std=su, input_width=s_u,
+                                     initial_mean=m0, initial_std=s0)
+    dense = multivariate_normal.logpdf(log.outputs.reshape(-1), mean, cov)
+    smoother = KalmanEstimator(OSCILLATOR, dt, sensor_precision=1 / sz**2, process_precision=1 / sw**2,
+                               process_kernel_width=s_w, sensor_kernel_width=s_z, input_prior_precision=1 / su**2,
+                               input_kernel_width=s_u, known_inputs=False, initial_state=m0, initial_state_std=s0)
+    assert smoother.log_likelihood(log.outputs, np.tile(eta, (N, 1))) == pytest.approx(dense, abs=1e-4)
+    # missing outputs: the marginal density of the measured ones (the time-varying filter)
+    y = log.outputs.copy()
+    y[[0, 5, 6, 20, 49]] = np.nan
+    kept = np.isfinite(y.reshape(-1))
+    marginal = multivariate_normal.logpdf(y.reshape(-1)[kept], mean[kept], cov[np.ix_(kept, kept)])
+    assert smoother.log_likelihood(y, np.tile(eta, (N, 1))) == pytest.approx(marginal, abs=1e-4)
+
+
+def test_log_likelihood_with_measured_inputs_and_a_skipped_time_stamp():
+    dt, N = 0.1, 40
+    sw, sz = np.array([0.2, 0.2]), np.array([0.1])
+    rng = np.random.default_rng(2)
+    u = rng.normal(size=(N, 1))
+    u[17] = 0.5 * (u[16] + u[18])  # the input the estimator bridges across the skipped sample
+    log = attend.simulate(OSCILLATOR, u, dt, kernel_width=0.1, process_std=sw, measurement_std=sz, seed=4)
+    m0, s0 = np.zeros(2), np.array([0.7, 0.7])
+    mean, cov = dense_output_density(OSCILLATOR, dt, N, process_std=sw, sensor_std=sz, process_width=0.1,
+                                     sensor_width=0.1, known_inputs=u, initial_mean=m0, initial_std=s0)
+    smoother = KalmanEstimator(OSCILLATOR, dt, sensor_precision=1 / sz**2, process_precision=1 / sw**2,
+                               kernel_width=0.1, initial_state=m0, initial_state_std=s0)
+    assert smoother.log_likelihood(log.outputs, u) == pytest.approx(multivariate_normal.logpdf(
+        log.outputs.reshape(-1), mean, cov), abs=1e-4)
+    keep = np.arange(N) != 17  # row 17 dropped from the log: its time stamp is skipped
+    marginal = multivariate_normal.logpdf(log.outputs[keep].reshape(-1), mean[keep], cov[np.ix_(keep, keep)])
+    value = smoother.log_likelihood(log.outputs[keep], u[keep], time=np.arange(N)[keep] * dt)
+    assert value == pytest.approx(marginal, abs=1e-4)
+
+
+def test_profiled_likelihood_is_the_likelihood_at_the_scaled_precisions():
+    """Every precision times lambda* (sensor, process, the inputs' prior, the start's): the
+    log-likelihood of that model is the closed-form profile, and no other lambda does better."""
+    dt, N = 0.1, 60
+    rng = np.random.default_rng(7)
+    log = attend.simulate(OSCILLATOR, 2.0 * rng.normal(size=(N, 1)), dt, kernel_width=0.1, process_std=[0.3, 0.3],
+                          measurement_std=0.2, seed=8)  # noises ~6x and 10x the model's: lambda* << 1
+    settings = dict(sensor_precision=1 / 0.02**2, process_precision=1 / 0.05**2, input_prior_precision=0.25,
+                    initial_state=np.zeros(2))
+
+    def model(scale):
+        scaled = {key: value * scale for key, value in settings.items() if key.endswith("precision")}
+        return KalmanEstimator(OSCILLATOR, dt, kernel_width=0.1, input_kernel_width=0.2, known_inputs=False,
+                               initial_state=settings["initial_state"], initial_state_std=1 / np.sqrt(scale), **scaled)
+
+    value, scale = profiled_log_likelihood(model(1.0).innovation_terms(log.outputs))
+    assert scale < 0.1
+    assert model(scale).log_likelihood(log.outputs) == pytest.approx(value, abs=1e-6 * abs(value))
+    for factor in (0.5, 2.0):
+        assert model(scale * factor).log_likelihood(log.outputs) < value
+
+
+def _simulated(seed, true_ratio, N=300, dt=0.1):
+    """A log of OSCILLATOR drawn from the model itself with the input's prior width true_ratio dt."""
+    rng = np.random.default_rng([2903, seed])
+    u = 3.0 * correlation_root(N, dt, true_ratio * dt) @ rng.standard_normal((N, 1))
+    log = attend.simulate(OSCILLATOR, u, dt, kernel_width=0.05, process_std=[0.05, 0.05], measurement_std=0.02,
+                          initial_state=rng.normal(size=2), seed=rng)
+    return log.outputs
+
+
+def _builder(dt=0.1, **settings):
+    options = dict(sensor_precision=1 / 0.02**2, process_precision=1 / 0.05**2, kernel_width=0.05,
+                   input_prior_precision=1 / 9.0, known_inputs=False)
+    options.update(settings)
+
+    def terms(outputs):
+        return lambda width: KalmanEstimator(OSCILLATOR, dt, input_kernel_width=width, **options).innovation_terms(outputs)
+    return terms
+
+
+def test_chosen_width_recovers_the_true_width_within_the_grid_resolution():
+    """On logs drawn from the model, the chosen width is within a factor sqrt(2) (the grid's
+    resolution) of the true width in at least 10 of 12 logs at each true width (measured: 12/12 at
+    0.5, 2, 3 and 12 sample times, which the grid holds or not; 11/12 at 0.3 and 1.3)."""
+    dt = 0.1
+    for true_ratio in (0.5, 2.0, 3.0, 12.0):
+        hits = 0
+        for seed in range(12):
+            choice = choose_input_width(_builder()(_simulated(seed, true_ratio)), dt, fallback=0.05)
+            assert not choice.flat
+            hits += abs(np.log(choice.width / (true_ratio * dt))) <= np.log(np.sqrt(2)) + 1e-9
+        assert hits >= 10, (true_ratio, hits)
+
+
+def test_choice_reports_the_grid_and_its_likelihoods():
+    dt = 0.1
+    choice = choose_input_width(_builder()(_simulated(0, 2.0)), dt, fallback=0.05)
+    assert np.all(np.diff(choice.widths) > 0)
+    assert set(np.round(input_width_grid(dt) / dt, 9)) <= set(np.round(choice.widths / dt, 9))
+    assert choice.width == choice.best == choice.widths[np.argmax(choice.log_likelihoods)]
+    low, high = choice.supported
+    assert low <= choice.width <= high
+    assert "chosen from the log" in choice.describe() and choice.warning() is None
+
+
+def test_flat_likelihood_keeps_the_process_width_and_warns():
+    """An input that barely reaches the outputs (prior std 1e-4): no width is preferred."""
+    dt = 0.1
+    outputs = _simulated(1, 2.0) * 0.0 + np.random.default_rng(5).normal(scale=0.02, size=(300, 1))
+    choice = choose_input_width(_builder(input_prior_precision=1e8)(outputs), dt, fallback=0.05)
+    assert choice.flat
+    assert choice.width == 0.05
+    assert np.ptp(choice.log_likelihoods) < FLAT_LOG_LIKELIHOOD
+    assert "input_kernel_width" in choice.warning() and "does not decide" in choice.warning()
+
+
+# --- attend estimate: the width of a model file that gives none ----------------------------------
+
+MODEL_FILE = """
+model = {{A = [[0.0, 1.0], [-2.0, -0.5]], B = [[0.0], [1.0]], C = [[1.0, 0.0]]}}
+outputs = {{columns = ["y"]}}
+inputs = [{{name = "u", prior_mean = 0.0, prior_precision = {prior_precision}}}]
+observer = {{kernel_width = 0.05, sensor_precision = 2500.0, process_precision = 400.0{extra}}}
+"""
+
+
+def _estimate(tmp_path, capsys, prior_precision=0.111, extra="", true_ratio=8.0):
+    from attend.cli import main
+
+    outputs = _simulated(3, true_ratio)
+    model, log = tmp_path / "model.toml", tmp_path / "log.csv"
+    model.write_text(MODEL_FILE.format(prior_precision=prior_precision, extra=extra))
+    log.write_text("t,y\n" + "\n".join(f"{k * 0.1:.10g},{v:.12g}" for k, v in enumerate(outputs[:, 0])) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        assert main(["estimate", str(model), str(log), "--out", str(tmp_path / "e.csv"), "--no-progress"]) == 0
+    return capsys.readouterr()
+
+
+def test_estimate_chooses_the_input_width_from_the_log_and_says_so(tmp_path, capsys):
+    from attend import io, workflows
+
+    captured = _estimate(tmp_path, capsys)
+    line = next(line for line in captured.err.splitlines() if "input prior width" in line)
+    assert "chosen from the log" in line and "0.8 s" in line  # the true width, 8 samples
+    assert "input prior width 0.8 s (chosen from the log)" in captured.out
+    model = io.read_model(tmp_path / "model.toml")
+    estimator, _ = workflows.estimate_from_files(model, io.read_log(tmp_path / "log.csv"))
+    assert estimator.input_kernel_width == pytest.approx(0.8)
+    assert estimator.input_width_choice.width == pytest.approx(0.8)
+    assert not estimator.input_width_choice.flat
+
+
+def test_estimate_keeps_a_given_input_width(tmp_path, capsys):
+    captured = _estimate(tmp_path, capsys, extra=", input_kernel_width = 0.2")
+    assert "chosen from the log" not in captured.err + captured.out
+    assert "input prior width 0.2 s ([observer] input_kernel_width)" in captured.out
+
+
+def test_estimate_warns_when_the_log_does_not_decide_the_input_width(tmp_path, capsys):
+    """An input prior so narrow (std 1e-5) that the input cannot move the outputs: the likelihood
+    is flat, the process width is kept and one warning names input_kernel_width."""
+    captured = _estimate(tmp_path, capsys, prior_precision=1e10)
+    warned = [line for line in captured.err.splitlines() if line.startswith("attend: warning:")
+              and "input_kernel_width" in line and "does not decide" in line]
+    assert len(warned) == 1 and "model.toml" in warned[0]
+    assert "input prior width 0.05 s (the process width: the log does not decide it)" in captured.out

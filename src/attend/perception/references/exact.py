@@ -169,7 +169,7 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
     """
     system = _system(system)
     dt = positive_scalar(dt, "dt", "s")
-    s_w, s_z, s_u = _noise_widths(kernel_width, process_kernel_width, sensor_kernel_width, input_kernel_width)
+    s_w, s_z, s_u = noise_widths(kernel_width, process_kernel_width, sensor_kernel_width, input_kernel_width)
     y, observed = _measured_outputs(system, outputs)
     N = y.shape[0]
     times = _sample_times(time, N, dt)
@@ -465,8 +465,10 @@ def _causal_means(G, white, z_mean, u_mean, q, n, known, observed=None):
     return causal_mean[: N * n].reshape(N, n), (u_mean if known else causal_mean[N * n:].reshape(N, r))
 
 
-def _noise_widths(kernel_width, process_kernel_width, sensor_kernel_width, input_kernel_width):
-    """(s_w, s_z, s_u) [s] from the shared width and the per-noise overrides (0 = white)."""
+def noise_widths(kernel_width, process_kernel_width, sensor_kernel_width, input_kernel_width):
+    """(s_w, s_z, s_u) [s], the widths of the process noise, the sensor noise and the inputs'
+    prior: kernel_width for both noises unless process_kernel_width or sensor_kernel_width is
+    given, and input_kernel_width (default: the process width); 0 = white."""
     widths = []
     for value, field in ((process_kernel_width, "process_kernel_width"), (sensor_kernel_width, "sensor_kernel_width")):
         if value is None and kernel_width is None:

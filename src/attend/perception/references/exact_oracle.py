@@ -42,9 +42,9 @@ import numpy as np
 from scipy.linalg import qr, solve_triangular
 
 from attend._validation import AttendInputError, positive_scalar
-from attend._validation import kernel_width as checked_width
 from attend.models.noise import autocorrelation, gaussian_kernel
 from attend.perception.references import double_double as dd
+from attend.perception.references.exact import noise_widths
 from attend.perception.references.filters import _inputs, _outputs, _std_vector, _system
 
 
@@ -243,12 +243,8 @@ def oracle_posterior(system, dt, outputs, inputs=None, *, process_std, measureme
     y = _outputs(system, outputs)
     N = y.shape[0]
     n, r, m = system.n_states, system.n_inputs, system.n_outputs
-    widths = []
-    for value, field in ((process_kernel_width, "process_kernel_width"), (sensor_kernel_width, "sensor_kernel_width")):
-        if value is None and kernel_width is None:
-            raise AttendInputError(f"{field}: required (or kernel_width for both noises)")
-        widths.append(checked_width(kernel_width if value is None else value, field))
-    s_u = widths[0] if input_kernel_width is None else checked_width(input_kernel_width, "input_kernel_width")
+    s_w, s_z, s_u = noise_widths(kernel_width, process_kernel_width, sensor_kernel_width, input_kernel_width)
+    widths = [s_w, s_z]
     known = inputs is not None
     if known:
         u_mean, su = _inputs(system, inputs, N), np.zeros(r)

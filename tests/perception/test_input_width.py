@@ -45,7 +45,8 @@ def dense_output_density(system, dt, N, *, process_std, sensor_std, process_widt
         drive_mean = Bbig @ np.asarray(known_inputs).reshape(-1)
     else:
         lags = dt * (np.arange(N)[:, None] - np.arange(N)[None, :])
-        drive_cov = drive_cov + Bbig @ np.kron(autocorrelation(lags, input_width), np.diag(np.square(input_std))) @ Bbig.T
+        input_cov = np.kron(autocorrelation(lags, input_width), np.diag(np.square(input_std)))
+        drive_cov = drive_cov + Bbig @ input_cov @ Bbig.T
         drive_mean = Bbig @ np.tile(input_mean, N)
     x_cov = L @ drive_cov @ L.T + Phi @ np.diag(np.square(initial_std)) @ Phi.T
     x_mean = Phi @ initial_mean + L @ drive_mean
@@ -137,7 +138,8 @@ def _builder(dt=0.1, **settings):
     options.update(settings)
 
     def terms(outputs):
-        return lambda width: KalmanEstimator(OSCILLATOR, dt, input_kernel_width=width, **options).innovation_terms(outputs)
+        return lambda width: KalmanEstimator(OSCILLATOR, dt, input_kernel_width=width,
+                                             **options).innovation_terms(outputs)
     return terms
 
 
@@ -183,16 +185,23 @@ MODEL_FILE = """
 model = {{A = [[0.0, 1.0], [-2.0, -0.5]], B = [[0.0], [1.0]], C = [[1.0, 0.0]]}}
 outputs = {{columns = ["y"]}}
 inputs = [{{name = "u", prior_mean = 0.0, prior_precision = {prior_precision}}}]
-observer = {{kernel_width = 0.05, sensor_precision = 2500.0, process_precision = 400.0{extra}}}
+
+[observer]
+kernel_width = 0.05
+sensor_precision = {sensor_precision}
+process_precision = {process_precision}
+{extra}
 """
 
 
-def _estimate(tmp_path, capsys, prior_precision=0.111, extra="", true_ratio=8.0):
+def _estimate(tmp_path, capsys, prior_precision=0.111, extra="", true_ratio=8.0, sensor_precision=2500.0,
+              process_precision=400.0):
     from attend.cli import main
 
     outputs = _simulated(3, true_ratio)
     model, log = tmp_path / "model.toml", tmp_path / "log.csv"
-    model.write_text(MODEL_FILE.format(prior_precision=prior_precision, extra=extra))
+    model.write_text(MODEL_FILE.format(prior_precision=prior_precision, extra=extra, sensor_precision=sensor_precision,
+                                       process_precision=process_precision))
     log.write_text("t,y\n" + "\n".join(f"{k * 0.1:.10g},{v:.12g}" for k, v in enumerate(outputs[:, 0])) + "\n")
     with warnings.catch_warnings():
         warnings.simplefilter("default")
@@ -212,10 +221,22 @@ def test_estimate_chooses_the_input_width_from_the_log_and_says_so(tmp_path, cap
     assert estimator.input_kernel_width == pytest.approx(0.8)
     assert estimator.input_width_choice.width == pytest.approx(0.8)
     assert not estimator.input_width_choice.flat
+    assert 0.5 < estimator.input_width_choice.noise_scale < 2  # the model is the log's: lambda* ~ 1
+    assert "attend: warning:" not in captured.err
+
+
+def test_estimate_warns_when_the_innovations_are_far_from_the_models_prediction(tmp_path, capsys):
+    """Every precision 1e4 x too large (stds 100x too small, the input prior's too): lambda* ~ 1e-4,
+    one warning naming the precisions; the width is the same as at the right precisions."""
+    captured = _estimate(tmp_path, capsys, sensor_precision=2.5e7, process_precision=4e6, prior_precision=1110.0)
+    warned = [line for line in captured.err.splitlines() if line.startswith("attend: warning:")
+              and "do not fit this log" in line]
+    assert len(warned) == 1 and "sensor_precision, process_precision" in warned[0]
+    assert "input prior width 0.8 s (chosen from the log)" in captured.out
 
 
 def test_estimate_keeps_a_given_input_width(tmp_path, capsys):
-    captured = _estimate(tmp_path, capsys, extra=", input_kernel_width = 0.2")
+    captured = _estimate(tmp_path, capsys, extra="input_kernel_width = 0.2")
     assert "chosen from the log" not in captured.err + captured.out
     assert "input prior width 0.2 s ([observer] input_kernel_width)" in captured.out
 

@@ -67,7 +67,8 @@ def file_kalman_estimator(model: ModelFile, dt: float, outputs=None, signals=Non
     prior means; time (N,) [s] or None), the inputs' prior width is the maximum of the log's
     likelihood over a grid (:func:`attend.perception.input_width.choose_input_width`), recorded in
     the estimator's ``input_width_choice``; a flat likelihood keeps the process width with a
-    ModelWarning naming input_kernel_width. Without the log: the process width."""
+    ModelWarning naming input_kernel_width, and innovations 10x off the model's prediction (in
+    std) are a ModelWarning naming the precisions. Without the log: the process width."""
     from attend.perception.kalman import KalmanEstimator
 
     known = [spec.known for spec in model.inputs]
@@ -104,8 +105,9 @@ def _with_chosen_input_width(estimator, settings: dict, outputs, signals, time, 
 
     choice = choose_input_width(lambda width: build(width).innovation_terms(outputs, signals, time=time),
                                 estimator.dt, estimator.input_kernel_width)
-    if choice.flat:
-        warnings.warn(f"{path}: {choice.warning()}", ModelWarning, stacklevel=4)
+    for message in (choice.warning(), choice.misfit()):  # a flat likelihood; a model far from the log
+        if message:
+            warnings.warn(f"{path}: {message}", ModelWarning, stacklevel=4)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ModelWarning)
         return type(estimator)(estimator.system, estimator.dt, input_kernel_width=choice.width,

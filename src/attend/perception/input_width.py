@@ -31,7 +31,9 @@ and 2600 samples). Flat likelihood: when every width of the grid is within FLAT_
 (2, about the 95 % likelihood-ratio interval of one parameter) of the best, the log does not
 decide the width; the process width (the previous default) is kept and
 :meth:`InputWidthChoice.warning` says so, naming ``[observer] input_kernel_width``. A best width at
-either end of the grid is reported as such (the likelihood may still rise beyond it).
+either end of the grid is reported as such (the likelihood may still rise beyond it). lambda*
+beyond MISFIT_SCALE (100) either way, innovations 10x larger or smaller in std than the model
+predicts, is a warning too (:meth:`InputWidthChoice.misfit`): the model does not fit the log.
 """
 
 from __future__ import annotations
@@ -44,6 +46,9 @@ import numpy as np
 OCTAVES = tuple(0.25 * 2.0**k for k in range(7))
 #: Log-likelihood difference [nats] under which two widths are not told apart by the log.
 FLAT_LOG_LIKELIHOOD = 2.0
+#: lambda* beyond this factor either way (innovations 100x the variance the model predicts, or
+#: 1/100 of it: 10x in std) is a warning that the model does not fit the log.
+MISFIT_SCALE = 100.0
 
 
 class InputWidthChoice(NamedTuple):
@@ -79,10 +84,10 @@ class InputWidthChoice(NamedTuple):
 
     def _noise_note(self) -> str:
         scale = self.noise_scale
-        if 0.1 <= scale <= 10:
+        if 0.1 <= scale <= 10 or self.misfit():  # (beyond MISFIT_SCALE: a warning of its own)
             return ""
-        return (f"; the log's innovations are {1 / scale:.3g}x the variance the model predicts (lambda* = {scale:.3g}): "
-                "check sensor_precision and process_precision")
+        return (f"; the log's innovations are {1 / scale:.3g}x the variance the model predicts "
+                f"(lambda* = {scale:.3g}): check sensor_precision and process_precision")
 
     def describe(self) -> str:
         """One line for the command line: the width chosen and how."""
@@ -99,6 +104,16 @@ class InputWidthChoice(NamedTuple):
                 f"([observer] input_kernel_width not given): maximum likelihood over {len(self.widths)} widths "
                 f"{self.widths[0] / self.dt:.3g}-{self.widths[-1] / self.dt:.3g} sample times, noise level profiled; "
                 f"{near}{edge}{self._noise_note()}")
+
+    def misfit(self) -> str | None:
+        """The warning to give when lambda* is beyond MISFIT_SCALE either way (and the likelihood
+        is not flat, whose warning says it), or None."""
+        scale = self.noise_scale
+        if self.flat or 1 / MISFIT_SCALE <= scale <= MISFIT_SCALE:
+            return None
+        return (f"[observer] sensor_precision, process_precision: the log's innovations are {1 / scale:.3g}x the "
+                f"variance this model predicts (at the input width {self.width:g} s): the precisions, or A, B and C, "
+                f"do not fit this log, and the estimates' std are off by about {np.sqrt(1 / scale):.3g}x")
 
     def warning(self) -> str | None:
         """The warning to give (the likelihood is flat), or None."""

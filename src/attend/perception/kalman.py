@@ -23,7 +23,7 @@ Speed: the gains do not depend on the data, so the covariance recursion runs onl
 has converged (typically tens to a few hundred samples); from there on the means follow a
 time-invariant linear recurrence, evaluated with :func:`attend.perception.recurrence.linear_recurrence`.
 
-Gaps and jitter (:mod:`attend.perception.sample_times`): a NaN output is not used (the update at
+Gaps and jitter (:mod:`attend.models.sample_times`): a NaN output is not used (the update at
 that sample takes the observed rows of H = [C, 0, Lz readout]: the observed rows of C and the
 matching rows of the sensor noise, whose states run on); a time stamp that skips k - 1 samples is
 k steps without a measurement in between; steps off dt (jitter) are discretised for their own
@@ -33,6 +33,8 @@ white floor 1e-8 for every noise, the inputs' prior included). Those runs go thr
 :func:`attend.perception.kalman_recursions.varying_pass`, a time-varying filter and smoother that
 takes the steady gain again on stretches of complete, uniform samples; with jitter every step
 costs O(dim^3) (dim: the augmented state's size).
+
+Likelihood: log p(y) from the innovations (:meth:`KalmanEstimator.log_likelihood`; perception.input_width).
 """
 
 from __future__ import annotations
@@ -70,7 +72,7 @@ from attend.perception.kalman_recursions import (
     varying_innovation_terms,
     varying_pass,
 )
-from attend.perception.sample_times import SampleGrid, bridge, matrix_with_gaps, sample_grid
+from attend.models.sample_times import SampleGrid, bridge, matrix_with_gaps, sample_grid
 
 __all__ = ["KalmanEstimator", "StateEstimate", "OnlineKalman"]
 
@@ -162,11 +164,9 @@ class KalmanEstimator:
     initial_state: prior mean of x[0] (default 0) and initial_state_std its standard deviation
     (0: known; default: known when initial_state is given, else unknown: a broad prior, 100 times
     the scale of the state seen through C in the first sample, or of the sensor noise if larger).
-    input_width_choice: how input_kernel_width was chosen from a log when a model file gave none
-    (an :class:`attend.perception.input_width.InputWidthChoice`, set by
-    :func:`attend.perception.file_estimators.file_kalman_estimator`; None: given or the default).
+    input_width_choice: how input_kernel_width was chosen from a log (an
+    :class:`attend.perception.input_width.InputWidthChoice`, set by file_kalman_estimator; None: given).
     Logs with missing values (NaN) and irregular time stamps: :meth:`estimate` (see the module).
-    :meth:`log_likelihood`: log p(y) of a log under the model.
     """
 
     system: LinearSystem
@@ -439,7 +439,7 @@ class KalmanEstimator:
         inputs (N, r): the measured inputs (known_inputs) or the inputs' prior mean eta (unknown
         inputs; default 0), NaN gaps of up to BRIDGED_GAP samples interpolated linearly;
         time (N,) [s]: the samples' time stamps (default k dt): skipped stamps are missing samples,
-        steps off dt (jitter) are discretised exactly (:mod:`attend.perception.sample_times`).
+        steps off dt (jitter) are discretised exactly (:mod:`attend.models.sample_times`).
         Estimates are returned at every row, the missing ones included.
         """
         return self._run(outputs, inputs, smooth=True, time=time)
@@ -490,22 +490,17 @@ class KalmanEstimator:
         return self._result(readout, covariance_diag, u, np.arange(N) * self.dt, smooth)
 
     def log_likelihood(self, outputs, inputs=None, *, time=None) -> float:
-        """log p(y) of the log under this model: the sum over samples of log N(nu[k]; 0, S[k]), the
-        Kalman filter's innovations nu[k] = y[k] - E[y[k] | y[0..k-1]] and their covariances S[k]
-        (the prediction-error decomposition; exact for the augmented linear Gaussian model, whose
-        noise fits match the kernels to ~1e-7). The marginal likelihood of the settings, e.g. of
-        input_kernel_width (:mod:`attend.perception.input_width`).
-
-        outputs, inputs and time as :meth:`estimate`; missing outputs (NaN) are left out of y.
-        """
+        """log p(y) under this model: sum_k log N(nu[k]; 0, S[k]) over the filter's innovations
+        nu[k] = y[k] - E[y[k] | y[0..k-1]] and their covariances S[k] (exact for the augmented model,
+        whose noise fits match the kernels to ~1e-7). outputs, inputs, time as :meth:`estimate`;
+        missing outputs (NaN) are left out of y."""
         return self.innovation_terms(outputs, inputs, time=time).log_likelihood
 
     @with_single_blas_thread
     def innovation_terms(self, outputs, inputs=None, *, time=None) -> InnovationTerms:
-        """The parts of :meth:`log_likelihood` (sums of log det S[k] and of nu[k]' inv(S[k]) nu[k],
-        the number of measured values): scaling every covariance of the model by 1 / lambda scales
-        S[k] alike and leaves nu[k] as it is, so log p(y | lambda) follows from them in closed form.
-        outputs, inputs and time as :meth:`estimate`."""
+        """The parts of :meth:`log_likelihood` (sums of log det S[k] and nu[k]' inv(S[k]) nu[k], the
+        count of measured values): every covariance times 1 / lambda scales S[k] alike and keeps nu[k],
+        so log p(y | lambda) is closed-form. outputs, inputs and time as :meth:`estimate`."""
         y, u = self._signals(outputs, inputs)
         grid = None if time is None else sample_grid(time, self.dt, y.shape[0])
         complete = np.all(np.isfinite(y)) and np.all(np.isfinite(u))

@@ -32,12 +32,6 @@ ALLOWED_NAMES = {
 ALLOWED_READS = {
     ("attend/action/mission/map_painter.py", "os._exit"):
         "the documented way for a forked child to end without running the parent's cleanup",
-    # Pending: KalmanEstimator's model dict, start and continuous-time layout are private to
-    # perception/kalman.py, which another change is rewriting; OnlineKalman should read them
-    # through public names once it lands.
-    ("attend/perception/kalman_online.py", "estimator._continuous"): "pending: kalman.py",
-    ("attend/perception/kalman_online.py", "est._initial"): "pending: kalman.py",
-    ("attend/perception/kalman_online.py", "est._continuous_step"): "pending: kalman.py",
 }
 
 

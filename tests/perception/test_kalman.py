@@ -148,7 +148,7 @@ def test_steady_gains_do_not_change_the_result(monkeypatch):
     estimator = KalmanEstimator(system, dt, sensor_precision=400, process_precision=100, kernel_width=0.3)
     shortcut = estimator.estimate(log.outputs, u), estimator.filter(log.outputs, u)
     model = estimator._model
-    schedule = recursions._gain_schedule(model["T"], model["Q"], model["H"], estimator._initial(log.outputs)[1], N,
+    schedule = recursions._gain_schedule(model["T"], model["Q"], model["H"], estimator.initial_prior(log.outputs)[1], N,
                                          model["steady_predicted"])
     assert schedule.steady < N // 2  # the shortcut is really taken
     monkeypatch.setattr(recursions, "STEADY_TOLERANCE", -1.0)  # never steady: every step time-varying

@@ -167,8 +167,8 @@ def test_jittered_smoother_is_the_posterior_of_its_own_model():
     _, y = simulate_irregular(system, np.zeros((N, 1)), t, widths, rng)
     y[rng.random(N) < 0.15, 1] = np.nan
     grid_time = np.sort(np.concatenate([t, t[29] + (t[30] - t[29]) * np.array([1, 2]) / 3]))
-    model = estimator._continuous()
-    steps = [estimator._continuous_step(h)[:2] for h in np.diff(grid_time)]
+    model = estimator.continuous_model()
+    steps = [estimator.continuous_step(h)[:2] for h in np.diff(grid_time)]
     P = model["stationary"].copy()
     P[:3, :3] = 0.0  # initial_state known
     covariances = [P]

@@ -321,10 +321,16 @@ class KalmanEstimator:
         Bd_augmented[slices["x"]] = Bd
         return T, Q, Bd_augmented
 
-    def _continuous(self) -> dict:
+    @property
+    def augmented_model(self) -> dict:
+        """The augmented model of uniform samples: the plant and noise blocks of the augmented state
+        (keys such as "dim", "slices", the transition and noise matrices), built once per estimator."""
+        return self._model
+
+    def continuous_model(self) -> dict:
         """The augmented model for jittered time stamps: every noise a continuous-time process
         (:func:`attend.models.noise.continuous_noise_state_space`, autocorrelation rho(tau) at the actual
-        lags), discretised per step by :meth:`_continuous_step`. Built once."""
+        lags), discretised per step by :meth:`continuous_step`. Built once."""
         if "continuous" not in self._model:
             widths = {"w": self.process_kernel_width, "z": self.sensor_kernel_width}
             if not self._known_mask().all():
@@ -335,9 +341,9 @@ class KalmanEstimator:
             self._model["continuous"] = dict(layout, models=models, widths=widths)
         return self._model["continuous"]
 
-    def _continuous_step(self, step: float):
+    def continuous_step(self, step: float):
         """(T, Q, Bd_augmented) of the continuous-time model over one step of ``step`` seconds."""
-        model = self._continuous()
+        model = self.continuous_model()
         Ad, Bd = zero_order_hold(self.system.A, self.system.B, step)
         channels = {name: noise.step(step, model["widths"][name]) for name, noise in model["models"].items()}
         return self._assemble(model, Ad, Bd, step, channels)
@@ -403,7 +409,7 @@ class KalmanEstimator:
                 raise AttendInputError(f"{field_name}: expected shape ({y.shape[0]}, {r}), got {u.shape}")
         return y, u
 
-    def _initial(self, y: np.ndarray, layout: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def initial_prior(self, y: np.ndarray, layout: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Prior mean and covariance of the augmented state at sample 0 (layout: the augmented
         model's blocks, default the nominal one). y: the outputs (NaN: missing); the diffuse prior
         is scaled by the first sample with a measured output."""
@@ -466,7 +472,7 @@ class KalmanEstimator:
         N = y.shape[0]
         model = self._model
         T, H = model["T"], model["H"]
-        mean0, cov0 = self._initial(y)
+        mean0, cov0 = self.initial_prior(y)
         if "steady_predicted" not in model:
             model["steady_predicted"] = _steady_predicted_covariance(T, model["Q"], H)
         schedule = _gain_schedule(T, model["Q"], H, cov0, N, model["steady_predicted"], model["slices"].values())
@@ -510,7 +516,7 @@ class KalmanEstimator:
         if grid is None:
             grid = sample_grid(np.arange(y.shape[0]) * self.dt, self.dt)
         layout, step_model, steady, y_grid, observed, _ = self._grid_model(y, u, grid)
-        mean0, cov0 = self._initial(y_grid, layout)
+        mean0, cov0 = self.initial_prior(y_grid, layout)
         return varying_innovation_terms(step_model, layout["H"], np.where(observed, y_grid, 0.0), observed, mean0,
                                         cov0, steady, layout["slices"].values())
 
@@ -535,17 +541,17 @@ class KalmanEstimator:
             def step_model(k):
                 return T, Q, drive[k - 1]
         else:  # jitter: continuous-time noise models, each step discretised for its own length
-            layout, steps, steady = self._continuous(), grid.steps, None
+            layout, steps, steady = self.continuous_model(), grid.steps, None
 
             def step_model(k):
-                T, Q, Bd_augmented = self._continuous_step(steps[k - 1])
+                T, Q, Bd_augmented = self.continuous_step(steps[k - 1])
                 return T, Q, Bd_augmented @ u_grid[k - 1]
         return layout, step_model, steady, y_grid, observed, u_grid
 
     def _run_on_grid(self, y: np.ndarray, u: np.ndarray, smooth: bool, grid: SampleGrid) -> StateEstimate:
         """Missing values and irregular time stamps: the time-varying recursions on the grid."""
         layout, step_model, steady, y_grid, observed, u_grid = self._grid_model(y, u, grid)
-        mean0, cov0 = self._initial(y_grid, layout)
+        mean0, cov0 = self.initial_prior(y_grid, layout)
         readout, covariance_diag = varying_pass(step_model, layout["H"], np.where(observed, y_grid, 0.0), observed,
                                                 mean0, cov0, layout["output_map"], smooth, steady,
                                                 layout["slices"].values())

@@ -42,7 +42,7 @@ class OnlineKalman:
     def __init__(self, estimator: KalmanEstimator, jittered: bool = False):
         self.estimator = estimator
         self.jittered = bool(jittered)
-        self._model = estimator._model
+        self._model = estimator.augmented_model
         self._count = 0
         self._mean = None
         self._previous_input = None
@@ -51,7 +51,7 @@ class OnlineKalman:
         self._time = None
         # explicit covariance (after the first missing value or skipped stamp, or with jitter)
         self._explicit = self.jittered
-        self._layout = estimator._continuous() if self.jittered else estimator._model
+        self._layout = estimator.continuous_model() if self.jittered else estimator.augmented_model
         self._filtered_cov = None
         self._calm, self._plateau, self._on_steady = 0, _Plateau(), False
 
@@ -62,7 +62,7 @@ class OnlineKalman:
         if self._count == 0:
             if "steady_predicted" not in model:
                 model["steady_predicted"] = _steady_predicted_covariance(T, model["Q"], H)
-            mean, P0 = est._initial(y[None, :])
+            mean, P0 = est.initial_prior(y[None, :])
             self._stream = _gain_stream(T, model["Q"], H, P0, model["steady_predicted"], model["slices"].values())
         else:
             mean = T @ self._mean + model["Bd_augmented"] @ self._previous_input
@@ -124,11 +124,11 @@ class OnlineKalman:
             self.steady_gain = steady_gain(H, model["steady_predicted"])
         steady = None if self.jittered else self.steady_gain
         if self._count == 0:
-            mean, P = est._initial(y[None, :], layout)
+            mean, P = est.initial_prior(y[None, :], layout)
         else:
             mean, P_f = self._mean, self._filtered_cov
             for _ in range(count):
-                T, Q, Bd_augmented = est._continuous_step(step) if self.jittered else \
+                T, Q, Bd_augmented = est.continuous_step(step) if self.jittered else \
                     (layout["T"], layout["Q"], layout["Bd_augmented"])
                 mean = T @ mean + Bd_augmented @ self._previous_input
                 if self._on_steady and count == 1 and rows.size == H.shape[0]:

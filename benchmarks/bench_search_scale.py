@@ -205,7 +205,10 @@ def part3(missions: int, tuning_seeds: int, quick: bool, priors=("uniform", "inf
         t_mow = np.array([r[0] if np.isfinite(r[0]) else 2 * r[2] for r in mower])
         ratio = t_efe / t_mow
         line(f"{prior}: best lawnmower", f"h {h:g} m, spacing {factor:g} w_x", "-")
-        line(f"{prior}: median time-to-90% ratio EFE / lawnmower", f"{np.median(ratio):.2f}", target)
+        draws = np.random.default_rng(0).integers(0, len(ratio), size=(2000, len(ratio)))
+        low, high = np.percentile(np.median(ratio[draws], axis=1), [2.5, 97.5])
+        line(f"{prior}: median time-to-90% ratio EFE / lawnmower",
+             f"{np.median(ratio):.2f} (bootstrap 95 % [{low:.2f}, {high:.2f}])", target)
         line(f"{prior}: EFE faster in", f"{np.mean(ratio < 1) * 100:.0f} % of missions", "-")
         line(f"{prior}: median time to 90 % EFE / lawnmower",
              f"{np.median(t_efe):.0f} s / {np.median(t_mow):.0f} s", "-")

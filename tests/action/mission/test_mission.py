@@ -9,6 +9,7 @@ import shapely
 
 from attend.action.mission import Mission
 from attend.action.mission.examples import write_example_mission
+from attend.action.mission.errors import MissionInputError
 from attend.action.mission.flight_logs import write_flight_logs
 from attend.action.mission.mission import footprint_cells
 from attend.action.mission.simulate import simulate_mission
@@ -102,6 +103,30 @@ def test_appending_images_gives_the_map_of_a_rebuild(tmp_path):
     incremental = mission.belief.log_odds.copy()
     mission.set_logs(mission.logs)
     np.testing.assert_array_equal(mission.belief.log_odds, incremental)
+
+
+def test_found_checks_time_the_finds_without_changing_the_flight(tmp_path):
+    """Looking at the targets every 10 s instead of at each 30 s replan leaves the flight, its
+    logs and the final map as they were (the same images fused in the same order), and finds
+    each person no later, and no earlier than one check step before."""
+    path = write_example_mission(tmp_path, seed=7, size_m=300.0, n_uavs=2, people=4, flight_time_s=200.0)
+    coarse_mission, fine_mission = Mission.from_file(path), Mission.from_file(path)
+    coarse = simulate_mission(coarse_mission, seed=7, planner="efe", found_check_s=30.0)
+    fine = simulate_mission(fine_mission, seed=7, planner="efe", found_check_s=10.0)
+    a, b = coarse_mission.logs, fine_mission.logs  # rows in the order they were appended
+    order_a, order_b = a.fusion_order(), b.fusion_order()
+    for column in ("image_time_s", "image_uav", "image_lon", "image_lat", "image_alt_m"):
+        np.testing.assert_array_equal(getattr(a, column)[order_a], getattr(b, column)[order_b])
+    np.testing.assert_array_equal(np.sort(a.detection_lon), np.sort(b.detection_lon))
+    np.testing.assert_array_equal(coarse_mission.belief.log_odds, fine_mission.belief.log_odds)
+    assert np.isfinite(coarse.found_times_s).sum() >= 1
+    np.testing.assert_array_equal(np.isfinite(coarse.found_times_s), np.isfinite(fine.found_times_s))
+    found = np.isfinite(coarse.found_times_s)
+    assert np.all(fine.found_times_s[found] <= coarse.found_times_s[found])
+    assert np.all(fine.found_times_s[found] > coarse.found_times_s[found] - 30.0)
+    assert np.any(fine.found_times_s[found] < coarse.found_times_s[found])  # the finer clock is used
+    with pytest.raises(MissionInputError, match="found_check_s"):
+        simulate_mission(Mission.from_file(path), seed=7, found_check_s=0.0)
 
 
 def test_replay_split_over_calls_gives_the_same_targets_and_plan(tmp_path):

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from attend.action.log_odds import logistic
 
+from attend.action.mission.errors import MissionInputError
 from attend.action.mission.flight_logs import FlightLogs
 from attend.action.mission.mission import Mission
 
@@ -59,12 +60,16 @@ def place_people(mission: Mission, rng: np.random.Generator) -> np.ndarray:
 
 
 def simulate_mission(mission: Mission, seed: int, planner: str | None = None, replan_s: float = 30.0,
-                     found_radius_m: float | None = None, on_replan=None) -> SimulationResult:
+                     found_radius_m: float | None = None, on_replan=None, found_check_s: float = 10.0) -> SimulationResult:
     """Fly ``mission`` to the end of its flight time (module docstring); its logs end up holding
     the simulated images and detections. seed: places the people and draws the detections;
     planner: "efe" or "lawnmower" (None: the mission's); replan_s: time between replans [s];
     found_radius_m: a person is found when a target lies this close [m] (None: module
-    docstring); on_replan(mission, plans, t): called after each plan."""
+    docstring); on_replan(mission, plans, t): called after each plan; found_check_s: the targets
+    are looked at every found_check_s seconds of flight [s] (the images up to then fused; the
+    flight and the plans do not depend on it), so a found time is known to within it."""
+    if not (isinstance(found_check_s, (int, float)) and math.isfinite(found_check_s) and found_check_s > 0):
+        raise MissionInputError(f"found_check_s: expected a time > 0 s, got {found_check_s!r}")
     config = mission.config
     rng = np.random.default_rng(seed)
     people = place_people(mission, rng)
@@ -109,13 +114,22 @@ def simulate_mission(mission: Mission, seed: int, planner: str | None = None, re
                 flew = True
         for k in range(len(plans)):  # a plan that ended early (or was empty): the UAV waits for the next call
             next_image[k] = max(next_image[k], stop)
-        if len(columns["t"]) > first_new:
-            mission.append_images(_as_logs(mission, columns, detections, first_new))
-        positions = mission.targets()[0]
-        if len(positions):
-            d = np.hypot(people[:, 0, None] - positions[None, :, 0], people[:, 1, None] - positions[None, :, 1])
-            newly = (d.min(axis=1) <= radius) & ~np.isfinite(found)
-            found[newly] = stop
+        new_times = np.asarray(columns["t"][first_new:], dtype=float)
+        logs = _as_logs(mission, columns, detections, first_new) if len(new_times) else None
+        checks = np.arange(clock + found_check_s, stop - 1e-9, found_check_s).tolist() + [stop]
+        appended = np.zeros(len(new_times), dtype=bool)
+        for check in checks:  # the images up to each check fused, then the targets looked at
+            chunk = ~appended & (new_times <= check + 1e-9)
+            if chunk.any():
+                mission.append_images(logs.subset(chunk))
+                appended |= chunk
+            elif check != stop:
+                continue
+            positions = mission.targets()[0]
+            if len(positions):
+                d = np.hypot(people[:, 0, None] - positions[None, :, 0], people[:, 1, None] - positions[None, :, 1])
+                newly = (d.min(axis=1) <= radius) & ~np.isfinite(found)
+                found[newly] = check
         clock = stop
         if not flew and all(len(p.waypoints) == 0 for p in plans):
             break

@@ -5,10 +5,11 @@ Public API (everything else is private):
 - models (:mod:`attend.models`): :class:`LinearSystem`, :func:`simulate`, presets
   :func:`mass_spring_damper`, :func:`convolution_model`, :func:`identification_system`,
   :func:`quadrotor_roll`; :class:`NonlinearSystem` (f, g), :func:`simulate_nonlinear`; noise
-  :func:`coloured_noise`; generalised coordinates :func:`smoothness_precision`, :func:`embed`,
+  :class:`NoiseModel` (precisions and kernel widths, taken by every estimator), :func:`coloured_noise`; generalised coordinates :func:`smoothness_precision`, :func:`embed`,
   :func:`shift_operator`
 - perception: :class:`KalmanEstimator` (coloured-noise Kalman smoother/filter, the default of
-  ``attend estimate``), :class:`StateEstimate`, :class:`DEMObserver`, :class:`DEMEstimate`
+  ``attend estimate``), :class:`StateEstimate`, :class:`DEMObserver`, :class:`DEMEstimate`;
+  :class:`Estimate`, the one result type every estimator's result converts to (``as_estimate()``)
 - learning: :func:`identify` (settings :class:`LearningSettings`), :class:`IdentificationResult`
 - nonlinear perception: :class:`NonlinearDEM` for a :class:`NonlinearSystem`
 - action (UAV search, :mod:`attend.action`): at field scale :func:`make_world`,
@@ -43,6 +44,7 @@ _EXPORTS = {
     "convolution_model": "attend.models.problems",
     "DEMEstimate": "attend.perception.dem",
     "DEMObserver": "attend.perception.dem",
+    "Estimate": "attend.perception.estimate",
     "drive": "attend.rhythm",
     "embed": "attend.models.generalized",
     "embedding_weights": "attend.models.generalized",
@@ -62,6 +64,7 @@ _EXPORTS = {
     "ModelWarning": "attend.models.linear",
     "NonlinearDEM": "attend.perception.nonlinear",
     "NonlinearSystem": "attend.models.nonlinear",
+    "NoiseModel": "attend.models.noise_model",
     "OccupancyMap": "attend.action",
     "OnlineDEM": "attend.perception.dem",
     "OnlineKalman": "attend.perception.kalman",

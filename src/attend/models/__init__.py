@@ -5,6 +5,9 @@
   :func:`from_statespace` (a python-control ``StateSpace`` as a LinearSystem);
 - :mod:`.nonlinear`: :class:`NonlinearSystem` (dx/dt = f(x, v) + w, y = g(x, v) + z), its Jacobians
   and :func:`simulate_nonlinear`;
+- :mod:`.noise_model`: :class:`NoiseModel`, the noise of a model as one value (process and sensor
+  precisions, kernel widths; from standard deviations or covariances), taken by every estimator
+  and by :func:`simulate`;
 - :mod:`.noise`: coloured noise (white noise convolved with a Gaussian kernel of width s), its
   autocorrelation and finite state-space models of it;
 - :mod:`.generalized`: generalised coordinates: the smoothness precision S(s), the shift operator
@@ -29,6 +32,7 @@ _EXPORTS = {
     **dict.fromkeys(("ContinuousNoiseStateSpace", "NoiseStateSpace", "autocorrelation", "coloured_noise",
                      "continuous_noise_state_space", "gaussian_kernel", "kernel_autocorrelation",
                      "noise_state_space", "sampled_autocorrelation", "white_state_space"), "attend.models.noise"),
+    "NoiseModel": "attend.models.noise_model",
     **dict.fromkeys(("block_precisions", "embed", "embedding_weights", "shift_operator", "smoothness_condition",
                      "smoothness_precision", "temporal_covariance"), "attend.models.generalized"),
     **dict.fromkeys(("parameter_names", "parameter_vector", "system_from_parameters"), "attend.models.parameters"),

@@ -19,6 +19,7 @@ import numpy as np
 
 from attend._validation import AttendInputError, as_matrix, positive_scalar, unique_names
 from attend.models.noise import coloured_noise
+from attend.models.noise_model import NoiseModel, resolve_noise
 
 
 class ModelWarning(UserWarning):
@@ -204,12 +205,13 @@ def simulate(
     dt: float,
     *,
     kernel_width: float | None = None,
-    process_std=0.0,
-    measurement_std=0.0,
+    process_std=None,
+    measurement_std=None,
     initial_state=None,
     seed: int | np.random.Generator | None = 0,
     process_kernel_width: float | None = None,
     sensor_kernel_width: float | None = None,
+    noise: NoiseModel | None = None,
 ) -> Trajectory:
     """Simulate the generative process with coloured noise.
 
@@ -217,13 +219,24 @@ def simulate(
     hold of (A, B) over dt [s] and w, z white noise convolved with a Gaussian kernel of width
     ``kernel_width`` [s] (standard deviations ``process_std``, ``measurement_std`` per sample,
     scalars or per channel). ``process_kernel_width`` / ``sensor_kernel_width`` [s] set the widths
-    of w and z separately (0: white noise); each defaults to ``kernel_width``.
+    of w and z separately (0: white noise); each defaults to ``kernel_width``; process_std and
+    measurement_std default to 0 (no noise). noise: an :class:`attend.models.NoiseModel` instead of
+    those five (standard deviations 1 / sqrt(precision) per channel, its kernel widths: the model
+    ``NoiseModel.from_std(process_std=sigma_w, sensor_std=sigma_z, ...)`` draws exactly the noise
+    of process_std=sigma_w, measurement_std=sigma_z; correlated channels are an error).
     ``system`` may also be a python-control StateSpace (converted with
     :func:`attend.models.from_statespace`). inputs: (N, r) u at every sample; initial_state: x[0]
     (default 0); seed: an int or a numpy Generator (the noises are reproducible).
     """
     system = as_linear_system(system)
     dt = positive_scalar(dt, "dt", "s")
+    given = dict(process_std=process_std, measurement_std=measurement_std, kernel_width=kernel_width,
+                 process_kernel_width=process_kernel_width, sensor_kernel_width=sensor_kernel_width)
+    if resolve_noise(noise, given, "simulate") is not None:
+        process_std, measurement_std = noise.process_std, noise.sensor_std
+        process_kernel_width, sensor_kernel_width = noise.process_kernel_width, noise.sensor_kernel_width
+    process_std = 0.0 if process_std is None else process_std
+    measurement_std = 0.0 if measurement_std is None else measurement_std
     widths = []
     for value, field in ((process_kernel_width, "process_kernel_width"), (sensor_kernel_width, "sensor_kernel_width")):
         value = kernel_width if value is None else value

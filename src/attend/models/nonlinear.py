@@ -12,6 +12,7 @@ import numpy as np
 from attend._validation import AttendInputError, as_matrix, positive_scalar, require_finite
 from attend.models.linear import Trajectory
 from attend.models.noise import coloured_noise
+from attend.models.noise_model import resolve_noise
 
 _EPS = np.finfo(float).eps
 
@@ -236,8 +237,9 @@ def _shapes(system: "NonlinearSystem") -> list[tuple]:
     return [(n,), (m,), (n, n), (n, r), (m, n), (m, r)]
 
 
-def simulate_nonlinear(system: NonlinearSystem, inputs, dt: float, *, kernel_width: float, process_std=0.0,
-                       measurement_std=0.0, initial_state=None, seed=0, substeps: int = 10) -> Trajectory:
+def simulate_nonlinear(system: NonlinearSystem, inputs, dt: float, *, kernel_width: float | None = None,
+                       process_std=None, measurement_std=None, initial_state=None, seed=0, substeps: int = 10,
+                       noise=None) -> Trajectory:
     """Simulate the generative process with coloured noise.
 
     system: the NonlinearSystem (f, g); dt: sample time [s]; initial_state: x[0] (default 0);
@@ -247,11 +249,24 @@ def simulate_nonlinear(system: NonlinearSystem, inputs, dt: float, *, kernel_wid
     sub-steps, u and w held over the sample: the zero-order hold of the linear simulate()),
     y[k] = g(x[k], u[k]) + z[k]; w, z: white noise convolved with the Gaussian kernel of width
     kernel_width [s], standard deviations process_std [state unit / s] and measurement_std per
-    sample. Returns an :class:`attend.models.linear.Trajectory`.
+    sample (both default 0: no noise). noise: an :class:`attend.models.NoiseModel` instead of
+    kernel_width, process_std and measurement_std (standard deviations 1 / sqrt(precision) per
+    channel, as :func:`attend.models.simulate`; one kernel width for both noises here).
+    Returns an :class:`attend.models.linear.Trajectory`.
     """
     if not isinstance(system, NonlinearSystem):
         raise AttendInputError("system: expected an attend NonlinearSystem")
     dt = positive_scalar(dt, "dt", "s")
+    given = dict(kernel_width=kernel_width, process_std=process_std, measurement_std=measurement_std)
+    if resolve_noise(noise, given, "simulate_nonlinear") is not None:
+        if noise.kernel_width is None:
+            raise AttendInputError("noise: simulate_nonlinear uses one kernel width for both noises; this model's "
+                                   "process_kernel_width and sensor_kernel_width differ")
+        kernel_width, process_std, measurement_std = noise.kernel_width, noise.process_std, noise.sensor_std
+    if kernel_width is None:
+        raise AttendInputError("kernel_width: required (or noise=NoiseModel(...)); 0 means white noise")
+    process_std = 0.0 if process_std is None else process_std
+    measurement_std = 0.0 if measurement_std is None else measurement_std
     if isinstance(inputs, (int, np.integer)) and not isinstance(inputs, bool):
         u = np.zeros((int(inputs), system.n_inputs))
     else:

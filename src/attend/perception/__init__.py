@@ -9,7 +9,12 @@ Entry points (re-exported here and from :mod:`attend`):
   (:mod:`attend.perception.kalman`);
 - :func:`identify` and :func:`learn_batch` with their settings :class:`LearningSettings`, results
   :class:`IdentificationResult` (:mod:`attend.perception.learning`);
-- :class:`NonlinearDEM` for a :class:`attend.models.NonlinearSystem` (:mod:`attend.perception.nonlinear`).
+- :class:`NonlinearDEM` for a :class:`attend.models.NonlinearSystem` (:mod:`attend.perception.nonlinear`);
+- :class:`Estimate`, the one result type every estimator's result converts to
+  (``result.as_estimate()`` or :func:`as_estimate`; :mod:`attend.perception.estimate`).
+
+Every estimator takes its noise as ``noise=``:class:`attend.models.NoiseModel` (or the separate
+precision and kernel-width keywords), the system and dt first and the rest by keyword.
 
 Smoothers for nonlinear models besides DEM (the unscented Kalman smoother, the default of a
 nonlinear model file, and the particle smoother, the nonlinear reference):
@@ -36,11 +41,14 @@ _EXPORTS = {
     "OnlineKalman": "attend.perception.kalman",
     "StateEstimate": "attend.perception.kalman",
     "NonlinearDEM": "attend.perception.nonlinear",
+    "Estimate": "attend.perception.estimate",
+    "as_estimate": "attend.perception.estimate",
 }
 
 __all__ = [
     "DEMEstimate",
     "DEMObserver",
+    "Estimate",
     "IdentificationResult",
     "KalmanEstimator",
     "LearningSettings",
@@ -48,6 +56,7 @@ __all__ = [
     "OnlineDEM",
     "OnlineKalman",
     "StateEstimate",
+    "as_estimate",
     "identify",
     "learn_batch",
 ]

@@ -34,7 +34,7 @@ or have a mode on the unit circle (to 1e-9: a coordinate the flow does not pull 
 from __future__ import annotations
 
 import warnings
-from dataclasses import KW_ONLY, dataclass, field
+from dataclasses import KW_ONLY, InitVar, dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -50,6 +50,7 @@ from attend._validation import (
 )
 from attend.models.generalized import smoothness_condition
 from attend.models.linear import LinearSystem, ModelWarning, as_linear_system
+from attend.models.noise_model import NoiseModel
 from attend.perception.dem_analysis import (
     derivative_scales,
     PINNED_INPUT_PRECISION,
@@ -61,6 +62,7 @@ from attend.perception.dem_analysis import (
 from attend.perception.dem_flow import (centre_samples, flow_matrices, known_input_error, samples_after_centre,
                                         start_state)
 from attend.perception.dem_online import OnlineDEM
+from attend.perception.estimate import Estimate, as_estimate, take_noise
 from attend.perception.recurrence import linear_recurrence
 
 
@@ -123,6 +125,11 @@ class DEMEstimate(NamedTuple):
     input_std: np.ndarray
     generalized: np.ndarray | None
 
+    def as_estimate(self, method: str = "dem") -> Estimate:
+        """This result as the common :class:`attend.perception.estimate.Estimate` (details: this
+        result); method: the estimator's name ("dem"; NonlinearDEM's results are DEMEstimates too)."""
+        return as_estimate(self, method)
+
 
 class DEMAnalysis(NamedTuple):
     """What a DEM observer promises before it sees data (:meth:`DEMObserver.analysis`).
@@ -167,15 +174,18 @@ class DEMAnalysis(NamedTuple):
 @dataclass(frozen=True, eq=False)
 class DEMObserver:
     """A DEM state (and unknown-input) observer for an LTI system:
-    ``DEMObserver(system, dt, *, kernel_width, sensor_precision, process_precision, ...)`` (the
-    system and the sample time first, everything else by keyword).
+    ``DEMObserver(system, dt, *, kernel_width, sensor_precision, process_precision, ...)`` or
+    ``DEMObserver(system, dt, *, noise=NoiseModel(...), ...)`` (the system and the sample time
+    first, everything else by keyword).
 
     system: the model (A, B, C; a python-control StateSpace is converted with
     :func:`attend.models.from_statespace`); dt: sample time [s]; kernel_width: s of the Gaussian noise
     kernel [s], used for both noises unless process_kernel_width / sensor_kernel_width are
     given (then it may be None); sensor_precision: Pi_z [1/output unit^2]; process_precision:
-    Pi_w [s^2/state unit^2 as in dx/dt]; input_prior_precision: P_v [1/input unit^2] (unknown
-    inputs); embedding_order: p (states/outputs have p + 1 orders), an int or "auto" (the
+    Pi_w [s^2/state unit^2 as in dx/dt]; noise: an :class:`attend.models.NoiseModel` holding the two
+    precisions and the kernel widths instead (giving it with any of them is an error; the widths
+    must be > 0); :attr:`noise_model` reads them back as one; input_prior_precision: P_v
+    [1/input unit^2] (unknown inputs); embedding_order: p (states/outputs have p + 1 orders), an int or "auto" (the
     default: the largest p <= 6 whose observer is stable (spectral radius <= 1 - 1e-9), has
     cond(S) <= AUTO_MAX_CONDITION in sample units, and forgets its start quickly: start time
     constant <= max(AUTO_START_WIDTHS (50) sample times or kernel widths, twice the best of
@@ -207,9 +217,9 @@ class DEMObserver:
     system: LinearSystem
     dt: float
     _: KW_ONLY
-    kernel_width: float | None
-    sensor_precision: np.ndarray
-    process_precision: np.ndarray
+    kernel_width: float | None = None
+    sensor_precision: np.ndarray | None = None
+    process_precision: np.ndarray | None = None
     input_prior_precision: np.ndarray | None = None
     embedding_order: int | str = "auto"
     input_order: int = 2
@@ -223,13 +233,15 @@ class DEMObserver:
     allow_unstable: bool = False
     input_kernel_width: float | None = None
     integration: str = "attend"
+    noise: InitVar[NoiseModel | None] = None
     _matrices: dict = field(default_factory=dict, repr=False)
     _cache: dict = field(default_factory=dict, repr=False)
 
     @with_single_blas_thread
-    def __post_init__(self):
+    def __post_init__(self, noise):
         system = as_linear_system(self.system)
         set_ = object.__setattr__
+        take_noise(self, noise, "DEMObserver")
         set_(self, "system", system)
         set_(self, "dt", positive_scalar(self.dt, "dt", "s"))
         if self.kernel_width is None:
@@ -295,6 +307,13 @@ class DEMObserver:
                           ModelWarning, stacklevel=3)
 
     # --- construction ----------------------------------------------------------------------
+
+    @property
+    def noise_model(self) -> NoiseModel:
+        """The observer's noise as one :class:`attend.models.NoiseModel` (the precision matrices and
+        widths in use), e.g. to build another estimator with the same noise."""
+        return NoiseModel(process_precision=self.process_precision, sensor_precision=self.sensor_precision,
+                          process_kernel_width=self.process_kernel_width, sensor_kernel_width=self.sensor_kernel_width)
 
     def _runs_on_some_log(self) -> bool:
         """A stable observer, or one whose slowest mode lies off the unit circle (|rho - 1| > ON_CIRCLE)

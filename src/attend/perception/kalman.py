@@ -40,7 +40,7 @@ Likelihood: log p(y) from the innovations (:meth:`KalmanEstimator.log_likelihood
 from __future__ import annotations
 
 import warnings
-from dataclasses import KW_ONLY, dataclass, field
+from dataclasses import KW_ONLY, InitVar, dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -49,6 +49,7 @@ from attend._threads import with_single_blas_thread
 from attend._validation import AttendInputError, positive_scalar, precision_matrix, require_finite
 from attend._validation import kernel_width as checked_width
 from attend.models.linear import LinearSystem, ModelWarning, zero_order_hold
+from attend.models.noise_model import NoiseModel
 from attend.models.noise import (
     NoiseStateSpace,
     continuous_noise_state_space,
@@ -57,6 +58,7 @@ from attend.models.noise import (
     sampled_autocorrelation,
     white_state_space,
 )
+from attend.perception.estimate import Estimate, as_estimate, take_noise
 from attend.perception.kalman_online import OnlineKalman
 from attend.perception.kalman_recursions import (
     _filter_variances,
@@ -89,6 +91,10 @@ class StateEstimate(NamedTuple):
     state_std: np.ndarray
     input_std: np.ndarray
     method: str
+
+    def as_estimate(self) -> Estimate:
+        """This result as the common :class:`attend.perception.estimate.Estimate` (details: this result)."""
+        return as_estimate(self)
 
 
 def _factor(precision: np.ndarray, field: str) -> np.ndarray:
@@ -150,14 +156,17 @@ def _channel_model(dt: float, width: float, kind: str, field: str) -> tuple[Nois
 @dataclass(frozen=True, eq=False)
 class KalmanEstimator:
     """Kalman smoother (batch) and filter (causal, online) for an LTI system under coloured noise:
-    ``KalmanEstimator(system, dt, *, sensor_precision, process_precision, kernel_width, ...)`` (the
-    system and the sample time first, everything else by keyword).
+    ``KalmanEstimator(system, dt, *, sensor_precision, process_precision, kernel_width, ...)`` or
+    ``KalmanEstimator(system, dt, *, noise=NoiseModel(...), ...)`` (the system and the sample time
+    first, everything else by keyword).
 
     system: the model (A, B, C) in continuous time [1/s]; dt: sample time [s];
     sensor_precision Pi_z [1/output unit^2] and process_precision Pi_w [s^2/state unit^2], as for
     :class:`attend.perception.dem.DEMObserver` (Pi_w = 1/sigma_w^2 for simulate(process_std=sigma_w));
     kernel_width s [s] for both noises, or process_kernel_width / sensor_kernel_width separately
-    (0 = white); known_inputs: inputs measured (True), estimated (False), or one flag per input;
+    (0 = white); noise: an :class:`attend.models.NoiseModel` holding those four instead (its
+    precisions and widths; giving it with any of them is an error); :attr:`noise_model` reads them
+    back as one; known_inputs: inputs measured (True), estimated (False), or one flag per input;
     estimated inputs have a Gaussian-process prior around the prior mean passed to estimate(),
     with precision input_prior_precision P_v [1/input unit^2] (for all r inputs; the block of the
     estimated ones is used) and width input_kernel_width s_u [s] (default: the process width);
@@ -172,8 +181,8 @@ class KalmanEstimator:
     system: LinearSystem
     dt: float
     _: KW_ONLY
-    sensor_precision: np.ndarray
-    process_precision: np.ndarray
+    sensor_precision: np.ndarray | None = None
+    process_precision: np.ndarray | None = None
     kernel_width: float | None = None
     process_kernel_width: float | None = None
     sensor_kernel_width: float | None = None
@@ -183,15 +192,17 @@ class KalmanEstimator:
     initial_state: np.ndarray | None = None
     initial_state_std: np.ndarray | float | None = None
     input_width_choice: object = field(default=None, repr=False, compare=False)
+    noise: InitVar[NoiseModel | None] = None
     _model: dict = field(default_factory=dict, repr=False)
 
     @with_single_blas_thread
-    def __post_init__(self):
+    def __post_init__(self, noise):
         system = self.system
         if not isinstance(system, LinearSystem):
             raise AttendInputError("system: expected an attend.LinearSystem (a python-control StateSpace converts "
                                    "with attend.models.from_statespace)")
         set_ = object.__setattr__
+        take_noise(self, noise, "KalmanEstimator")
         n, r, m = system.n_states, system.n_inputs, system.n_outputs
         set_(self, "dt", positive_scalar(self.dt, "dt", "s"))
         shared = None if self.kernel_width is None else checked_width(self.kernel_width, "kernel_width")
@@ -242,6 +253,13 @@ class KalmanEstimator:
         self._check_observable()
 
     # --- the augmented model -----------------------------------------------------------------
+
+    @property
+    def noise_model(self) -> NoiseModel:
+        """The estimator's noise as one :class:`attend.models.NoiseModel` (the precision matrices
+        and widths in use), e.g. to build another estimator with the same noise."""
+        return NoiseModel(process_precision=self.process_precision, sensor_precision=self.sensor_precision,
+                          process_kernel_width=self.process_kernel_width, sensor_kernel_width=self.sensor_kernel_width)
 
     @property
     def method(self) -> str:

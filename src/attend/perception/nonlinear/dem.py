@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from dataclasses import KW_ONLY, dataclass, field
+from dataclasses import KW_ONLY, InitVar, dataclass, field
 from math import factorial, isfinite
 
 import numpy as np
@@ -12,8 +12,10 @@ from attend._progress import steps
 from attend._threads import single_blas_thread
 from attend._validation import AttendInputError, as_matrix, order, positive_scalar, precision_matrix, require_finite
 from attend.models.generalized import block_precisions, embedding_weights, shift_operator, smoothness_precision
+from attend.models.noise_model import NoiseModel
 from attend.models.nonlinear import NonlinearSystem
 from attend.perception.dem import DEMEstimate
+from attend.perception.estimate import take_noise
 from attend.perception.nonlinear._linalg import (block_diagonal_positions, diagonal_blocks, expm_last_column,
                                                   inverse_diagonals)
 from attend.perception.nonlinear._workspace import StepWorkspace
@@ -29,12 +31,16 @@ from attend.perception.nonlinear.start import gauss_newton_start
 @dataclass(frozen=True, eq=False)
 class NonlinearDEM:
     """DEM state (and unknown-input) estimation for a :class:`NonlinearSystem` (module docstring):
-    ``NonlinearDEM(system, dt, *, kernel_width, sensor_precision, process_precision, ...)`` (the
-    system and the sample time first, everything else by keyword).
+    ``NonlinearDEM(system, dt, *, kernel_width, sensor_precision, process_precision, ...)`` or
+    ``NonlinearDEM(system, dt, *, noise=NoiseModel(...), ...)`` (the system and the sample time
+    first, everything else by keyword).
 
     system: the model; dt: sample time [s]; kernel_width: s of the Gaussian noise kernel [s];
     sensor_precision: Pi_z [1/output unit^2]; process_precision: Pi_w [s^2/state unit^2, as in
-    dx/dt]; input_prior_precision: P_v [1/input unit^2] (required for unknown inputs);
+    dx/dt]; noise: an :class:`attend.models.NoiseModel` holding the two precisions and the kernel
+    width instead (one width for both noises here: a model whose process and sensor widths differ
+    is an error; giving it with any of the three is an error too); :attr:`noise_model` reads them
+    back as one; input_prior_precision: P_v [1/input unit^2] (required for unknown inputs);
     embedding_order: p (states/outputs have p + 1 orders); input_order: d; known_inputs: the
     inputs are measured (True) or estimated (False); precision_convention: "size" (SPM) or
     "max" (invert V at max(p, d), see :func:`attend.models.generalized.block_precisions`);
@@ -90,9 +96,9 @@ class NonlinearDEM:
     system: NonlinearSystem
     dt: float
     _: KW_ONLY
-    kernel_width: float
-    sensor_precision: np.ndarray
-    process_precision: np.ndarray
+    kernel_width: float | None = None
+    sensor_precision: np.ndarray | None = None
+    process_precision: np.ndarray | None = None
     input_prior_precision: np.ndarray | None = None
     embedding_order: int = 6
     input_order: int = 2
@@ -108,13 +114,19 @@ class NonlinearDEM:
     states: str = "sample"
     backend: str = "numpy"
     path_starts: str = "both"
+    noise: InitVar[NoiseModel | None] = None
     _matrices: dict = field(default_factory=dict, repr=False)
 
-    def __post_init__(self):
+    def __post_init__(self, noise):
         system = self.system
         if not isinstance(system, NonlinearSystem):
             raise AttendInputError("system: expected an attend NonlinearSystem (f, g, n_states, n_inputs, n_outputs)")
         set_ = object.__setattr__
+        if noise is not None and getattr(noise, "kernel_width", 0.0) is None:
+            raise AttendInputError(f"noise: NonlinearDEM uses one kernel width for both noises; this model has "
+                                   f"process_kernel_width {noise.process_kernel_width:g} s and sensor_kernel_width "
+                                   f"{noise.sensor_kernel_width:g} s")
+        take_noise(self, noise, "NonlinearDEM", required=("kernel_width", "sensor_precision", "process_precision"))
         set_(self, "dt", positive_scalar(self.dt, "dt", "s"))
         set_(self, "kernel_width", positive_scalar(self.kernel_width, "kernel_width", "s"))
         set_(self, "embedding_order", order(self.embedding_order, "embedding_order"))
@@ -151,6 +163,13 @@ class NonlinearDEM:
         self._matrices.update(self._build())
 
     # construction ----------------------------------------------------------------------------
+
+    @property
+    def noise_model(self) -> NoiseModel:
+        """The estimator's noise as one :class:`attend.models.NoiseModel` (the precision matrices and
+        the kernel width in use, for both noises), e.g. to build another estimator with the same noise."""
+        return NoiseModel(process_precision=self.process_precision, sensor_precision=self.sensor_precision,
+                          kernel_width=self.kernel_width)
 
     @property
     def estimates_inputs(self) -> bool:

@@ -30,6 +30,11 @@ particles' ancestry. Its mean approximates the posterior mean under the coloured
 (exact as the number of particles grows, up to the AR(q) fit of rho and the lag): a slow
 reference, not an estimator for use.
 
+The same as estimators (``Smoother(system, dt, *, noise=NoiseModel(...), ...)``, ``.estimate(outputs,
+inputs)``, ``.online()``): :class:`UnscentedSmoother`, :class:`ExtendedSmoother` (their online
+filters :class:`OnlineUnscented`, :class:`OnlineExtended`) and :class:`ParticleSmoother` (online:
+:class:`OnlineParticle`, the same draws one sample at a time) (:mod:`.estimators`).
+
 Layout: :mod:`.kalman` (extended and unscented filters and smoothers, white-noise models),
 :mod:`.coloured` (the finite model of the coloured noises and the unscented smoother under it),
 :mod:`.particle` (the particle smoother), :mod:`.error_spread` (the smoothers' error covariance
@@ -47,6 +52,8 @@ _EXPORTS = {
     "white_noise_covariances": "attend.perception.nonlinear_smoothers.kalman",
     "white_noise_options": "attend.perception.nonlinear_smoothers.kalman",
     "ParticleEstimate": "attend.perception.nonlinear_smoothers.particle",
+    **dict.fromkeys(("UnscentedSmoother", "ExtendedSmoother", "ParticleSmoother", "OnlineUnscented", "OnlineExtended",
+                     "OnlineParticle"), "attend.perception.nonlinear_smoothers.estimators"),
     "particle_smoother": "attend.perception.nonlinear_smoothers.particle",
 }
 
@@ -59,6 +66,12 @@ __all__ = [
     "particle_smoother",
     "coloured_unscented_smoother",
     "ParticleEstimate",
+    "UnscentedSmoother",
+    "ExtendedSmoother",
+    "ParticleSmoother",
+    "OnlineUnscented",
+    "OnlineExtended",
+    "OnlineParticle",
 ]
 
 __getattr__, __dir__ = lazy_exports("attend.perception.nonlinear_smoothers", _EXPORTS, globals())

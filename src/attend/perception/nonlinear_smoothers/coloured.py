@@ -17,9 +17,29 @@ from scipy.linalg import solve_toeplitz
 from attend._threads import with_single_blas_thread
 from attend._validation import AttendInputError, as_matrix, positive_scalar
 from attend.models.noise import autocorrelation
+from attend.models.noise_model import NoiseModel, resolve_noise
 from attend.models.nonlinear import NonlinearSystem
 from attend.perception.nonlinear_smoothers.kalman import _unscented, observe_points, propagate_points
 from attend.perception.references import KalmanEstimate
+
+
+def std_from_noise(noise, kernel_width, process_std, measurement_std, who: str) -> tuple:
+    """(kernel_width, process_std, measurement_std) of the smoothers that take standard deviations
+    and one kernel width (the coloured unscented and particle smoothers): those of ``noise`` (an
+    :class:`attend.models.NoiseModel`, or None: the given ones, each required) with an
+    AttendInputError when it comes with any of them or has two different widths. who: the
+    smoother's name, for the messages."""
+    given = dict(kernel_width=kernel_width, process_std=process_std, measurement_std=measurement_std)
+    if resolve_noise(noise, given, who) is None:
+        for name, value in given.items():
+            if value is None:
+                raise AttendInputError(f"{name}: required (or noise=NoiseModel(...))")
+        return kernel_width, process_std, measurement_std
+    if noise.kernel_width is None:
+        raise AttendInputError(f"noise: {who} uses one kernel width for both noises; this model has "
+                               f"process_kernel_width {noise.process_kernel_width:g} s and sensor_kernel_width "
+                               f"{noise.sensor_kernel_width:g} s")
+    return noise.kernel_width, noise.process_std, noise.sensor_std
 
 
 def _yule_walker(rho: np.ndarray, q: int):
@@ -100,10 +120,12 @@ def _initial_covariance(system, model: _NoiseModel, q, initial_mean, initial_std
 
 
 @with_single_blas_thread
-def coloured_unscented_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, *, kernel_width: float,
-                                process_std, measurement_std, input_prior_std=None, input_prior_mean=None,
+def coloured_unscented_smoother(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
+                                kernel_width: float | None = None, process_std=None, measurement_std=None,
+                                input_prior_std=None, input_prior_mean=None,
                                 initial_mean=None, initial_std=None, ar_order: int = 3, substeps: int = 4,
-                                smooth: bool = True, input_kernel_width: float | None = None) -> KalmanEstimate:
+                                smooth: bool = True, input_kernel_width: float | None = None,
+                                noise: NoiseModel | None = None) -> KalmanEstimate:
     """Unscented RTS smoother on the state augmented with AR(ar_order) models of the coloured
     noises (the same finite noise model as :func:`particle_smoother`): a Gaussian approximation of
     the posterior under the coloured-noise model, the strong reference beside the particle one.
@@ -120,7 +142,12 @@ def coloured_unscented_smoother(system: NonlinearSystem, dt: float, outputs, inp
     ar_order: q (at least 1); substeps: RK4 sub-steps per sample; smooth: RTS smoother (True),
     the filter (False) or a fixed lag (int); input_kernel_width: the unknown inputs' own
     smoothness s_v [s] (default kernel_width).
+    noise: an :class:`attend.models.NoiseModel` instead of kernel_width, process_std and
+    measurement_std (its standard deviations, as :func:`attend.models.simulate_nonlinear` takes
+    them; one kernel width for both noises here: a model whose widths differ is an error).
     """
+    kernel_width, process_std, measurement_std = std_from_noise(noise, kernel_width, process_std, measurement_std,
+                                                                "coloured_unscented_smoother")
     q = max(int(ar_order), 1)
     model = _noise_model(system, dt, outputs, inputs, kernel_width, process_std, measurement_std, input_prior_std,
                          input_prior_mean, input_kernel_width, q)

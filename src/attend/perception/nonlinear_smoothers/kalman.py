@@ -9,6 +9,7 @@ from attend._progress import steps
 from attend._threads import with_single_blas_thread
 from attend._validation import AttendInputError, as_matrix, positive_scalar, require_finite, symmetric_matrix
 from attend.models.noise import autocorrelation
+from attend.models.noise_model import NoiseModel, resolve_noise
 from attend.models.nonlinear import NonlinearSystem, evaluate_columns, finite_difference_jacobian
 from attend.perception.references import KalmanEstimate
 
@@ -175,6 +176,28 @@ def observe_points(system: NonlinearSystem, x, u) -> np.ndarray:
     return np.array([system.observe(row, inputs) for row, inputs in zip(x, u)])
 
 
+def covariances_from_noise(system: NonlinearSystem, dt: float, noise, process_covariance, measurement_covariance,
+                           who: str) -> tuple:
+    """(process_covariance Q, measurement_covariance R) of the white-noise smoothers: the given ones,
+    or those of ``noise`` (an :class:`attend.models.NoiseModel`) by :func:`white_noise_options`,
+    Q = dt^2 inv(Pi_w), R = inv(Pi_z) (white noise of the coloured noises' per-sample variance; the
+    model's kernel widths are not used by the white-noise filter). An AttendInputError when
+    ``noise`` comes with either covariance, or when neither is given. system: the NonlinearSystem
+    (its sizes); dt: sample time [s]; who: the smoother's name, for the messages."""
+    given = dict(process_covariance=process_covariance, measurement_covariance=measurement_covariance)
+    if resolve_noise(noise, given, who) is None:
+        for name, value in given.items():
+            if value is None:
+                raise AttendInputError(f"{name}: required (or noise=NoiseModel(...))")
+        return process_covariance, measurement_covariance
+    if not isinstance(system, NonlinearSystem):
+        raise AttendInputError("system: expected an attend NonlinearSystem")
+    process_precision, sensor_precision = noise.precision_matrices(system.n_states, system.n_outputs)
+    options = white_noise_options(positive_scalar(dt, "dt", "s"), process_precision=process_precision,
+                                  sensor_precision=sensor_precision, who=who)
+    return options["process_covariance"], options["measurement_covariance"]
+
+
 class _Model:
     """The discrete (possibly input-augmented) model z = [x; u] seen by the Kalman baselines."""
 
@@ -328,11 +351,11 @@ def _rts(mf, Pf, mp, Pp, gains):
 
 
 @with_single_blas_thread
-def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance,
-                    measurement_covariance, input_variance=None, input_mean=None, initial_mean=None,
+def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance=None,
+                    measurement_covariance=None, input_variance=None, input_mean=None, initial_mean=None,
                     initial_covariance=None, smooth: bool | int = True, substeps: int = 10,
                     noise_kernel_width: float | None = None, input_prior=None, spread_draws: int | None = 200,
-                    seed: int = 0) -> KalmanEstimate:
+                    seed: int = 0, noise: NoiseModel | None = None) -> KalmanEstimate:
     """Extended Kalman filter (``smooth=False``), filter + RTS smoother (``True``) or fixed-lag
     smoother (``smooth=L`` samples: row k uses y[0..k+L], e.g. the DEM estimator's delay).
 
@@ -345,7 +368,12 @@ def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
     Jacobians of F and g by central differences at the filtered / predicted means.
     noise_kernel_width, input_prior, spread_draws, seed: the std as the error spread under coloured
     noise of that width (as :func:`unscented_kalman`).
+    noise: an :class:`attend.models.NoiseModel` instead of process_covariance and
+    measurement_covariance: Q = dt^2 inv(Pi_w), R = inv(Pi_z) (:func:`white_noise_options`; its kernel
+    widths are not used: give noise_kernel_width for the error spread under coloured noise).
     """
+    process_covariance, measurement_covariance = covariances_from_noise(
+        system, dt, noise, process_covariance, measurement_covariance, "extended_kalman")
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
                    measurement_covariance, initial_mean, initial_covariance, substeps)
     spread = _spread_settings(model, smooth, noise_kernel_width, input_prior, spread_draws)
@@ -357,15 +385,9 @@ def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
     mean, cov, ll = model.m0.copy(), model.P0.copy(), 0.0
     for k in steps(range(N), "extended_kalman"):
         if k > 0:
-            Fz = finite_difference_jacobian(lambda Z: model.transition_points(Z.T, k).T, mean, vectorized=True)
-            cross[k - 1] = cov @ Fz.T
-            mean = model.transition(mean, k)
-            cov = Fz @ cov @ Fz.T + model.Qz
+            mean, cov, cross[k - 1] = _extended_predict(model, mean, cov, k)
         mp[k], Pp[k] = mean, cov
-        H = finite_difference_jacobian(lambda Z: model.observation_points(Z.T, k).T, mean, vectorized=True)
-        S = H @ cov @ H.T + model.R
-        Cy[k] = cov @ H.T
-        mean, cov, step_ll, K[k] = _update(mean, cov, model.y[k], model.observation(mean, k), Cy[k], S)
+        mean, cov, step_ll, K[k], Cy[k] = _extended_update(model, mean, cov, model.y[k], k)
         ll += step_ll
         mf[k], Pf[k] = mean, cov
     _check(mf, "extended_kalman")
@@ -373,6 +395,26 @@ def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
     means, covs = _smooth(mf, Pf, mp, Pp, cross, smooth, gains)
     record = dict(Pf=Pf, Pp=Pp, cross=cross, Cy=Cy, K=K, gains=gains)
     return model.result(means, _error_spread(model, smooth, spread, record, spread_draws, seed, covs), ll)
+
+
+def _extended_predict(model, mean, cov, k):
+    """The extended filter's prediction of sample k from the filtered (mean, cov) of k - 1:
+    (mean, cov, Cov(z[k-1], z[k]) = cov Fz') with Fz the transition's Jacobian by central differences."""
+    Fz = finite_difference_jacobian(lambda Z: model.transition_points(Z.T, k).T, mean, vectorized=True)
+    cross = cov @ Fz.T
+    mean = model.transition(mean, k)
+    cov = Fz @ cov @ Fz.T + model.Qz
+    return mean, cov, cross
+
+
+def _extended_update(model, mean, cov, y, k):
+    """The extended filter's update at sample k with its outputs y (m,): (mean, cov, log-likelihood
+    of y, gain, Cov(z[k], y[k]))."""
+    H = finite_difference_jacobian(lambda Z: model.observation_points(Z.T, k).T, mean, vectorized=True)
+    S = H @ cov @ H.T + model.R
+    Cy = cov @ H.T
+    mean, cov, step_ll, gain = _update(mean, cov, y, model.observation(mean, k), Cy, S)
+    return mean, cov, step_ll, gain, Cy
 
 
 def _sigma_points(mean, cov, alpha, beta, kappa):
@@ -392,11 +434,12 @@ def _sigma_points(mean, cov, alpha, beta, kappa):
 
 
 @with_single_blas_thread
-def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance,
-                     measurement_covariance, input_variance=None, input_mean=None, initial_mean=None,
+def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance=None,
+                     measurement_covariance=None, input_variance=None, input_mean=None, initial_mean=None,
                      initial_covariance=None, smooth: bool | int = True, substeps: int = 10, alpha: float = 1.0,
                      beta: float = 2.0, kappa: float = 0.0, known_inputs=None, noise_kernel_width: float | None = None,
-                     input_prior=None, spread_draws: int | None = 200, seed: int = 0) -> KalmanEstimate:
+                     input_prior=None, spread_draws: int | None = 200, seed: int = 0,
+                     noise: NoiseModel | None = None) -> KalmanEstimate:
     """Unscented Kalman filter (``smooth=False``), filter + unscented RTS smoother (``True``,
     Sarkka 2008) or fixed-lag smoother (``smooth=L`` samples).
 
@@ -415,8 +458,11 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
     (:mod:`attend.perception.nonlinear_smoothers.error_spread`; the estimates are unchanged);
     input_prior: with unknown inputs, (per-sample covariance (r, r) or variances (r,), kernel
     width s_v [s]) of the prior their truth is drawn from there. None (default): the white-noise
-    model's own covariance.
+    model's own covariance. noise: an :class:`attend.models.NoiseModel` instead of
+    process_covariance and measurement_covariance (as :func:`extended_kalman`).
     """
+    process_covariance, measurement_covariance = covariances_from_noise(
+        system, dt, noise, process_covariance, measurement_covariance, "unscented_kalman")
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
                    measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs)
     spread = _spread_settings(model, smooth, noise_kernel_width, input_prior, spread_draws)
@@ -461,6 +507,32 @@ def _spread_settings(model, smooth, kernel_width, input_prior, draws):
     return float(kernel_width), (covariance, width)
 
 
+def _unscented_predict(transition, mean, cov, Qz, spread, k):
+    """The unscented filter's prediction of sample k from the filtered (mean, cov) of k - 1:
+    (mean, cov, Cov(z[k-1], z[k]), the covariance the sigma points stand for); transition, Qz and
+    spread (alpha, beta, kappa) as :func:`_unscented`."""
+    points, wm, wc = _sigma_points(mean, cov, *spread)
+    moved = transition(points, k)
+    new_mean = wm @ moved
+    cross = ((points - mean).T * wc) @ (moved - new_mean)
+    points_cov = ((points - mean).T * wc) @ (points - mean)
+    cov = ((moved - new_mean).T * wc) @ (moved - new_mean) + Qz
+    return new_mean, cov, cross, points_cov
+
+
+def _unscented_update(observation, mean, cov, R, spread, y, k):
+    """The unscented filter's update at sample k with its outputs y (m,): (mean, cov, log-likelihood
+    of y, gain, Cov(z[k], y[k]), the covariance the sigma points stand for)."""
+    points, wm, wc = _sigma_points(mean, cov, *spread)
+    observed = observation(points, k)
+    predicted = wm @ observed
+    S = ((observed - predicted).T * wc) @ (observed - predicted) + R
+    Cy = ((points - mean).T * wc) @ (observed - predicted)
+    points_cov = ((points - mean).T * wc) @ (points - mean)
+    mean, cov, step_ll, gain = _update(mean, cov, y, predicted, Cy, S)
+    return mean, cov, step_ll, gain, Cy, points_cov
+
+
 def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, record=None):
     """Unscented filter (+ RTS smoother) for z[k] = transition(z[k-1], k) + q, y[k] = observation(z[k], k) + r;
     transition and observation take the sigma points as rows (P, d) and return rows. record: a
@@ -479,21 +551,9 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, 
     mean, cov, ll = m0.copy(), P0.copy(), 0.0
     for k in steps(range(N), name):
         if k > 0:
-            points, wm, wc = _sigma_points(mean, cov, *spread)
-            moved = transition(points, k)
-            new_mean = wm @ moved
-            cross[k - 1] = ((points - mean).T * wc) @ (moved - new_mean)
-            Pf_points[k - 1] = ((points - mean).T * wc) @ (points - mean)
-            cov = ((moved - new_mean).T * wc) @ (moved - new_mean) + Qz
-            mean = new_mean
+            mean, cov, cross[k - 1], Pf_points[k - 1] = _unscented_predict(transition, mean, cov, Qz, spread, k)
         mp[k], Pp[k] = mean, 0.5 * (cov + cov.T)
-        points, wm, wc = _sigma_points(mean, cov, *spread)
-        observed = observation(points, k)
-        predicted = wm @ observed
-        S = ((observed - predicted).T * wc) @ (observed - predicted) + R
-        Cy[k] = ((points - mean).T * wc) @ (observed - predicted)
-        Pp_points[k] = ((points - mean).T * wc) @ (points - mean)
-        mean, cov, step_ll, K[k] = _update(mean, cov, y[k], predicted, Cy[k], S)
+        mean, cov, step_ll, K[k], Cy[k], Pp_points[k] = _unscented_update(observation, mean, cov, R, spread, y[k], k)
         ll += step_ll
         mf[k], Pf[k] = mean, cov
     _check(mf, name)

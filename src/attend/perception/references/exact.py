@@ -12,6 +12,8 @@ from scipy.linalg import solve_triangular
 from attend._validation import AttendInputError, positive_scalar, require_finite
 from attend._validation import kernel_width as checked_width
 from attend.models.noise import autocorrelation, gaussian_kernel
+from attend.models.noise_model import NoiseModel, resolve_noise
+from attend.perception.estimate import Estimate, as_estimate
 from attend.perception.references.filters import _inputs, _std_vector, _system
 
 
@@ -79,6 +81,10 @@ class ExactPosterior(NamedTuple):
     causal_inputs: np.ndarray | None = None
     accuracy: PosteriorAccuracy | None = None
 
+    def as_estimate(self) -> Estimate:
+        """This result as the common :class:`attend.perception.estimate.Estimate` (details: this result)."""
+        return as_estimate(self)
+
 def coloured_noise_correlation(n_samples: int, dt: float, kernel_width: float) -> np.ndarray:
     """(N, N) correlation matrix of n_samples = N samples of attend.models.noise.coloured_noise.
 
@@ -130,11 +136,12 @@ def _transfer_matrix(Ad: np.ndarray, n_samples: int) -> tuple[np.ndarray, np.nda
     return L, powers.reshape(n_samples * n, n)
 
 
-def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, process_std, measurement_std,
+def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, process_std=None, measurement_std=None,
                     input_prior_mean=None, input_prior_std=None, initial_mean=None, initial_std=0.0,
                     jitter: float = 1e-12, return_covariance: bool = False,
                     process_kernel_width=None, sensor_kernel_width=None, input_kernel_width=None,
-                    causal: bool = False, time=None, white_floor: float = 0.0) -> ExactPosterior:
+                    causal: bool = False, time=None, white_floor: float = 0.0,
+                    noise: NoiseModel | None = None) -> ExactPosterior:
     """Exact posterior of the states (and inputs) under simulate()'s generative model.
 
         x[k] = Ad x[k-1] + Bd u[k-1] + dt w[k-1],   y[k] = C x[k] + z[k],   x[0] ~ N(m0, diag(s0^2))
@@ -154,7 +161,11 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
 
     system; dt [s]; outputs (N, m); inputs (N, r) known inputs, or None with input_prior_mean
     (scalar, (r,) or (N, r)) and input_prior_std (scalar or (r,)) [input unit]; kernel_width s [s];
-    process_std, measurement_std: per-sample standard deviations as passed to simulate();
+    process_std, measurement_std: per-sample standard deviations as passed to simulate() (required
+    unless ``noise`` is given); noise: an :class:`attend.models.NoiseModel` instead of process_std,
+    measurement_std and the kernel widths (kernel_width, process_kernel_width, sensor_kernel_width):
+    its standard deviations (:attr:`~attend.models.NoiseModel.process_std`, exact for a model made
+    by from_std) and widths, as simulate(noise=...) takes them;
     initial_mean m0 (default 0) and initial_std s0 (default 0: x[0] known, as simulate() starts).
     return_covariance=True also returns the joint posterior covariance (``covariance``).
     causal=True also returns ``causal_states`` / ``causal_inputs``: E[x[k] | y[0..k]] for every k,
@@ -169,6 +180,14 @@ def exact_posterior(system, dt, outputs, inputs=None, *, kernel_width=None, proc
     """
     system = _system(system)
     dt = positive_scalar(dt, "dt", "s")
+    given = dict(process_std=process_std, measurement_std=measurement_std, kernel_width=kernel_width,
+                 process_kernel_width=process_kernel_width, sensor_kernel_width=sensor_kernel_width)
+    if resolve_noise(noise, given, "exact_posterior") is not None:
+        process_std, measurement_std = noise.process_std, noise.sensor_std
+        process_kernel_width, sensor_kernel_width = noise.process_kernel_width, noise.sensor_kernel_width
+    for value, name in ((process_std, "process_std"), (measurement_std, "measurement_std")):
+        if value is None:
+            raise AttendInputError(f"{name}: required (or noise=NoiseModel(...))")
     s_w, s_z, s_u = noise_widths(kernel_width, process_kernel_width, sensor_kernel_width, input_kernel_width)
     y, observed = _measured_outputs(system, outputs)
     N = y.shape[0]

@@ -47,7 +47,7 @@ a state or input whose estimate's RMS exceeds WILD x the truth's (3, the line th
 was calibrated on; and 8x), of the default and of every estimator, and whether `attend estimate`
 warned (a spread-check finding names it, the model-misfit warning of the width choice, or the
 flat-likelihood warning); the chosen widths against
-the true ones. ~6 minutes on one core (--quick: 12 bank cases and 2 flights of each model).
+the true ones. ~4 minutes on one core (--quick: 12 bank cases and 2 flights of each model).
 """
 
 from __future__ import annotations

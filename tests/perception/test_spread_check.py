@@ -85,3 +85,52 @@ def test_unknown_input_beyond_its_prior_names_its_prior_precision():
     assert force_findings and "prior_precision ([[inputs]] force)" in force_findings[0].settings
     # the states the unknown input reaches name its prior first
     assert all("unknown input force" in f.settings for f in findings if f.name != "force")
+
+
+
+# --- attend estimate: the check's warnings on a model file and a log ------------------------------
+
+ESTIMATE_MODEL = """
+model = {{A = {A}, B = {B}, C = {C}, states = ["position", "velocity"]}}
+outputs = {{columns = ["y"]}}
+inputs = [{{name = "force", prior_mean = 0.0, prior_precision = 1.0}}]
+
+[observer]
+kernel_width = {width}
+input_kernel_width = 1.0
+sensor_precision = {sensor_precision}
+process_precision = [1e6, {process_precision}]
+"""
+
+
+def _estimate_warnings(tmp_path, capsys, scale: float) -> list[str]:
+    """The spread check's warnings of `attend estimate` on the mass-spring-damper log with an unknown
+    force, its outputs times ``scale`` (57.3: logged in degrees, the model in radians) and the sensor
+    precision stated for that log (the sensor noise itself fits)."""
+    from attend.cli import main
+
+    system, _, log = _log()
+    model, path = tmp_path / "model.toml", tmp_path / "log.csv"
+    model.write_text(ESTIMATE_MODEL.format(A=system.A.tolist(), B=system.B.tolist(), C=system.C.tolist(), width=WIDTH,
+                                           sensor_precision=(scale * SENSOR_STD) ** -2.0,
+                                           process_precision=PROCESS_STD**-2.0))
+    path.write_text("t,y\n" + "\n".join(f"{k * DT:.10g},{scale * v:.12g}" for k, v in enumerate(log.outputs[:, 0])))
+    assert main(["estimate", str(model), str(path), "--out", str(tmp_path / "e.csv"), "--no-progress"]) == 0
+    return [line[len("attend: warning: "):] for line in capsys.readouterr().err.splitlines()
+            if line.startswith("attend: warning:") and "far beyond what the data support" in line]
+
+
+def test_estimate_warns_on_a_wild_estimate_naming_it_and_the_setting(tmp_path, capsys):
+    """The log in degrees, the model in radians: the unknown force swings far beyond its prior to
+    explain it, and the states beyond the spread the model gives them; each is named with what to check."""
+    warned = _estimate_warnings(tmp_path, capsys, 180 / np.pi)
+    named = {text.split(": ")[1]: text for text in warned}
+    assert {"force", "position", "velocity"} <= set(named), warned
+    assert "prior_precision ([[inputs]] force)" in named["force"]
+    assert "prior spread under the model" in named["velocity"]
+    assert "prior_precision of the unknown input force" in named["velocity"]
+    assert all("model.toml" in text for text in warned)
+
+
+def test_estimate_does_not_warn_on_the_log_the_model_describes(tmp_path, capsys):
+    assert _estimate_warnings(tmp_path, capsys, 1.0) == []

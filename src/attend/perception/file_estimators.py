@@ -94,7 +94,7 @@ def _with_chosen_input_width(estimator, settings: dict, outputs, signals, time, 
     import warnings
 
     from attend.models.linear import ModelWarning
-    from attend.perception.input_width import choose_input_width
+    from attend.perception.input_width import choose_input_width, innovation_terms_on
 
     def build(width):
         if np.isclose(width, estimator.input_kernel_width, rtol=1e-12, atol=0.0):
@@ -103,7 +103,7 @@ def _with_chosen_input_width(estimator, settings: dict, outputs, signals, time, 
             warnings.simplefilter("ignore", ModelWarning)
             return type(estimator)(estimator.system, estimator.dt, input_kernel_width=width, **settings)
 
-    choice = choose_input_width(lambda width: build(width).innovation_terms(outputs, signals, time=time),
+    choice = choose_input_width(lambda width: innovation_terms_on(build(width), outputs, signals, time),
                                 estimator.dt, estimator.input_kernel_width)
     for message in (choice.warning(), choice.misfit()):  # a flat likelihood; a model far from the log
         if message:

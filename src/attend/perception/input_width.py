@@ -26,8 +26,9 @@ innovations counts; the smoother itself runs at the file's precisions. lambda* i
 
 The grid (:func:`input_width_grid`): the octaves 0.25, 0.5, ..., 16 sample times, then the
 half-octaves (factor sqrt(2)) either side of the best octave, so the chosen width is known to a
-factor sqrt(2) (9 filter passes, about 0.1-0.7 s each on a 12-state model with 4 unknown inputs
-and 2600 samples). Flat likelihood: when every width of the grid is within FLAT_LOG_LIKELIHOOD
+factor sqrt(2) (9 filter passes, :func:`innovation_terms_on`: no Riccati equation, the covariance
+recursion stops where the gain settles; about 0.1-0.3 s each on a 12-state model with 4 unknown
+inputs and 2600 samples). Flat likelihood: when every width of the grid is within FLAT_LOG_LIKELIHOOD
 (2, about the 95 % likelihood-ratio interval of one parameter) of the best, the log does not
 decide the width; the process width (the previous default) is kept and
 :meth:`InputWidthChoice.warning` says so, naming ``[observer] input_kernel_width``. A best width at
@@ -140,6 +141,33 @@ def profiled_log_likelihood(terms) -> tuple[float, float]:
     scale = count / quadratic
     value = -0.5 * (terms.log_determinant + count * np.log(quadratic / count) + count + count * np.log(2 * np.pi))
     return float(value), float(scale)
+
+
+def innovation_terms_on(estimator, outputs, signals=None, time=None):
+    """The Kalman filter's InnovationTerms of a :class:`~attend.perception.kalman.KalmanEstimator` on
+    a log, for the criterion: on a complete log of uniform samples (``time`` None, nothing missing)
+    the filter whose covariance recursion stops where its gain settles, without the Riccati
+    equation the smoother solves for its steady gain
+    (:func:`attend.perception.kalman_recursions.converged_innovation_terms`: on 2600 samples of a
+    12-state model with 4 unknown inputs, 0.1-0.3 s a width instead of 0.3-0.8 s, within 1e-4 nats);
+    otherwise the estimator's own :meth:`~attend.perception.kalman.KalmanEstimator.innovation_terms`.
+    outputs (N, m), NaN where missing; signals (N, r): the measured inputs and the unknown ones'
+    prior means (None: zeros); time (N,) [s] or None."""
+    from attend._threads import single_blas_thread
+    from attend.perception.kalman_recursions import converged_innovation_terms
+
+    y = np.asarray(outputs, dtype=float)
+    model = estimator.augmented_model
+    Bd = model["Bd"]
+    u = np.zeros((len(y), Bd.shape[1])) if signals is None else np.asarray(signals, dtype=float).reshape(len(y), -1)
+    if time is not None or not (np.all(np.isfinite(y)) and np.all(np.isfinite(u))):
+        return estimator.innovation_terms(outputs, signals, time=time)
+    with single_blas_thread():
+        mean0, cov0 = estimator.initial_prior(y)
+        drive = np.zeros((len(y), model["dim"]))
+        drive[:, model["slices"]["x"]] = u @ Bd.T  # b[k] = Bd u[k] enters x[k + 1], as the smoother's
+        return converged_innovation_terms(model["T"], model["Q"], model["H"], y, drive, mean0, cov0,
+                                          model["slices"].values())
 
 
 def choose_input_width(innovation_terms: Callable[[float], object], dt: float, fallback: float) -> InputWidthChoice:

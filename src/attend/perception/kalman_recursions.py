@@ -2,7 +2,12 @@
 :mod:`attend.perception.kalman`: the gain schedule until the gain is steady, then the means and
 variances of the filter and smoother (time-invariant from the steady sample on); and
 :func:`varying_pass`, the same recursions on a time-varying model (missing channels, a
-transition per step) for logs with gaps and jitter."""
+transition per step) for logs with gaps and jitter. The log-likelihood's terms
+(:class:`InnovationTerms`) come from the same filters: the smoother's schedule
+(:func:`innovation_terms`), a schedule stopped where its gain settles, without the Riccati
+equation (:func:`converged_innovation_terms`, for the input width's search), and the
+time-varying pass's forward iteration, shared with :func:`varying_pass`
+(:func:`varying_innovation_terms`)."""
 
 from __future__ import annotations
 
@@ -32,6 +37,23 @@ ill-conditioned enough that rounding moves the gain by ~1e-7 relative from step 
 test cannot be much tighter; the estimates move by about this relative amount."""
 
 
+def _congruences(T):
+    """(X -> T X T', X -> T' X T) for symmetric X, using the sparsity of T where it is sparse.
+
+    The augmented transition is the plant's block, its coupling to the noise states and one small
+    block per noise channel (~5 % non-zero on a 12-state model with 4 unknown inputs: dim 180):
+    products with it as a sparse matrix cost ~1/6 of the dense ones there. T X T' = T (T X)' for
+    symmetric X (and T' X T = T' (T' X)'), so each is two sparse-times-dense products. Dense
+    below 32 rows or above 25 % non-zero."""
+    dim = T.shape[0]
+    if dim < 32 or np.count_nonzero(T) > 0.25 * dim * dim:
+        return (lambda X: T @ X @ T.T), (lambda X: T.T @ X @ T)
+    from scipy.sparse import csr_matrix
+
+    forward, backward = csr_matrix(T), csr_matrix(T.T)
+    return (lambda X: np.asarray(forward @ (forward @ X).T)), (lambda X: np.asarray(backward @ (backward @ X).T))
+
+
 class _GainSchedule(NamedTuple):
     """Gains and covariances of samples 0..steady; from ``steady`` on they are constant."""
 
@@ -59,17 +81,16 @@ def _steady_predicted_covariance(T, Q, H) -> np.ndarray | None:
         return None
     # polish: iterate the filter's own recursion (Joseph form, as _gain_stream) to its fixed point,
     # which the regularised solver misses by up to ~1e-5 when the noise models are ill-conditioned
-    identity = np.eye(T.shape[0])
     best = np.inf
     stalled = 0
+    predict = _congruences(T)[0]
     for _ in range(500):
         P = 0.5 * (P + P.T)
         try:
             K = cho_solve(cho_factor(H @ P @ H.T, lower=True), H @ P).T
         except np.linalg.LinAlgError:
             return None
-        A = identity - K @ H
-        new = T @ (A @ P @ A.T) @ T.T + Q
+        new = predict(_joseph(P, K, H)) + Q
         change = np.max(np.abs(new - P)) / max(np.max(np.abs(np.diag(new))), 1e-300)
         P = new
         if change < 1e-13:
@@ -125,13 +146,15 @@ def _innovation_weight(H, P) -> np.ndarray:
                            "sensor_precision and C")
 
 
-def _gain_stream(T, Q, H, P0, steady_predicted=None, blocks=None, patience: int = 3):
+def _gain_stream(T, Q, H, P0, steady_predicted=None, blocks=None, patience: int = 3, converge: bool = False):
     """Yield (K[k], H' inv(S[k]), P_p[k], steady) for k = 0, 1, ...
 
     The covariance recursion runs until its gain is within STEADY_TOLERANCE of the steady gain
     of the Riccati equation, block by block (``blocks``: row slices; default the whole gain), for
     ``patience`` samples, or until the distance sits at the rounding floor (_Plateau); from then
     on the Riccati solution itself is yielded with steady = True (every later sample uses it).
+    converge (without ``steady_predicted``): no Riccati solution; the recursion stops once its own
+    gain stops moving (:class:`_Settling`) and that gain is yielded from then on, with steady = True.
     """
     blocks = [slice(None)] if blocks is None else list(blocks)
     tolerance = STEADY_TOLERANCE
@@ -143,15 +166,15 @@ def _gain_stream(T, Q, H, P0, steady_predicted=None, blocks=None, patience: int 
             steady = (steady_predicted @ weight, weight, steady_predicted, True)
         except np.linalg.LinAlgError:
             steady = None
+    settling = _Settling(blocks, patience) if converge and steady is None else None
     P = 0.5 * (P0 + P0.T)
     calm = 0
     plateau = _Plateau()
-    identity = np.eye(T.shape[0])
+    predict = _congruences(T)[0]
     K = None
     while True:
         if K is not None:
-            A = identity - K @ H
-            P = T @ (A @ P @ A.T) @ T.T + Q  # Joseph form of the update, then predict
+            P = predict(_joseph(P, K, H)) + Q  # Joseph form of the update, then predict
             P = 0.5 * (P + P.T)
         weight = _innovation_weight(H, P)  # H' inv(S)
         K = P @ weight
@@ -163,13 +186,52 @@ def _gain_stream(T, Q, H, P0, steady_predicted=None, blocks=None, patience: int 
         if calm >= patience:
             while True:
                 yield steady
+        if settling is not None and settling.settled(K):
+            while True:
+                yield K, weight, P, True
         yield K, weight, P, False
 
 
-def _gain_schedule(T, Q, H, P0, n_samples: int, steady_predicted=None, blocks=None) -> _GainSchedule:
-    """The first samples of :func:`_gain_stream`: up to the first steady one, or the whole log."""
+SETTLED_TOLERANCE = 1e-7
+"""Relative change of the gain (and the distance to its limit extrapolated from it) below which a
+recursion without a Riccati solution is taken as steady (:class:`_Settling`): a tenth of
+STEADY_TOLERANCE, as the limit is extrapolated, not known. Measured on the oscillator of
+tests/perception/test_input_width.py at an input width of 16 samples, the slowest to settle: the
+log-likelihood within 0.015 nats of the dense Gaussian density (the Riccati schedule: 0.012; at
+STEADY_TOLERANCE itself: 0.07), and on 2600 samples of a 12-state model within 1e-4 nats of the
+Riccati schedule."""
+
+
+class _Settling:
+    """Detects a gain recursion that has reached its steady gain without knowing it: the blockwise
+    change of the gain from one sample to the next (:func:`_blockwise_distance`), extrapolated as a
+    geometric sequence to the distance left to the limit, is within SETTLED_TOLERANCE on
+    ``patience`` samples in a row, or the change sits at the rounding floor (:class:`_Plateau`)."""
+
+    def __init__(self, blocks, patience: int):
+        self.blocks, self.patience = blocks, patience
+        self.previous, self.change, self.calm, self.plateau = None, np.inf, 0, _Plateau()
+
+    def settled(self, K) -> bool:
+        if self.previous is None:
+            self.previous = K
+            return False
+        change = _blockwise_distance(self.previous, K, self.blocks)
+        rate = min(change / self.change, 0.999999) if self.change > 0 else 0.0
+        remaining = change * rate / (1 - rate)
+        self.previous, self.change = K, change
+        self.calm = self.calm + 1 if max(change, remaining) <= SETTLED_TOLERANCE else 0
+        if self.plateau.reached(change):
+            self.calm = self.patience
+        return self.calm >= self.patience
+
+
+def _gain_schedule(T, Q, H, P0, n_samples: int, steady_predicted=None, blocks=None,
+                   converge: bool = False) -> _GainSchedule:
+    """The first samples of :func:`_gain_stream`: up to the first steady one, or the whole log
+    (converge: as :func:`_gain_stream`)."""
     gains, weights, predicted = [], [], []
-    stream = _gain_stream(T, Q, H, P0, steady_predicted, blocks)
+    stream = _gain_stream(T, Q, H, P0, steady_predicted, blocks, converge=converge)
     for k, (K, weight, P, steady) in zip(range(n_samples), stream):
         gains.append(K)
         weights.append(weight)
@@ -248,16 +310,15 @@ def _filter_variances(schedule: _GainSchedule, H, output_map, N: int) -> np.ndar
 def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int) -> np.ndarray:
     """diag(O P_s[k] O') with the backward recursion of Lam; constant in the middle of long logs."""
     tolerance = STEADY_TOLERANCE
-    dim = T.shape[0]
-    identity = np.eye(dim)
     s = min(schedule.steady, N - 1)
+    back = _congruences(T)[1]
 
-    def closed(k):
-        return identity - _at(schedule.gains, k) @ H
+    def carried(k, Lam):  # (I - K[k] H)' T' Lam T (I - K[k] H)
+        return _sandwich_transposed(back(Lam), _at(schedule.gains, k), H)
 
-    def variance(k, Lam):
-        P = _at(schedule.predicted, k)
-        return np.einsum("ij,jl,il->i", output_map, P - P @ Lam @ P, output_map)
+    def variance(k, Lam):  # diag(O (P - P Lam P) O') from O P: O(q dim^2)
+        OP = output_map @ _at(schedule.predicted, k)
+        return _diag(OP, output_map) - _diag(OP @ Lam, OP)
 
     out = np.empty((N, output_map.shape[0]))
     Lam = _at(schedule.innovation_weights, N - 1) @ H
@@ -267,8 +328,7 @@ def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int) -> np
     previous_change = np.inf
     plateau = _Plateau()
     while k >= s:  # steady gains: Lam, and the reported variances, converge geometrically backwards
-        A = closed(k)
-        Lam = schedule.innovation_weights[-1] @ H + A.T @ T.T @ Lam @ T @ A
+        Lam = schedule.innovation_weights[-1] @ H + carried(k, Lam)
         Lam = 0.5 * (Lam + Lam.T)
         out[k] = variance(k, Lam)
         scale = np.maximum(np.abs(out[k]), 1e-300)
@@ -285,8 +345,7 @@ def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int) -> np
             k = s - 1
             break
     for j in range(k, -1, -1):
-        A = closed(j)
-        Lam = schedule.innovation_weights[j] @ H + A.T @ T.T @ Lam @ T @ A
+        Lam = schedule.innovation_weights[j] @ H + carried(j, Lam)
         Lam = 0.5 * (Lam + Lam.T)
         out[j] = variance(j, Lam)
     return out
@@ -339,30 +398,33 @@ def _diag(left, right=None):
     return np.einsum("ij,ij->i", left, left if right is None else right)
 
 
-def varying_pass(step_model, H, y, observed, mean0, P0, output_map, smooth: bool,
-                 steady: SteadyGain | None = None, blocks=None, patience: int = 3):
-    """Kalman filter (smooth=False) or Bryson-Frazier smoother (True) on a time-varying model.
+class _ForwardSample(NamedTuple):
+    """One sample k of the time-varying filter (:func:`_varying_forward`): predicted: a_p[k];
+    rows: the observed channels; innovation: nu[k] on them; gain: K[k]; weight: H_o' inv(S[k]);
+    factor: the lower Cholesky factor of S[k] = H_o P_p[k] H_o' (None: nothing observed);
+    covariance: P_p[k]; filtered: a_f[k]; filtered_covariance: P_f[k] (the two covariances are
+    None on the steady gain); steady: the sample used the steady gain."""
 
-    step_model(k) -> (T[k], Q[k], b[k - 1]): the step from sample k - 1 to k (k >= 1), a[k] =
-    T[k] a[k - 1] + b[k - 1] + noise of covariance Q[k]; H (m, dim); y (N, m) (ignored where not
-    observed); observed (N, m) bool: the channels measured at each sample; mean0, P0: prior of the
-    augmented state at sample 0;
-    output_map O (q, dim). steady: the steady gain of a constant model (step_model the same at
-    every k), taken once the gain is within STEADY_TOLERANCE of it (row ``blocks``, as
-    :func:`_gain_stream`) on ``patience`` fully observed samples, until the next missing channel.
-    Returns (means (N, q), variances (N, q)) of O a: filtered E[. | y[0..k]] or smoothed.
-    """
+    k: int
+    predicted: np.ndarray
+    rows: np.ndarray
+    innovation: np.ndarray
+    gain: np.ndarray
+    weight: np.ndarray
+    factor: np.ndarray | None
+    covariance: np.ndarray | None
+    filtered: np.ndarray
+    filtered_covariance: np.ndarray | None
+    steady: bool
+
+
+def _varying_forward(step_model, H, y, observed, mean0, P0, steady: SteadyGain | None, blocks, patience: int):
+    """The forward pass of :func:`varying_pass` and :func:`varying_innovation_terms` (same
+    arguments), one :class:`_ForwardSample` per sample."""
     N, dim = y.shape[0], P0.shape[0]
-    O = output_map
     blocks = [slice(None)] if blocks is None else list(blocks)
-    predicted = np.empty((N, dim))
-    scaled = np.zeros((N, dim))  # H_o' inv(S) nu
-    records: list = [None] * N   # (observed rows, K, H_o' inv(S), O P_p) of the time-varying samples
-    is_steady = np.zeros(N, dtype=bool)
-    means, variances = np.empty((N, O.shape[0])), np.empty((N, O.shape[0]))
     if steady is not None:
-        steady_filtered = _joseph(steady.predicted, steady.gain, H)
-        steady_filter_variance = _diag(O @ steady_filtered, O)
+        steady_factor = _jittered_cholesky(H @ steady.predicted @ H.T)
     on_steady, calm, plateau = False, 0, _Plateau()
     a_f = P_f = None
     for k in range(N):
@@ -380,30 +442,24 @@ def varying_pass(step_model, H, y, observed, mean0, P0, output_map, smooth: bool
                 P = 0.5 * (P + P.T)
         if on_steady and not full:  # leave the steady gain: its predicted covariance is the fixed point
             on_steady, calm, plateau, P = False, 0, _Plateau(), steady.predicted.copy()
-        predicted[k] = a
         if on_steady:
             nu = y[k] - H @ a
-            scaled[k] = steady.weight @ nu
             a_f = a + steady.gain @ nu
-            is_steady[k] = True
-            if not smooth:
-                means[k], variances[k] = O @ a_f, steady_filter_variance
+            yield _ForwardSample(k, a, rows, nu, steady.gain, steady.weight, steady_factor, None, a_f, None, True)
             continue
         if rows.size:
             Ho = H[rows]
-            W = _innovation_weight(Ho, P)
+            factor = _jittered_cholesky(Ho @ P @ Ho.T)
+            W = cho_solve((factor, True), Ho).T  # H_o' inv(S)
             K = P @ W
             nu = y[k, rows] - Ho @ a
-            scaled[k] = W @ nu
             a_f = a + K @ nu
             P_f = _joseph(P, K, Ho)
         else:
             K = W = np.zeros((dim, 0))
+            factor, nu = None, np.zeros(0)
             a_f, P_f = a, P
-        if smooth:
-            records[k] = (rows, K, W, O @ P)
-        else:
-            means[k], variances[k] = O @ a_f, _diag(O @ P_f, O)
+        yield _ForwardSample(k, a, rows, nu, K, W, factor, P, a_f, P_f, False)
         if steady is not None and full:
             distance = _blockwise_distance(K, steady.gain, blocks)
             calm = calm + 1 if distance <= STEADY_TOLERANCE else 0
@@ -412,6 +468,41 @@ def varying_pass(step_model, H, y, observed, mean0, P0, output_map, smooth: bool
             on_steady = calm >= patience
         else:
             calm = 0
+
+
+def varying_pass(step_model, H, y, observed, mean0, P0, output_map, smooth: bool,
+                 steady: SteadyGain | None = None, blocks=None, patience: int = 3):
+    """Kalman filter (smooth=False) or Bryson-Frazier smoother (True) on a time-varying model.
+
+    step_model(k) -> (T[k], Q[k], b[k - 1]): the step from sample k - 1 to k (k >= 1), a[k] =
+    T[k] a[k - 1] + b[k - 1] + noise of covariance Q[k]; H (m, dim); y (N, m) (ignored where not
+    observed); observed (N, m) bool: the channels measured at each sample; mean0, P0: prior of the
+    augmented state at sample 0;
+    output_map O (q, dim). steady: the steady gain of a constant model (step_model the same at
+    every k), taken once the gain is within STEADY_TOLERANCE of it (row ``blocks``, as
+    :func:`_gain_stream`) on ``patience`` fully observed samples, until the next missing channel.
+    Returns (means (N, q), variances (N, q)) of O a: filtered E[. | y[0..k]] or smoothed.
+    """
+    N, dim = y.shape[0], P0.shape[0]
+    O = output_map
+    predicted = np.empty((N, dim))
+    scaled = np.zeros((N, dim))  # H_o' inv(S) nu
+    records: list = [None] * N   # (observed rows, K, H_o' inv(S), O P_p) of the time-varying samples
+    is_steady = np.zeros(N, dtype=bool)
+    means, variances = np.empty((N, O.shape[0])), np.empty((N, O.shape[0]))
+    if steady is not None:
+        steady_filter_variance = _diag(O @ _joseph(steady.predicted, steady.gain, H), O)
+    for sample in _varying_forward(step_model, H, y, observed, mean0, P0, steady, blocks, patience):
+        k = sample.k
+        predicted[k] = sample.predicted
+        scaled[k] = sample.weight @ sample.innovation
+        is_steady[k] = sample.steady
+        if smooth:
+            if not sample.steady:
+                records[k] = (sample.rows, sample.gain, sample.weight, O @ sample.covariance)
+        else:
+            means[k] = O @ sample.filtered
+            variances[k] = steady_filter_variance if sample.steady else _diag(O @ sample.filtered_covariance, O)
     if not smooth:
         return means, variances
     return _varying_smoother(step_model, H, O, predicted, scaled, records, is_steady, steady, means, variances)
@@ -517,61 +608,35 @@ def innovation_terms(schedule: _GainSchedule, H, innovations) -> InnovationTerms
     return InnovationTerms(log_determinant, quadratic, N * m)
 
 
+def converged_innovation_terms(T, Q, H, y, drive, mean0, P0, blocks=None) -> InnovationTerms:
+    """:class:`InnovationTerms` of a complete, uniform log without the Riccati equation.
+
+    The filter of :func:`_gain_schedule` with ``converge=True``: the covariance recursion runs
+    until its own gain stops moving (:class:`_Settling`: the change from sample to sample, and
+    the distance to the limit it implies, within STEADY_TOLERANCE relative, block by block, on 3
+    samples), and that gain serves the rest of the log (:func:`_predicted_means`). For the
+    likelihood alone this is as exact as the smoother's schedule (whose steady gain is the
+    Riccati solution, reached to the same tolerance) and saves solving the equation, most of the
+    cost of a likelihood pass on a large augmented state. T (dim, dim), Q (dim, dim), H (m, dim):
+    the augmented model; y (N, m): the outputs, all measured; drive (N, dim): b[k] entering
+    a[k + 1]; mean0, P0: the prior at sample 0; blocks: the gain's row blocks (default: all)."""
+    schedule = _gain_schedule(T, Q, H, P0, y.shape[0], None, blocks, converge=True)
+    _, innovations = _predicted_means(schedule, T, H, y, drive, mean0)
+    return innovation_terms(schedule, H, innovations)
+
+
 def varying_innovation_terms(step_model, H, y, observed, mean0, P0, steady: SteadyGain | None = None,
                              blocks=None, patience: int = 3) -> InnovationTerms:
     """:class:`InnovationTerms` of the measured values of a log with gaps or jitter: the forward
-    pass of :func:`varying_pass` (same arguments; the steady gain taken on the same rule) over the
-    samples with a measured channel."""
-    N = y.shape[0]
-    blocks = [slice(None)] if blocks is None else list(blocks)
-    if steady is not None:
-        steady_factor = _jittered_cholesky(H @ steady.predicted @ H.T)
-        steady_logdet = 2.0 * float(np.sum(np.log(np.diag(steady_factor))))
-    on_steady, calm, plateau = False, 0, _Plateau()
-    a_f = P_f = None
+    pass of :func:`varying_pass` (same arguments, the same iteration) over the samples with a
+    measured channel."""
     log_determinant = quadratic = 0.0
     count = 0
-    for k in range(N):
-        rows = np.flatnonzero(observed[k])
-        full = rows.size == H.shape[0]
-        if k == 0:
-            a, P = mean0, P0
-        else:
-            T, Q, b = step_model(k)
-            a = T @ a_f + b
-            if on_steady:
-                P = None
-            else:
-                P = T @ P_f @ T.T + Q
-                P = 0.5 * (P + P.T)
-        if on_steady and not full:
-            on_steady, calm, plateau, P = False, 0, _Plateau(), steady.predicted.copy()
-        if on_steady:
-            nu = y[k] - H @ a
-            white = solve_triangular(steady_factor, nu, lower=True)
-            log_determinant, quadratic = log_determinant + steady_logdet, quadratic + float(white @ white)
-            count += nu.size
-            a_f = a + steady.gain @ nu
+    for sample in _varying_forward(step_model, H, y, observed, mean0, P0, steady, blocks, patience):
+        if sample.factor is None:  # nothing measured at this sample
             continue
-        if rows.size:
-            Ho = H[rows]
-            nu = y[k, rows] - Ho @ a
-            logdet, value = _gaussian_terms(Ho @ P @ Ho.T, nu)
-            log_determinant, quadratic = log_determinant + logdet, quadratic + value
-            count += rows.size
-            W = _innovation_weight(Ho, P)
-            K = P @ W
-            a_f = a + K @ nu
-            P_f = _joseph(P, K, Ho)
-        else:
-            K = np.zeros((P.shape[0], 0))
-            a_f, P_f = a, P
-        if steady is not None and full:
-            distance = _blockwise_distance(K, steady.gain, blocks)
-            calm = calm + 1 if distance <= STEADY_TOLERANCE else 0
-            if plateau.reached(distance):
-                calm = patience
-            on_steady = calm >= patience
-        else:
-            calm = 0
+        white = solve_triangular(sample.factor, sample.innovation, lower=True)
+        log_determinant += 2.0 * float(np.sum(np.log(np.diag(sample.factor))))
+        quadratic += float(white @ white)
+        count += sample.innovation.size
     return InnovationTerms(log_determinant, quadratic, count)

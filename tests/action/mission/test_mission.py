@@ -156,6 +156,24 @@ def test_replay_split_over_calls_gives_the_same_targets_and_plan(tmp_path):
     assert len(finals[1][0].splitlines()) > 1
 
 
+def test_lawnmower_with_more_uavs_than_strips_keeps_the_spare_uav_home(tmp_path):
+    """A 150 m area swept at 60 m by three UAVs has strips for two: the third gets an empty
+    plan (it stays home) instead of an error, and the other two still sweep and find people."""
+    import dataclasses
+
+    from attend.action.mission.lawnmower import lawnmower_patterns
+
+    path = write_example_mission(tmp_path, seed=3, size_m=150.0, n_uavs=3, people=3, flight_time_s=120.0)
+    mission = Mission.from_file(path)
+    mission.config = dataclasses.replace(mission.config, lawnmower_altitude_m=60.0)
+    lengths = [len(p) for p in lawnmower_patterns(mission)]
+    assert sorted(lengths)[0] == 1 and sorted(lengths)[1] > 1  # the case under test: one UAV without a strip
+    plans = mission.plan("lawnmower")
+    assert [len(p.waypoints) == 0 for p in plans] == [n == 1 for n in lengths]
+    result = simulate_mission(mission, seed=3, planner="lawnmower")
+    assert np.isfinite(result.found_times_s).any()
+
+
 def test_footprint_rotates_with_the_heading():
     """Heading north: the across-track side lies along x (east); heading east: along y. A
     60 x 45 degree camera at 20 m sees 2 h tan(30) = 23.1 m across and 2 h tan(22.5) = 16.6 m

@@ -127,6 +127,9 @@ def plan_lawnmower(mission, horizon_s: float) -> list[UavPlan]:
             if s > flown and j > 1:
                 break
             candidates.append((j, s, float(np.hypot(*(a + t * seg - pose[:2])))))
+        if not candidates:  # no strip left to this UAV (more UAVs than strips): it stays home
+            plans.append(UavPlan(uav.name, start, np.zeros((0, 4)), mission.home_time_s(k, pose[:2])))
+            continue
         nearest = min(c[2] for c in candidates)
         # on a path that passes the same place twice (the sweep back), the pass the flown distance points to
         best = min((c for c in candidates if c[2] <= nearest + PROGRESS_TIE_M), key=lambda c: abs(c[1] - expected))[0]

@@ -280,10 +280,12 @@ class ArmActionJacobian:
     params: the agent's :class:`ArmParameters` (possibly wrong); embedding_order: p; sensors_per_joint: s;
     tolerance: the same array is returned (so the controller keeps its cached transition) until dy~/da
     has moved by more than this fraction of its largest entry since it was last refreshed (0: every
-    change refreshes it)."""
+    change refreshes it); hold: tau >= 0 [s], 0 (default) for the instantaneous Markov parameters, or the
+    sample time for the response at the end of a torque held over one sample (:func:`markov_parameters`'s
+    ``hold``: about M^-1 tau^2 / 2, M^-1 tau and M^-1 at orders 0, 1 and 2)."""
 
     def __init__(self, params: ArmParameters, embedding_order: int = 2, sensors_per_joint: int = 2,
-                 tolerance: float = 0.02):
+                 tolerance: float = 0.02, hold: float = 0.0):
         from attend._validation import order
 
         if not isinstance(params, ArmParameters):
@@ -295,6 +297,10 @@ class ArmActionJacobian:
         if not math.isfinite(tolerance) or tolerance < 0:
             raise AttendInputError(f"tolerance: expected a finite number >= 0, got {tolerance!r}")
         self.tolerance = tolerance
+        hold = number(hold, "hold")
+        if not math.isfinite(hold) or hold < 0:
+            raise AttendInputError(f"hold: expected a finite time >= 0 (s), got {hold!r}")
+        self.hold = hold
         self._last = None
         self.refreshes = 0
 
@@ -303,7 +309,8 @@ class ArmActionJacobian:
 
         x = np.asarray(x, dtype=float)
         fx, fa = state_jacobians(self.params, x, gravity_torque(self.params, x[:2]))
-        G = markov_parameters(fx, fa, self._C, np.zeros((self._C.shape[0], 2)), self.embedding_order + 1)
+        G = markov_parameters(fx, fa, self._C, np.zeros((self._C.shape[0], 2)), self.embedding_order + 1,
+                              hold=self.hold)
         last = self._last
         if last is not None and np.abs(G - last).max() <= self.tolerance * np.abs(last).max():
             return last

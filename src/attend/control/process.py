@@ -24,7 +24,7 @@ from typing import Callable
 
 import numpy as np
 
-from attend._validation import AttendInputError, kernel_width as _kernel_width, order, positive_scalar
+from attend._validation import AttendInputError, kernel_width as _kernel_width, number, order, positive_scalar
 from attend.control._checks import action_limits as checked_action_limits
 from attend.control._checks import count, evaluated, finite_difference, function, jacobian_pair, linear_matrices, vector
 
@@ -147,11 +147,59 @@ class GenerativeProcess:
         return ProcessRun(self, count(n_samples, "n_samples", 1), positive_scalar(dt, "dt", "s"), seed)
 
 
-def markov_parameters(fx, fa, gx, ga, n_orders: int) -> np.ndarray:
+def markov_parameters(fx, fa, gx, ga, n_orders: int, hold: float = 0.0) -> np.ndarray:
     """[g_a; g_x f_a; g_x f_x f_a; ...] (n_orders blocks of (m, k)): the instantaneous response of
-    y, y', y'', ... to the action a (fx (n, n), fa (n, k), gx (m, n), ga (m, k))."""
+    y, y', y'', ... to the action a (fx (n, n), fa (n, k), gx (m, n), ga (m, k)).
+
+    hold: tau >= 0 [s]. With tau > 0, the response of y~ at the end of an action held over tau (a zero-order
+    hold, from rest): x(tau) = Gamma(tau) f_a with Gamma(tau) = int_0^tau expm(f_x s) ds, so that
+
+        y(tau) = g_x Gamma(tau) f_a + g_a,   y^(i)(tau) = g_x f_x^(i-1) expm(f_x tau) f_a   (i >= 1).
+
+    tau = 0 gives the instantaneous column above. For a double integrator (y'' = b a) the held column is
+    (b tau^2 / 2, b tau, b): a sampled agent's action moves its next sample's angle and rate, not only the
+    acceleration, and a reflex built on it acts on all three errors (docs/control.md, the roll axis)."""
+    hold = number(hold, "hold")
+    if not np.isfinite(hold) or hold < 0:
+        raise AttendInputError(f"hold: expected a finite time >= 0 (s), got {hold!r}")
+    if hold > 0:
+        return _held_response(np.asarray(fx, dtype=float), np.asarray(fa, dtype=float),
+                              np.asarray(gx, dtype=float), np.asarray(ga, dtype=float), n_orders, hold)
     blocks = [np.asarray(ga, dtype=float)]
     column = np.asarray(fa, dtype=float)
+    for _ in range(1, n_orders):
+        blocks.append(gx @ column)
+        column = fx @ column
+    return np.vstack(blocks)
+
+
+def _held_response(fx, fa, gx, ga, n_orders: int, hold: float) -> np.ndarray:
+    """The held column of :func:`markov_parameters`. While |f_x tau|_1 <= 1, Gamma(tau) f_a is the series
+    tau sum_j (f_x tau)^j f_a / (j + 1)!, summed by Horner's rule on the (n, k) columns up to the first j whose
+    bound |f_x tau|_1^j / (j + 1)! is below 2^-53, and expm(f_x tau) f_a = f_a + f_x Gamma(tau) f_a; otherwise
+    both come from one exponential, expm([[f_x, f_a], [0, 0]] tau)."""
+    n, k = fa.shape
+    step = fx * hold
+    size = np.abs(step).sum(axis=0).max(initial=0.0)
+    if size <= 1.0:
+        terms, bound = 0, 1.0
+        while bound > 2.0**-53 and terms < 30:
+            terms += 1
+            bound *= size / (terms + 1)
+        accumulated = fa
+        for j in range(terms, 0, -1):
+            accumulated = fa + step @ accumulated / (j + 1)
+        integral = hold * accumulated
+        derivative = fa + fx @ integral
+    else:
+        from scipy.linalg import expm
+
+        augmented = np.zeros((n + k, n + k))
+        augmented[:n, :n], augmented[:n, n:] = fx, fa
+        exponential = expm(augmented * hold)
+        integral, derivative = exponential[:n, n:], exponential[:n, :n] @ fa
+    column = derivative  # x'(tau) = expm(f_x tau) f_a
+    blocks = [gx @ integral + ga]
     for _ in range(1, n_orders):
         blocks.append(gx @ column)
         column = fx @ column

@@ -14,7 +14,7 @@ Targets (the mission issue): every person found in >= 95 % of missions; median t
 90 %, efe / lawnmower <= 0.8 (a miss counts as twice the flight time); <= 0.5 false targets per
 mission; one `attend plan` call <= 2 s wall at 250 000 cells including reading the logs.
 
-    python benchmarks/bench_mission.py            # 16 missions (about 20 min on 2 cores)
+    python benchmarks/bench_mission.py            # 48 missions (about 25 min on 2 cores)
     python benchmarks/bench_mission.py --quick    # 4 missions
     python benchmarks/bench_mission.py --passes 3 # twice the flight time
 
@@ -158,14 +158,14 @@ def call_time(seed: int) -> tuple[float, int, int]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="4 missions instead of 16")
+    parser.add_argument("--quick", action="store_true", help="4 missions instead of 48")
     parser.add_argument("--missions", type=int, default=None)
     parser.add_argument("--seed", type=int, default=100)
     parser.add_argument("--passes", type=float, default=1.5,
                         help="flight time: this many passes at 30 m over the searchable area, shared among the UAVs (default 1.5)")
     parser.add_argument("--json", help="also write every mission's figures to this JSON file")
     args = parser.parse_args()
-    n = args.missions or (4 if args.quick else 16)
+    n = args.missions or (4 if args.quick else 48)
     wall, cells, images = call_time(args.seed)
     print(f"one `attend plan` call: {wall:.2f} s wall at {cells} cells with {images} images   (target <= 2 s)")
     print(f"closed loop, {n} random missions, flight time {args.passes:g} passes at 30 m:")

@@ -1,7 +1,7 @@
 """Is the unscented smoother's reported std calibrated under coloured noise, what does it cost, and
 how long does `attend estimate` take end to end?
 
-    PYTHONPATH=src python benchmarks/bench_error_spread.py [--seeds 4] [--parts calibration,cli]
+    PYTHONPATH=src python benchmarks/bench_error_spread.py [--seeds 4] [--parts calibration,cli] [--exact-only]
 
 Part "calibration" (the library): four systems nobody tuned for: a Duffing oscillator and a van der
 Pol oscillator (measured push, position sensor), Lotka-Volterra (no input, log-abundance sensor)
@@ -19,14 +19,17 @@ attractor, a pendulum with an unknown push from 3 starts; without initial_state,
 with the true x[0]) against the target of 1 s, and on 2600 samples of a 12-state linear model with
 4 unknown inputs (a quadrotor linearised at hover, 6 outputs, 25 Hz, kernel width 0.04 s; the
 Kalman smoother, which has no draws) against 3 s. The nonlinear cases also run with the previous
-std (200 draws, patched in) for the before/after figures; every run's |error| < 2 std over the
-states (calibrated: ~0.95). Not part of the test run; ~3-5 minutes on a loaded 2-core machine.
+std (200 draws, patched in) for the before/after figures (not with ``--exact-only``); every run's
+|error| < 2 std over the states (calibrated: ~0.95), and besides its wall time the CPU time of the
+child process (user + system: what the run costs where other work shares the cores). Not part of
+the test run; ~3-5 minutes on a loaded 2-core machine.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -150,16 +153,23 @@ def _quadrotor_case(folder: Path) -> tuple[Path, Path, np.ndarray]:
     return folder / "model.toml", folder / "log.csv", run.states
 
 
-def _estimate(model: Path, log: Path, out: Path, drawn: bool) -> tuple[float, np.ndarray | None, str]:
-    """(wall time [s], the estimates table or None, standard error) of `attend estimate` in a fresh
-    interpreter; drawn: with the previous std (200 draws)."""
+def _children_cpu() -> float:
+    """User + system CPU time [s] of the finished child processes so far."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _estimate(model: Path, log: Path, out: Path, drawn: bool) -> tuple[float, float, np.ndarray | None, str]:
+    """(wall time [s], CPU time of the process [s], the estimates table or None, standard error) of
+    `attend estimate` in a fresh interpreter; drawn: with the previous std (200 draws)."""
     command = [sys.executable] + (["-c", DRAWN] if drawn else ["-m", "attend"])
+    cpu = _children_cpu()
     started = time.perf_counter()
     done = subprocess.run(command + ["estimate", str(model), str(log), "--out", str(out), "--no-progress"],
                           capture_output=True, text=True)
     wall = time.perf_counter() - started
     table = np.genfromtxt(out, delimiter=",", names=True) if done.returncode == 0 else None
-    return wall, table, done.stderr.strip()
+    return wall, _children_cpu() - cpu, table, done.stderr.strip()
 
 
 def _inside(table, truth: np.ndarray) -> float:
@@ -170,8 +180,8 @@ def _inside(table, truth: np.ndarray) -> float:
     return float(np.mean(np.abs(states - truth) < 2 * std))
 
 
-def cli() -> None:
-    """Part "cli" (module docstring)."""
+def cli(exact_only: bool = False) -> None:
+    """Part "cli" (module docstring); exact_only: without the runs with the previous std (200 draws)."""
     import bench_nonlinear_start as start
 
     print(f"\n== attend estimate end to end (fresh interpreter, wall time; targets: {NONLINEAR_TARGET_S:g} s for 128 "
@@ -180,6 +190,7 @@ def cli() -> None:
     cases = [(f"lorenz {i}", "lorenz", list(map(float, point)), i) for i, point in enumerate(points)]
     cases += [(f"pendulum x0={x0}", "pendulum", x0, 2) for x0 in ([0.5, 0.0], [-1.0, 0.0], [1.0, 0.2])]
     rows = []
+    variants = (("exact", False),) if exact_only else (("200 draws", True), ("exact", False))
     with tempfile.TemporaryDirectory(prefix="attend-bench-spread-") as work:
         for label, kind, x0, seed in cases:
             folder = Path(work) / label.replace(" ", "_")
@@ -188,29 +199,31 @@ def cli() -> None:
             searched = start.write_model(folder, kind)[0]
             known = start.write_model(folder, kind, f"initial_state = {x0}\n", "known.toml")[0]
             for start_label, model in (("x0 searched", searched), ("x0 known", known)):
-                for variant, drawn in (("200 draws", True), ("exact", False)):
-                    wall, table, message = _estimate(model, folder / "log.csv", folder / "out.csv", drawn)
+                for variant, drawn in variants:
+                    wall, cpu, table, message = _estimate(model, folder / "log.csv", folder / "out.csv", drawn)
                     inside = np.nan if table is None else _inside(table, truth)
-                    rows.append(dict(kind=kind, start=start_label, variant=variant, wall=wall, inside=inside))
-                    print(f"  {label:24s} {start_label:11s} {variant:9s}: {wall:5.2f} s, |error| < 2 std {inside:.3f}"
+                    rows.append(dict(kind=kind, start=start_label, variant=variant, wall=wall, cpu=cpu, inside=inside))
+                    print(f"  {label:24s} {start_label:11s} {variant:9s}: {wall:5.2f} s (CPU {cpu:4.2f} s), "
+                          f"|error| < 2 std {inside:.3f}"
                           + (f"  [{message.splitlines()[-1][:100]}]" if table is None else ""), flush=True)
         quad = Path(work) / "quadrotor"
         quad.mkdir()
         model, log, truth = _quadrotor_case(quad)
         walls = []
         for _ in range(3):
-            wall, table, message = _estimate(model, log, quad / "out.csv", False)
+            wall, _, table, message = _estimate(model, log, quad / "out.csv", False)
             walls.append(wall)
         inside = np.nan if table is None else _inside(table, truth)
-    print("  summary (median wall time over the cases, |error| < 2 std pooled):")
+    print("  summary (median wall time over the cases, median CPU time, |error| < 2 std pooled):")
     for kind in ("lorenz", "pendulum"):
         for start_label in ("x0 searched", "x0 known"):
             line = []
-            for variant in ("200 draws", "exact"):
+            for variant, _ in variants:
                 chosen = [row for row in rows if (row["kind"], row["start"], row["variant"]) == (kind, start_label,
                                                                                              variant)]
-                line.append(f"{variant} {np.median([row['wall'] for row in chosen]):.2f} s "
-                            f"({np.nanmean([row['inside'] for row in chosen]):.3f})")
+                line.append(f"{variant} {np.median([row['wall'] for row in chosen]):.2f} s (CPU "
+                            f"{np.median([row['cpu'] for row in chosen]):.2f} s; "
+                            f"{np.nanmean([row['inside'] for row in chosen]):.3f})")
             exact = np.median([row["wall"] for row in rows if (row["kind"], row["start"], row["variant"])
                                == (kind, start_label, "exact")])
             print(f"    {kind:8s} 128 samples, {start_label:11s}: {', '.join(line)}; target {NONLINEAR_TARGET_S:g} s: "
@@ -224,12 +237,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--parts", default="calibration,cli", help="comma-separated: calibration, cli")
+    parser.add_argument("--exact-only", action="store_true", help="part cli without the previous std's runs")
     args = parser.parse_args()
     parts = args.parts.split(",")
     if "calibration" in parts:
         calibration(args.seeds)
     if "cli" in parts:
-        cli()
+        cli(args.exact_only)
 
 
 if __name__ == "__main__":

@@ -129,3 +129,62 @@ def test_a_bad_prior_scale_is_named():
     system, log = _double_well(5.6, 4.0, samples=20)
     with pytest.raises(AttendInputError, match="initial_state_std: the search's prior needs a finite scale > 0"):
         search.search_start(system, DT, log.outputs, log.inputs, prior_scale=[0.0], **_options(unknown=False))
+
+
+def _merged_one_pair_at_a_time(mean, cov, score):
+    """The components _Bank._merge keeps, by its rule checked pair by pair (the reference)."""
+    kept = []
+    for i in np.argsort(-score):
+        duplicate = False
+        for j in kept:
+            difference = mean[i] - mean[j]
+            try:
+                distance = max(difference @ np.linalg.solve(cov[i], difference),
+                               difference @ np.linalg.solve(cov[j], difference))
+            except np.linalg.LinAlgError:
+                continue
+            if distance < 1.0:
+                duplicate = True
+                break
+        if not duplicate:
+            kept.append(int(i))
+    return sorted(kept)
+
+
+@pytest.mark.parametrize("singular", [False, True])
+def test_the_merge_checks_all_pairs_at_once_as_one_pair_at_a_time(singular):
+    """Random components (d = 2), many of them within each other's ellipsoids: the merge keeps the same
+    ones as the pair-by-pair rule; with a singular covariance (its pairs skipped) too."""
+    system, log = _double_well(5.6, 8.0, samples=8)
+    options = _options(unknown=True)
+    rng = np.random.default_rng(3)
+    count = 60
+    bank = search._Bank(system, DT, log.outputs, None, dict(options, known_inputs=None, substeps=2),
+                        rng.normal(size=(count, 1)), np.ones((count, 1)), search.StartPrior(np.zeros(1), np.ones(1)))
+    root = rng.normal(scale=0.7, size=(count, 2, 2))
+    bank.mean, bank.cov = rng.normal(scale=2.0, size=(count, 2)), root @ np.swapaxes(root, 1, 2) + 0.05 * np.eye(2)
+    if singular:
+        bank.cov[5] = np.zeros((2, 2))
+    bank.score = rng.normal(size=count)
+    expected = _merged_one_pair_at_a_time(bank.mean, bank.cov, bank.score)
+    bank._merge()
+    assert 1 < len(expected) < count
+    assert sorted(bank.index.tolist()) == expected
+
+
+def test_each_start_is_smoothed_once(monkeypatch):
+    """A mode's first run from the same start as an anchor's (here DEM's start, given as the prior's
+    centre and scale and as an extra start, survives the bank) is the anchor's run, not a second one."""
+    system, log = _double_well(5.6, 4.0, samples=48)
+    starts = []
+    smoothed = search._smoothed
+
+    def counted(system, dt, outputs, inputs, options, mean, std):
+        starts.append((tuple(mean), tuple(std)))
+        return smoothed(system, dt, outputs, inputs, options, mean, std)
+
+    monkeypatch.setattr(search, "_smoothed", counted)
+    found = search.search_start(system, DT, log.outputs, log.inputs, substeps=8, prior_mean=[5.0], prior_scale=[1.0],
+                                prior_dof=np.inf, extra_starts=[([5.0], [1.0])], **_options(unknown=False))
+    assert len(starts) == len(set(starts))
+    assert found.modes[0].misfit < search.MISFIT_LIMIT

@@ -103,6 +103,33 @@ class _UserFunction:
                 f"v = {_short(v)}; expected finite numbers")
         return value
 
+    def at_rows(self, x, v) -> np.ndarray:
+        """The values at the points given as rows, x (P, n) and v (P, r): a float (P, size) array,
+        the same as ``P`` calls of this function (:meth:`__call__`) with the same checks, but with one
+        error state and one check of the shape and finiteness for all of them (the smoothers call f
+        at every sigma point of every RK4 stage). Anything unusual (an exception in the user's code,
+        a wrong shape, a non-finite value) is left to the one-at-a-time calls, which report it. Each
+        value is copied when it is returned (a function may fill and return the same buffer at every
+        call)."""
+        count = len(x)
+        function, parameters = self.function, self.parameters
+        try:
+            with np.errstate(all="ignore"):
+                if parameters is None:
+                    values = [np.array(function(point, inputs), dtype=float) for point, inputs in zip(x, v)]
+                else:
+                    values = [np.array(function(point, inputs, parameters), dtype=float)
+                              for point, inputs in zip(x, v)]
+                value = np.array(values, dtype=float)
+        except Exception:  # noqa: BLE001 - reported below, by the calls one at a time
+            value = None
+        if value is not None and value.shape != (count, self.size) and value.ndim <= 3 and count \
+                and value.shape[0] == count and value[0].size == self.size:
+            value = value.reshape(count, self.size)  # as __call__ takes (size, 1), (1, size) or a scalar
+        if value is not None and value.shape == (count, self.size) and np.isfinite(value).all():
+            return value
+        return np.array([np.array(self(point, inputs), dtype=float) for point, inputs in zip(x, v)],
+                        dtype=float).reshape(count, self.size)
 
     def _columns(self, value: np.ndarray, x, v) -> np.ndarray:
         """The value at K points given as columns x (n, K), v (r, K): a finite (size, K) array."""

@@ -32,8 +32,10 @@ filters (a Gaussian sum) over a broad prior on x[0] along the log and keeps what
 
 Cost, with the smoother's RK4 sub-steps divided by SEARCH_SUBSTEP_FRACTION: the bank moves (2d + 1)
 sigma points of up to 141 components (n = 3) over its first samples, then a few; then two smoother
-runs per mode and one per anchor (no error spread). On the 128-sample logs of
-``benchmarks/bench_nonlinear_start.py`` the search takes ~0.5-1.5 s.
+runs per mode and one per anchor (no error spread; each start is smoothed once, so a mode whose first
+run starts where an anchor does reuses that run). On the 128-sample logs of
+``benchmarks/bench_nonlinear_start.py`` the search takes ~0.05-0.6 s (Lorenz 0.3-0.6 s: f is called
+~100 000 times).
 """
 
 from __future__ import annotations
@@ -221,8 +223,10 @@ def search_start(system, dt: float, outputs, inputs=None, *, process_covariance,
     survivors, searched = _Bank(system, dt, outputs, inputs, options, centres, stds, prior).run()
     starts = [(centre, scale)] + [(centres[k], stds[k]) for k in extra
                                   if not (np.allclose(centres[k], centre) and np.allclose(stds[k], scale))]
-    anchors = [_anchor(system, dt, outputs, inputs, options, mean, std, prior) for mean, std in starts]
-    modes = [_mode(system, dt, outputs, inputs, options, centres[k], stds[k], prior) for k in survivors[:MAX_MODES]]
+    runs: dict = {}  # a mode's first run is often an anchor's (DEM's start survives the bank): run it once
+    anchors = [_anchor(system, dt, outputs, inputs, options, mean, std, prior, runs) for mean, std in starts]
+    modes = [_mode(system, dt, outputs, inputs, options, centres[k], stds[k], prior, runs)
+             for k in survivors[:MAX_MODES]]
     basins = _basins([mode for mode in modes + anchors if mode is not None])
     if not basins:
         raise AttendInputError("initial_state: the search found no start from which the unscented smoother "
@@ -251,8 +255,20 @@ def _differ(a: StartMode, b: StartMode) -> bool:
     return bool(np.mean(apart) > 0.01)
 
 
-def _smoother(system, dt, outputs, inputs, options, mean, std):
-    """The unscented RTS smoother from N(mean, diag(std^2)) (no error spread), or None where it fails."""
+def _smoother(system, dt, outputs, inputs, options, mean, std, runs: dict | None = None):
+    """The unscented RTS smoother from N(mean, diag(std^2)) (no error spread), or None where it fails;
+    runs: the runs so far of this search by their start (each start is smoothed once), or None."""
+    key = None if runs is None else (np.asarray(mean, dtype=float).tobytes(), np.asarray(std, dtype=float).tobytes())
+    if key is not None and key in runs:
+        return runs[key]
+    run = _smoothed(system, dt, outputs, inputs, options, mean, std)
+    if key is not None:
+        runs[key] = run
+    return run
+
+
+def _smoothed(system, dt, outputs, inputs, options, mean, std):
+    """:func:`_smoother` without the record of runs."""
     from attend.perception.nonlinear_smoothers import unscented_kalman
 
     try:
@@ -272,11 +288,12 @@ def _scored(system, outputs, options, run, mean, std, prior: StartPrior) -> Star
                      _misfit(system, outputs, run, options["measurement_covariance"]))
 
 
-def _mode(system, dt, outputs, inputs, options, mean, std, prior: StartPrior) -> StartMode | None:
+def _mode(system, dt, outputs, inputs, options, mean, std, prior: StartPrior, runs: dict | None = None
+          ) -> StartMode | None:
     """Smooth from the component's N(mean, diag(std^2)); combine what the log says of x[0]
     (:func:`data_information`) with the prior (:func:`prior_map`); smooth again from there with
-    the std widened by START_STD_INFLATION. None where a run fails."""
-    first = _smoother(system, dt, outputs, inputs, options, mean, std)
+    the std widened by START_STD_INFLATION. None where a run fails. runs: as :func:`_smoother`."""
+    first = _smoother(system, dt, outputs, inputs, options, mean, std, runs)
     if first is None:
         return None
     try:
@@ -287,14 +304,16 @@ def _mode(system, dt, outputs, inputs, options, mean, std, prior: StartPrior) ->
     except np.linalg.LinAlgError:
         return None
     start_std = np.maximum(np.sqrt(np.clip(np.diag(covariance), 0, None)), 1e-9 * (1.0 + np.abs(start)))
-    second = _smoother(system, dt, outputs, inputs, options, start, start_std)
+    second = _smoother(system, dt, outputs, inputs, options, start, start_std, runs)
     return None if second is None else _scored(system, outputs, options, second, start, start_std, prior)
 
 
-def _anchor(system, dt, outputs, inputs, options, mean, std, prior: StartPrior) -> StartMode | None:
-    """The smoother from N(mean, diag(std^2)) as it is, scored like a mode; None where it fails."""
+def _anchor(system, dt, outputs, inputs, options, mean, std, prior: StartPrior, runs: dict | None = None
+            ) -> StartMode | None:
+    """The smoother from N(mean, diag(std^2)) as it is, scored like a mode; None where it fails.
+    runs: as :func:`_smoother`."""
     std = np.maximum(np.asarray(std, dtype=float), 1e-9 * (1.0 + np.abs(mean)))
-    run = _smoother(system, dt, outputs, inputs, options, mean, std)
+    run = _smoother(system, dt, outputs, inputs, options, mean, std, runs)
     return None if run is None else _scored(system, outputs, options, run, mean, std, prior)
 
 
@@ -479,19 +498,34 @@ class _Bank:
         narrow one), keep the one with the higher score."""
         kept: list[int] = []
         for i in np.argsort(-self.score):
-            duplicate = False
-            for j in kept:
-                difference = self.mean[i] - self.mean[j]
-                try:
-                    distance = max(difference @ np.linalg.solve(self.cov[i], difference),
-                                   difference @ np.linalg.solve(self.cov[j], difference))
-                except np.linalg.LinAlgError:
-                    continue
-                if distance < 1.0:
-                    duplicate = True
-                    break
-            if not duplicate:
+            if not kept or not self._near_any(int(i), np.array(kept)):
                 kept.append(int(i))
         mask = np.zeros(len(self.score), dtype=bool)
         mask[kept] = True
         self._keep(mask)
+
+    def _near_any(self, i: int, others: np.ndarray) -> bool:
+        """Whether component i and one of ``others`` (indices) lie each within the other's one-std
+        ellipsoid: max(e' inv(P_i) e, e' inv(P_j) e) < 1, e = m_i - m_j. All pairs in one call of
+        the solver (the same numbers as one pair at a time); a pair with a singular covariance does
+        not count (:meth:`_near_pair`)."""
+        difference = (self.mean[i] - self.mean[others])[:, :, None]  # (pairs, d, 1)
+        try:
+            own = np.linalg.solve(np.broadcast_to(self.cov[i], (len(others),) + self.cov[i].shape), difference)
+            theirs = np.linalg.solve(self.cov[others], difference)
+        except np.linalg.LinAlgError:
+            return any(self._near_pair(i, int(j)) for j in others)
+        row = np.swapaxes(difference, 1, 2)
+        under_own, under_theirs = (row @ own)[:, 0, 0], (row @ theirs)[:, 0, 0]
+        distance = np.where(under_theirs > under_own, under_theirs, under_own)  # max(own, theirs), as max() takes NaN
+        return bool(np.any(distance < 1.0))
+
+    def _near_pair(self, i: int, j: int) -> bool:
+        """:meth:`_near_any` for one pair (False where either covariance is singular)."""
+        difference = self.mean[i] - self.mean[j]
+        try:
+            distance = max(difference @ np.linalg.solve(self.cov[i], difference),
+                           difference @ np.linalg.solve(self.cov[j], difference))
+        except np.linalg.LinAlgError:
+            return False
+        return bool(distance < 1.0)

@@ -133,8 +133,9 @@ def _check_substeps(system: NonlinearSystem, dt: float, substeps: int, x0, u0) -
 # --- shared plumbing ----------------------------------------------------------------------------
 
 def _rk4(system: NonlinearSystem, x, u, dt: float, substeps: int, w=None, call=None):
-    """Integrate dx/dt = f(x, u) (+ w) over dt; x (n,) or (n, P) with a vectorized system;
-    call: f of the state (default: the system's f at u, unchecked for columns)."""
+    """Integrate dx/dt = f(x, u) (+ w) over dt; x (n,) or (n, P) with a vectorized system, or any
+    array that ``call`` takes (rows (P, n) in :func:`propagate_points`); call: f of the state
+    (default: the system's f at u, unchecked for columns)."""
     h = dt / substeps
     if call is None and x.ndim == 2:
         call = lambda state: system.call_with_parameters(system.f, state, u)  # noqa: E731
@@ -155,7 +156,9 @@ def propagate_points(system: NonlinearSystem, x, u, dt: float, substeps: int, w=
     """Rows x (P, n) of ``system`` (the NonlinearSystem) integrated over dt [s] (RK4, ``substeps``
     sub-steps) under inputs u (P, r) and held noise w (P, n) [state unit / s] (None: 0): (P, n). A vectorized system
     (``NonlinearSystem(vectorized=True)``) takes all rows in one call of f per RK4 stage (its
-    output shape checked); other systems are integrated row by row."""
+    output shape checked); for other systems every RK4 stage calls f at each row
+    (:func:`evaluate_rows`) and advances all rows together (the same arithmetic, row by row, as
+    integrating each row alone)."""
     if system.vectorized:
         columns = u.T
 
@@ -163,9 +166,8 @@ def propagate_points(system: NonlinearSystem, x, u, dt: float, substeps: int, w=
             return evaluate_columns(system, "f", np.vstack([state, columns]))
 
         return _rk4(system, x.T, columns, dt, substeps, None if w is None else w.T, call).T
-    if w is None:
-        return np.array([_rk4(system, row, inputs, dt, substeps) for row, inputs in zip(x, u)])
-    return np.array([_rk4(system, row, inputs, dt, substeps, noise) for row, inputs, noise in zip(x, u, w)])
+    x, u = np.asarray(x, dtype=float), np.asarray(u, dtype=float).reshape(len(x), system.n_inputs)
+    return _rk4(system, x, u, dt, substeps, w, lambda state: evaluate_rows(system, "f", state, u))
 
 
 def observe_points(system: NonlinearSystem, x, u) -> np.ndarray:
@@ -173,7 +175,31 @@ def observe_points(system: NonlinearSystem, x, u) -> np.ndarray:
     call of g for a vectorized system)."""
     if system.vectorized:
         return evaluate_columns(system, "g", np.vstack([x.T, u.T])).T
-    return np.array([system.observe(row, inputs) for row, inputs in zip(x, u)])
+    x, u = np.asarray(x, dtype=float), np.asarray(u, dtype=float).reshape(len(x), system.n_inputs)
+    return evaluate_rows(system, "g", x, u)
+
+
+def evaluate_rows(system: NonlinearSystem, which: str, x, u) -> np.ndarray:
+    """f (``which`` "f") or g ("g") of ``system`` (not vectorized) at each row of x (P, n), u (P, r):
+    a float (P, n) or (P, m) array, the values of :meth:`NonlinearSystem.evaluate` row by row. A
+    function with an ``at_rows(x, u)`` method (a model file's f and g, :mod:`attend.io.python_model`)
+    evaluates and checks all rows in one go; other functions are called row by row with one
+    conversion of the values for all of them, and :meth:`NonlinearSystem.evaluate` (which names the
+    failure) takes over where that fails or gives a wrong shape. Each value is copied when it is
+    returned (a function may fill and return the same buffer at every call)."""
+    function, size = (system.f, system.n_states) if which == "f" else (system.g, system.n_outputs)
+    at_rows = getattr(function, "at_rows", None)
+    if at_rows is not None and system.parameters is None:
+        return at_rows(x, u)
+    try:
+        values = np.array([np.array(system.call_with_parameters(function, point, inputs), dtype=float)
+                           for point, inputs in zip(x, u)], dtype=float)
+        if values.shape == (len(x), size):
+            return values
+    except Exception:  # noqa: BLE001 - evaluate() below reports it
+        pass
+    return np.array([np.array(system.evaluate(which, point, inputs)) for point, inputs in zip(x, u)],
+                    dtype=float).reshape(len(x), size)
 
 
 def covariances_from_noise(system: NonlinearSystem, dt: float, noise, process_covariance, measurement_covariance,

@@ -113,6 +113,21 @@ def require_finite(array: np.ndarray, field: str) -> None:
         )
 
 
+def stream_sample(output, input_value, n_outputs: int, n_inputs: int) -> tuple[np.ndarray, np.ndarray]:
+    """One sample fed to an online estimator's ``step``: (y (m,), u (r,)) as float arrays, u zero
+    when input_value is None; wrong counts or text raise, naming both expected counts (finiteness
+    is the caller's rule: some estimators take NaN for a missing output)."""
+    m, r = int(n_outputs), int(n_inputs)
+    try:
+        y = np.asarray(output, dtype=float).reshape(-1)
+        u = np.zeros(r) if input_value is None else np.asarray(input_value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise AttendInputError(f"step: expected {m} output numbers and {r} input numbers") from None
+    if y.shape != (m,) or u.shape != (r,):
+        raise AttendInputError(f"step: expected {m} outputs and {r} inputs, got {y.shape[0]} and {u.shape[0]}")
+    return y, u
+
+
 def positive_scalar(value, field: str, unit: str = "") -> float:
     """A finite number > 0 (text is an error, not converted)."""
     if isinstance(value, np.ndarray) and value.size == 1:

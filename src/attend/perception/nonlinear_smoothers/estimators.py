@@ -60,7 +60,40 @@ def _white_noise_settings(smoother, noise, who: str) -> None:
 
 
 @dataclass(frozen=True, eq=False)
-class UnscentedSmoother:
+class _WhiteNoiseSmoother:
+    """The settings the unscented and extended smoothers share (their classes document them);
+    ``kind`` names the filter in :attr:`method`."""
+
+    kind = "white-noise"
+
+    system: NonlinearSystem
+    dt: float
+    _: KW_ONLY
+    process_covariance: np.ndarray | None = None
+    measurement_covariance: np.ndarray | None = None
+    input_variance: np.ndarray | None = None
+    input_mean: np.ndarray | None = None
+    initial_mean: np.ndarray | None = None
+    initial_covariance: np.ndarray | None = None
+    smooth: bool | int = True
+    substeps: int = 10
+    noise_kernel_width: float | None = None
+    input_prior: tuple | None = None
+    spread_draws: int | None = 200
+    seed: int = 0
+    noise: InitVar[NoiseModel | None] = None
+
+    def __post_init__(self, noise):
+        _white_noise_settings(self, noise, type(self).__name__)
+
+    @property
+    def method(self) -> str:
+        """A short name of the estimator for reports."""
+        return f"{self.kind} kalman " + ("filter" if self.smooth is False else "smoother")
+
+
+@dataclass(frozen=True, eq=False)
+class UnscentedSmoother(_WhiteNoiseSmoother):
     """The unscented Kalman smoother (white-noise model) as an estimator:
     ``UnscentedSmoother(system, dt, *, noise=NoiseModel(...), ...)`` or with
     ``process_covariance`` / ``measurement_covariance`` instead of ``noise``; then
@@ -75,34 +108,13 @@ class UnscentedSmoother:
     :func:`~attend.perception.nonlinear_smoothers.unscented_kalman`, which :meth:`estimate` calls.
     """
 
-    system: NonlinearSystem
-    dt: float
+    kind = "unscented"
+
     _: KW_ONLY
-    process_covariance: np.ndarray | None = None
-    measurement_covariance: np.ndarray | None = None
-    input_variance: np.ndarray | None = None
-    input_mean: np.ndarray | None = None
-    initial_mean: np.ndarray | None = None
-    initial_covariance: np.ndarray | None = None
-    smooth: bool | int = True
-    substeps: int = 10
     alpha: float = 1.0
     beta: float = 2.0
     kappa: float = 0.0
     known_inputs: np.ndarray | None = None
-    noise_kernel_width: float | None = None
-    input_prior: tuple | None = None
-    spread_draws: int | None = 200
-    seed: int = 0
-    noise: InitVar[NoiseModel | None] = None
-
-    def __post_init__(self, noise):
-        _white_noise_settings(self, noise, "UnscentedSmoother")
-
-    @property
-    def method(self) -> str:
-        """A short name of the estimator for reports."""
-        return "unscented kalman " + ("filter" if self.smooth is False else "smoother")
 
     def estimate(self, outputs, inputs=None) -> KalmanEstimate:
         """The estimates over a whole log: :func:`~attend.perception.nonlinear_smoothers.unscented_kalman`
@@ -123,7 +135,7 @@ class UnscentedSmoother:
 
 
 @dataclass(frozen=True, eq=False)
-class ExtendedSmoother:
+class ExtendedSmoother(_WhiteNoiseSmoother):
     """The extended Kalman smoother (white-noise model) as an estimator:
     ``ExtendedSmoother(system, dt, *, noise=NoiseModel(...), ...)`` or with ``process_covariance``
     / ``measurement_covariance`` instead of ``noise``; then :meth:`estimate` and :meth:`online`.
@@ -135,30 +147,7 @@ class ExtendedSmoother:
     :meth:`estimate` calls.
     """
 
-    system: NonlinearSystem
-    dt: float
-    _: KW_ONLY
-    process_covariance: np.ndarray | None = None
-    measurement_covariance: np.ndarray | None = None
-    input_variance: np.ndarray | None = None
-    input_mean: np.ndarray | None = None
-    initial_mean: np.ndarray | None = None
-    initial_covariance: np.ndarray | None = None
-    smooth: bool | int = True
-    substeps: int = 10
-    noise_kernel_width: float | None = None
-    input_prior: tuple | None = None
-    spread_draws: int | None = 200
-    seed: int = 0
-    noise: InitVar[NoiseModel | None] = None
-
-    def __post_init__(self, noise):
-        _white_noise_settings(self, noise, "ExtendedSmoother")
-
-    @property
-    def method(self) -> str:
-        """A short name of the estimator for reports."""
-        return "extended kalman " + ("filter" if self.smooth is False else "smoother")
+    kind = "extended"
 
     def estimate(self, outputs, inputs=None) -> KalmanEstimate:
         """The estimates over a whole log: :func:`~attend.perception.nonlinear_smoothers.extended_kalman`

@@ -51,6 +51,31 @@ def test_round_trip_estimate(tmp_path):
     np.testing.assert_allclose(table[:, 1:3], estimate.states, rtol=1e-9)
 
 
+def test_the_model_files_noise_is_one_noise_model(tmp_path):
+    """ModelFile.noise holds the file's precisions and widths (a separate width where given,
+    kernel_width otherwise), and the Kalman smoother built from it estimates what the one built
+    from the separate keywords does, to the bit."""
+    from attend import NoiseModel
+    from attend.perception.kalman import KalmanEstimator
+
+    text = MODEL.replace("kernel_width = 0.5", "kernel_width = 0.5\nsensor_kernel_width = 0.25")
+    model_path, log_path = _write(tmp_path, text)
+    model = io.read_model(model_path)
+    noise = model.noise
+    assert isinstance(noise, NoiseModel)
+    assert noise == NoiseModel(process_precision=2980.0, sensor_precision=2980.0, process_kernel_width=0.5,
+                               sensor_kernel_width=0.25)
+    log = io.read_log(log_path)
+    observer, from_file = workflows.estimate_from_files(model, log)
+    by_keywords = KalmanEstimator(model.system, 0.1, sensor_precision=2980.0, process_precision=2980.0,
+                                  kernel_width=0.5, sensor_kernel_width=0.25, input_prior_precision=np.array([0.01]),
+                                  known_inputs=[False], input_kernel_width=observer.input_kernel_width)
+    outputs = log.matrix(model.output_columns)
+    again = by_keywords.estimate(outputs, np.zeros((len(outputs), 1)))
+    np.testing.assert_array_equal(again.states, from_file.states)
+    np.testing.assert_array_equal(again.state_std, from_file.state_std)
+
+
 def test_spm_conventions_from_the_model_file(tmp_path):
     """[observer] integration = "spm" and edges = "clamp" reach the DEM observer: the estimates are
     those of DEMObserver built with the same options, and differ from attend's default step."""

@@ -6,11 +6,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from attend._validation import AttendInputError
 from attend.models.linear import LinearSystem
 from attend.models.nonlinear import NonlinearSystem
 
 if TYPE_CHECKING:  # only named in annotations
     from attend.io.bags import BagLayout
+    from attend.models.noise_model import NoiseModel
 
 
 @dataclass(frozen=True)
@@ -96,6 +98,21 @@ class ModelFile:
     def nonlinear(self) -> bool:
         """True for a model given by f and g in a Python file ([model] python)."""
         return isinstance(self.system, NonlinearSystem)
+
+    @property
+    def noise(self) -> NoiseModel:
+        """The file's noise as one :class:`attend.models.NoiseModel` (its sensor_precision,
+        process_precision, and process_kernel_width / sensor_kernel_width where given, kernel_width
+        otherwise), the value every estimator and simulator takes as ``noise=``; a setting the
+        model cannot take raises an AttendInputError naming the file."""
+        from attend.models.noise_model import NoiseModel
+
+        try:
+            return NoiseModel(process_precision=self.process_precision, sensor_precision=self.sensor_precision,
+                              kernel_width=self.kernel_width, process_kernel_width=self.process_kernel_width,
+                              sensor_kernel_width=self.sensor_kernel_width)
+        except AttendInputError as error:
+            raise AttendInputError(f"{self.path}: [observer] {error}") from None
 
     @property
     def learning_order(self) -> int:

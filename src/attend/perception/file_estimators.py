@@ -73,9 +73,7 @@ def file_kalman_estimator(model: ModelFile, dt: float, outputs=None, signals=Non
 
     known = [spec.known for spec in model.inputs]
     prior = None if all(known) else np.array([1.0 if s.known else s.prior_precision for s in model.inputs])
-    settings = dict(sensor_precision=model.sensor_precision, process_precision=model.process_precision,
-                    kernel_width=model.kernel_width, process_kernel_width=model.process_kernel_width,
-                    sensor_kernel_width=model.sensor_kernel_width, input_prior_precision=prior,
+    settings = dict(noise=model.noise, input_prior_precision=prior,
                     known_inputs=known if model.inputs else True, initial_state=model.initial_state,
                     initial_state_std=model.initial_state_std)
     try:
@@ -127,12 +125,10 @@ def file_dem_observer(model: ModelFile, dt: float) -> DEMObserver:
         [model.known_input_precision if s.known else s.prior_precision for s in model.inputs]
     )
     try:
-        return DEMObserver(model.system, dt, kernel_width=model.kernel_width, sensor_precision=model.sensor_precision,
-                           process_precision=model.process_precision, input_prior_precision=prior,
+        return DEMObserver(model.system, dt, noise=model.noise, input_prior_precision=prior,
                            embedding_order=model.embedding_order, input_order=model.input_order,
                            known_inputs=all_known, precision_convention=model.precision_convention,
-                           process_kernel_width=model.process_kernel_width,
-                           sensor_kernel_width=model.sensor_kernel_width, input_kernel_width=model.input_kernel_width,
+                           input_kernel_width=model.input_kernel_width,
                            initial_state=None if model.initial_state is None else np.array(model.initial_state),
                            integration=model.integration, edges=model.edges)
     except AttendInputError as error:

@@ -84,6 +84,7 @@ class SearchGround:
     _allowed: object = field(init=False, repr=False)
     _nodes: np.ndarray = field(init=False, repr=False)
     _graph: np.ndarray = field(init=False, repr=False)
+    _to_goal: dict = field(init=False, repr=False, default_factory=dict)
 
     def __post_init__(self) -> None:
         free = shapely.difference(self.area_m, self.no_fly_m) if not self.no_fly_m.is_empty else self.area_m
@@ -176,8 +177,42 @@ class SearchGround:
         may lie outside the area (a home): route to its entry point, then straight to it."""
         start, goal = np.asarray(start_xy, float)[:2], np.asarray(goal_xy, float)[:2]
         end = self.entry_point(*goal) if leave_area else goal
-        path = np.vstack([start[None], self.route(start, end), goal[None]])
-        return float(np.sum(np.hypot(*np.diff(path, axis=0).T)))
+        length = float(np.hypot(*(goal - end)))
+        if not self.inside(*start):
+            entry = self.entry_point(*start)
+            length += float(np.hypot(*(entry - start)))
+            start = entry
+        if self.legs_allowed(start[None], end[None])[0]:
+            return length + float(np.hypot(*(end - start)))
+        # the shortest route's first corner: min over the corners seen from start of the leg to it
+        # plus the corner's graph distance to the goal (kept per goal: every call of a plan asks
+        # for the same home)
+        nodes = self._nodes
+        to_goal = self._graph_distances_to(end)
+        if len(nodes):
+            seen = self.legs_allowed(np.broadcast_to(start, nodes.shape), nodes)
+            first = np.where(seen, np.maximum(np.hypot(*(nodes - start).T), 1e-9) + to_goal, np.inf)
+            if np.isfinite(first.min()):
+                return length + float(first.min())
+        raise MissionInputError(f"no route inside the area from ({start[0]:.1f}, {start[1]:.1f}) m to "
+                                f"({end[0]:.1f}, {end[1]:.1f}) m east/north of its centre")
+
+    def _graph_distances_to(self, goal: np.ndarray) -> np.ndarray:
+        """(k,) [m] length of the shortest route from each corner of the graph to ``goal`` (inf:
+        none), kept per goal."""
+        from scipy.sparse.csgraph import csgraph_from_dense, dijkstra
+
+        key = (float(goal[0]), float(goal[1]))
+        if key not in self._to_goal:
+            nodes = self._nodes
+            k = len(nodes)
+            lengths = np.full((k + 1, k + 1), np.inf)
+            lengths[:k, :k] = self._graph
+            if k:
+                ok = self.legs_allowed(np.broadcast_to(goal, nodes.shape), nodes)
+                lengths[k, :k] = lengths[:k, k] = np.where(ok, np.maximum(np.hypot(*(nodes - goal).T), 1e-9), np.inf)
+            self._to_goal[key] = dijkstra(csgraph_from_dense(lengths, null_value=np.inf), indices=k)[:k]
+        return self._to_goal[key]
 
     def _graph_path(self, start: np.ndarray, goal: np.ndarray):
         from scipy.sparse.csgraph import csgraph_from_dense, dijkstra  # only when a leg is not straight

@@ -22,7 +22,7 @@ Beside the planners it prints the share of missions an ideal flight would find e
 images spread evenly over the area at the best altitude of the detector table for the whole
 flight time, with no transit from home, no turns and no way back (``even_coverage_bound``). No
 planner flying from home can expect more. For the time to 90 % it prints each planner's time over
-that of an ideal sweep (``ideal_sweep_t90``: tracks over the whole area at the best altitude and
+that of an ideal sweep (``mission_ideal_sweep_t90``, ``ideal_sweep.py``: tracks over the whole area at the best altitude and
 overlap of each mission in hindsight, no transit or turns): how much faster than the lawnmower a
 planner could be here.
 """
@@ -48,6 +48,9 @@ from attend.action.mission.flight_logs import write_flight_logs
 from attend.action.mission.mission import TARGET_THRESHOLD, at_least
 from attend.action.planners.salience import ASSOCIATION_SIGMAS, confirmation_probability
 from attend.action.mission.simulate import simulate_mission
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from ideal_sweep import ideal_sweep_t90  # noqa: E402
 
 #: The simulator's found checks [s] (``simulate_mission``'s default found_check_s).
 FOUND_CHECK_S = float(inspect.signature(simulate_mission).parameters["found_check_s"].default)
@@ -98,55 +101,26 @@ def even_coverage_bound(mission: Mission, budget_s: float, people: int) -> tuple
     return best
 
 
-def ideal_sweep_t90(mission: Mission, budget_s: float, people: int, rng: np.random.Generator,
-                    draws: int = 4000) -> tuple[float, float, int]:
-    """(t90, h, j): the median time to find ceil(0.9 n) of n people of an ideal sweep at its best
-    altitude h of the detector table and overlap j (1-3), chosen per mission in hindsight: tracks
-    j per footprint width w(h) over the searchable area A, flown by all UAVs at once with no
-    transit, turns or way home, a sweep every T = A j / (n_uav v w) seconds, repeated. A person
-    lies at a uniform place u T along the sweep; the q-th sweep has given them L q looks, L = j
-    l(h) / (v dt) (l the footprint's length, dt the image interval), and confirms them with
-    :func:`confirmation_probability` of those looks (the planner's channel). Found times are
-    rounded up to the simulator's 10 s checks; t90 past the budget counts as twice the budget,
-    as in the closed loop. Median over ``draws`` draws of the places and the confirmations: a
-    reference for how fast a perfect sweep finds people here, not a bound on every planner."""
+def mission_ideal_sweep_t90(mission: Mission, budget_s: float, people: int,
+                            rng: np.random.Generator) -> tuple[float, float, int]:
+    """(t90 [s], h [m], j): :func:`ideal_sweep.ideal_sweep_t90` of the mission: its searchable
+    area, the disc's prior mass, the detector table's altitudes, its UAVs; found times rounded
+    up to the simulator's checks."""
     config = mission.config
     area = float(mission.ground.searchable.sum()) * mission.ground.grid.cell_area_m2
     cell = mission.ground.grid.cell_size_m
     p0 = float(np.mean(1.0 / (1.0 + np.exp(-mission.belief.log_odds[mission.ground.searchable]))))
     k = int(round(mission.belief.default_target_radius_m() / cell))
-    m0 = min(1.0, p0 * (2 * k + 1) ** 2)
-    uav = config.uavs[0]
-    need = max(1, math.ceil(0.9 * people - 1e-9))
-    sweeps = 8
-
-    def confirmed(looks, pd, pf):
-        low = int(np.floor(looks))
-        share = looks - low
-        values = [float(confirmation_probability(m0, pd, pf, n, TARGET_THRESHOLD)) if n > 0 else 0.0
-                  for n in (low, low + 1)]
-        return (1 - share) * values[0] + share * values[1]
-
-    best = (math.inf, float("nan"), 0)
+    channels = []
     for h in config.detector.altitudes_m:
         h = float(h)
-        width, length = mission.cameras[0].footprint_m(h)
-        pd = float(config.detector.detection_probability(h))
+        width, length = (float(v) for v in mission.cameras[0].footprint_m(h))
         association = cell**2 + np.pi * (ASSOCIATION_SIGMAS * float(config.detector.position_error_m(h))) ** 2
         pf = float(config.detector.false_alarm_probability_per_cell(h, mission.cameras[0], association))
-        for j in (1, 2, 3):
-            looks = j * length / (uav.speed_m_s * uav.image_interval_s)
-            period = area * j / (len(config.uavs) * uav.speed_m_s * width)
-            cumulative = np.array([confirmed(looks * q, pd, pf) for q in range(1, sweeps + 1)])
-            place = rng.uniform(size=(draws, people))
-            sweep = np.searchsorted(cumulative, rng.uniform(size=(draws, people)), side="right")
-            found = np.where(sweep < sweeps, (sweep + place) * period, np.inf)
-            found = np.ceil(found / FOUND_CHECK_S) * FOUND_CHECK_S
-            t90 = np.sort(found, axis=1)[:, need - 1]
-            t90 = float(np.median(np.where(t90 <= budget_s, t90, 2 * budget_s)))
-            if t90 < best[0]:
-                best = (t90, h, j)
-    return best
+        channels.append((h, width, length, float(config.detector.detection_probability(h)), pf))
+    uav = config.uavs[0]
+    return ideal_sweep_t90(area, people, min(1.0, p0 * (2 * k + 1) ** 2), channels, len(config.uavs), uav.speed_m_s,
+                           uav.image_interval_s, budget_s, TARGET_THRESHOLD, rng, check_s=FOUND_CHECK_S)
 
 
 def closed_loop(n_missions: int, seed: int, passes: float = 1.5) -> list[dict]:
@@ -163,7 +137,7 @@ def closed_loop(n_missions: int, seed: int, passes: float = 1.5) -> list[dict]:
             path = write_example_mission(Path(folder) / f"m{case}", seed=seed + case, size_m=size, n_uavs=uavs,
                                          people=people, flight_time_s=round(budget, 1))
             bound, bound_altitude = even_coverage_bound(Mission.from_file(path), budget, people)
-            sweep_t90, sweep_altitude, sweep_overlap = ideal_sweep_t90(
+            sweep_t90, sweep_altitude, sweep_overlap = mission_ideal_sweep_t90(
                 Mission.from_file(path), budget, people, np.random.default_rng(seed + case))
             row = {"case": case, "size_m": size, "uavs": uavs, "people": people, "budget_s": budget,
                    "even_coverage_bound": bound, "even_coverage_altitude_m": bound_altitude,

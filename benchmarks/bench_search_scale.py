@@ -21,7 +21,8 @@ Parts:
    comparison on seeds 0+. Median over
    the missions of the time-to-90 % ratio EFE / lawnmower (targets <= 0.8 uniform, <= 0.5
    informative; a planner that never reaches 90 % counts as twice the budget) and P(all found
-   by the end) of both.
+   by the end) of both; with the uniform prior, beside them an ideal sweep's time to 90 %
+   (``world_ideal_sweep_t90``: how fast any sweep could be on these worlds).
 4. Several UAVs (EFE; 400 m x 400 m at 1 m, 10 people, 2 buildings, 600 s): median over missions
    of the time to 90 % with 2 and 4 UAVs relative to 1 (targets <= 0.6, <= 0.35), and the images at
    which two UAVs were closer than the separation (10 m).
@@ -52,6 +53,14 @@ from attend.action.planners.salience import ExpectedFreeEnergySearchPlanner  # n
 from attend.action.search_mission import SearchSettings, fly_search  # noqa: E402
 from attend.experiments.search_scale import TruthOraclePlanner  # noqa: E402
 from attend.action.world import make_world, world_from_field  # noqa: E402
+from attend.action.planners.salience import ASSOCIATION_SIGMAS  # noqa: E402
+from attend.action.probability_map import ProbabilityMap  # noqa: E402
+
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from ideal_sweep import ideal_sweep_t90  # noqa: E402
 
 TUNING_SEED_OFFSET = 1000
 WORKERS = 2
@@ -168,6 +177,31 @@ def comparison_mission(seed: int, prior: str, planner_name: str, altitude_m: flo
     return log.time_to_fraction_s(0.9), len(log.found_times_s) == world.n_people, settings.budget_s, log.false_targets
 
 
+def world_ideal_sweep_t90(seed: int, prior: str) -> float:
+    """:func:`ideal_sweep.ideal_sweep_t90` [s] of a part-3 world: its searchable area and people,
+    the map's disc mass under a uniform prior, the planner's channel at 20-100 m (5 m steps), one
+    UAV; found times exact (the search checks them at every image). Buildings and occlusion are
+    ignored: a reference, not a bound."""
+    world = scenario(seed, prior)
+    settings = SearchSettings(budget_s=scenario_budget_s(world))
+    grid, model, camera = world.grid, settings.model, settings.camera
+    cell = grid.cell_size_m
+    belief = ProbabilityMap.uniform(grid, world.n_people, world.searchable)
+    k = int(round(belief.default_target_radius_m() / cell))
+    p0 = world.n_people / float(world.searchable.sum())
+    channels = []
+    for h in np.arange(20.0, 101.0, 5.0):
+        width, length = (float(v) for v in camera.footprint_m(h))
+        association = cell**2 + np.pi * (ASSOCIATION_SIGMAS * float(model.position_error_m(h))) ** 2
+        channels.append((h, width, length, float(model.detection_probability(h, settings.speed_m_s)),
+                         float(model.false_alarm_probability_per_cell(h, camera, association))))
+    t90, _, _ = ideal_sweep_t90(float(world.searchable.sum()) * cell**2, world.n_people,
+                                min(1.0, p0 * (2 * k + 1) ** 2), channels, 1, settings.speed_m_s,
+                                1.0 / settings.image_rate_hz, settings.budget_s, settings.target_threshold,
+                                np.random.default_rng(seed))
+    return t90
+
+
 def tune_lawnmower(prior: str, seeds, altitudes, factors):
     """(altitude [m], spacing factor) of the lawnmower with the least median time to 90 % over the
     part-3 worlds of ``seeds`` (kept apart from the evaluation seeds), each mission flown under the
@@ -210,6 +244,11 @@ def part3(missions: int, tuning_seeds: int, quick: bool, priors=("uniform", "inf
         line(f"{prior}: median time-to-90% ratio EFE / lawnmower",
              f"{np.median(ratio):.2f} (bootstrap 95 % [{low:.2f}, {high:.2f}])", target)
         line(f"{prior}: EFE faster in", f"{np.mean(ratio < 1) * 100:.0f} % of missions", "-")
+        if prior == "uniform":
+            ideal = np.array([world_ideal_sweep_t90(seed, prior) for seed in range(missions)])
+            line(f"{prior}: median time to 90 %, ideal sweep (no transit, turns or buildings)",
+                 f"{np.median(ideal):.0f} s; ideal / lawnmower {np.median(ideal / t_mow):.2f}, EFE / ideal "
+                 f"{np.median(t_efe / ideal):.2f} (medians over missions)", "-")
         line(f"{prior}: median time to 90 % EFE / lawnmower",
              f"{np.median(t_efe):.0f} s / {np.median(t_mow):.0f} s", "-")
         line(f"{prior}: P(all found by the end) EFE / lawnmower",

@@ -168,6 +168,27 @@ def discrete_transition(J: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarra
     return full[:N, :N], full[:N, N:]
 
 
+def moving_data_transition(J: np.ndarray, K_y: np.ndarray, K_eta: np.ndarray, P: int, m: int, Q: int, r: int,
+                           dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(expm(J dt), int_0^dt expm(J t) dt, Gamma_y, Gamma_eta): the exact step of
+    dZ/dt = J Z + K_y y~(t) + K_eta eta~(t) + c (c held) when the data move with their generalised motion within
+    the sample: y~(t) = expm(D_y t) y~[k], eta~(t) = expm(D_v t) eta~[k], D the shift of P orders of m outputs
+    and of Q orders of r causes (spm_DEM integrates [y~; x~; v~] jointly, with dy~/dt = D y~).
+    Gamma_y = int_0^dt expm(J (dt - t)) K_y expm(D_y t) dt, and so for eta~: the upper blocks of
+    expm([[J, K_y, K_eta, I], [0, D_y, 0, 0], [0, 0, D_v, 0], [0, 0, 0, 0]] dt)."""
+    N, ny, nv = J.shape[0], P * m, Q * r
+    size = 2 * N + ny + nv
+    block = np.zeros((size, size))
+    block[:N, :N] = J
+    block[:N, N: N + ny] = K_y
+    block[:N, N + ny: N + ny + nv] = K_eta
+    block[:N, N + ny + nv:] = np.eye(N)
+    block[N: N + ny, N: N + ny] = np.kron(np.eye(P, k=1), np.eye(m))
+    block[N + ny: N + ny + nv, N + ny: N + ny + nv] = np.kron(np.eye(Q, k=1), np.eye(r))
+    full = expm(block * dt)
+    return full[:N, :N], full[:N, N + ny + nv:], full[:N, N: N + ny], full[:N, N + ny: N + ny + nv]
+
+
 def _diagonal_blocks_view(matrix: np.ndarray, row: int, col: int, count: int, height: int, width: int):
     """The ``count`` blocks (height, width) of ``matrix`` at (row + i height, col + i width), i = 0..count-1, as one
     writable strided view (count, height, width): writing a block there writes kron(eye(count), block) in place.

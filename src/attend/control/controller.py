@@ -45,6 +45,7 @@ from attend.control._core import (
     error_jacobian,
     generalised_errors,
     joint_system,
+    moving_data_transition,
     shift_matrix,
 )
 from attend.control.model import GenerativeModel
@@ -165,7 +166,11 @@ class ActiveInferenceController:
     model is re-linearised every sample) or a relative tolerance >= 0: while dy~/da and Pi_z are unchanged and
     each Jacobian of f and g moved by at most this fraction of its largest entry (max(1, .)) since the last
     linearisation, that linearisation and its transition int_0^dt expm(J s) ds are reused (0: only when the
-    Jacobians are exactly equal, which changes nothing but the speed).
+    Jacobians are exactly equal, which changes nothing but the speed). data_motion: "held" (default: within the
+    sample the agent holds its data y~[k] and prior eta~(t_k), so by the end of the sample a belief that moves with
+    the data lags them by its motion times dt) or "generalised" (the data and the prior move with their own generalised
+    motion within the sample, y~(t) = expm(D t) y~[k], as spm_DEM integrates [y~; x~; v~] jointly; needs the exact
+    linear step, and costs nothing per sample there).
     """
 
     def __init__(self, model: GenerativeModel, dt: float, *, action_gain: float = 1.0, action_jacobian="process",
@@ -173,7 +178,8 @@ class ActiveInferenceController:
                  action_limits=None, initial_action=None, precision_schedule=None,
                  precision_learning: SensorPrecisionLearning | None = None, embedding_window: int | None = None,
                  precision_gradient: bool = True, divergence_limit: float = 1e8,
-                 sensory_orders="relative_degree", jacobian_tolerance: float | None = None):
+                 sensory_orders="relative_degree", jacobian_tolerance: float | None = None,
+                 data_motion: str = "held"):
         if not isinstance(model, GenerativeModel):
             raise AttendInputError(f"model: expected an attend.control.GenerativeModel, got {type(model).__name__}")
         self.model = model
@@ -247,6 +253,9 @@ class ActiveInferenceController:
             jacobian_tolerance = jt
         self.jacobian_tolerance = jacobian_tolerance
         self._general_cache = None
+        if data_motion not in ("held", "generalised"):
+            raise AttendInputError(f"data_motion: expected 'held' or 'generalised', got {data_motion!r}")
+        self.data_motion = data_motion
         S_P = smoothness_precision(P, model.kernel_width)
         S_Q = smoothness_precision(Q, model.kernel_width)
         self._S_P = S_P
@@ -262,6 +271,9 @@ class ActiveInferenceController:
         self._logdet_fixed = (np.linalg.slogdet(self._Pi_x)[1] + (np.linalg.slogdet(self._Pi_v)[1] if r else 0.0))
         self._fast = (model.is_linear and not model.state_dependent_precision
                       and (self._multiplier is None or _is_constant_schedule(precision_schedule)))
+        if data_motion == "generalised" and not self._fast:
+            raise AttendInputError("data_motion: 'generalised' needs the exact linear step (a linear model with "
+                                   "constant or learned precision, no state-dependent precision or rhythm); use 'held'")
         self._fast_cache: dict = {}
         if model.is_linear:
             A, B, C, Dm = model.matrices
@@ -515,11 +527,15 @@ class ActiveInferenceController:
         J, K_y, K_eta, curvature = joint_system(self._D, E_y, E_x, E_v, Pi_y, self._Pi_x, self._Pi_v, G, Pi_a,
                                                 self.action_gain, self.action_prior_precision)
         # the offsets of a linear model vanish: flow(Z) = J Z + K_y (y~ - G a_k) + K_eta eta~
-        transition, integral = discrete_transition(J, self.dt)
+        if self.data_motion == "generalised":  # y~ and eta~ move by D within the sample (spm_DEM's D y)
+            transition, integral, Gamma_y, Gamma_eta = moving_data_transition(J, K_y, K_eta, P, m, Q, r, self.dt)
+        else:
+            transition, integral = discrete_transition(J, self.dt)
+            Gamma_y, Gamma_eta = integral @ K_y, integral @ K_eta
         Phi = transition.copy()
         Phi[:, -self.n_actions:] -= integral @ K_y @ G
         learned = None if learning is None else self._log_precision.copy()
-        return G, Phi, integral @ K_y, integral @ K_eta, learned, precision
+        return G, Phi, Gamma_y, Gamma_eta, learned, precision
 
     def _fast_step(self, G, y_t, eta) -> np.ndarray:
         """Linear model, constant (or learned) precision: Z+ = Phi Z + Gamma_y y~ + Gamma_eta eta~. The matrices are

@@ -314,8 +314,8 @@ def test_rk4_substeps_follow_the_fastest_mode():
         return NonlinearSystem(lambda x, v: A @ x, lambda x, v: x[:1], 2, 0, 1)
 
     points = np.zeros((5, 2))
-    # ceil(dt rho / 0.1): rho = 50 1/s at dt = 0.01 s -> 5; a rotation at 3 rad/s -> 1; clipped to 1..limit
-    assert rk4_substeps(linear(np.diag([-50.0, -1.0])), 0.01, points, np.zeros((5, 0))) == 5
+    # ceil(dt rho / 0.2): rho = 50 1/s at dt = 0.01 s -> 3; a rotation at 3 rad/s -> 1; clipped to 1..limit
+    assert rk4_substeps(linear(np.diag([-50.0, -1.0])), 0.01, points, np.zeros((5, 0))) == 3
     assert rk4_substeps(linear(np.array([[0.0, 3.0], [-3.0, 0.0]])), 0.01, points, np.zeros((5, 0))) == 1
     assert rk4_substeps(linear(np.diag([-1e6, -1.0])), 0.01, points, np.zeros((5, 0)), limit=300) == 300
     nan = NonlinearSystem(lambda x, v: np.sqrt(x - 1.0), lambda x, v: x[:1], 2, 0, 1)
@@ -330,8 +330,48 @@ def test_rk4_substeps_follow_the_fastest_mode():
                                                 r"\(dt rho\(df/dx\) = 50"):
         unscented_kalman(stiff, 0.01, y, **options)  # it returned ~1e29 without an error before
     steps = rk4_substeps(stiff, 0.01, points, np.zeros((30, 0)))
-    assert steps == 500
+    assert steps == 250
     assert np.all(np.isfinite(unscented_kalman(stiff, 0.01, y, substeps=steps, **options).states))
+
+
+def test_the_evidence_floor_stops_only_a_run_that_cannot_reach_it():
+    """Closed form: each sample adds at most -1/2 (log|R| + m log 2 pi) to the unscented filter's
+    log-likelihood (S >= R). A floor the run reaches changes nothing (to the bit); a floor it misses
+    stops the filter at the first sample k where the log-likelihood of samples 0..k-1 (the filter on
+    that prefix) plus N - k times the bound falls below it; a spread with a negative covariance weight
+    ignores the floor (the bound does not hold there)."""
+    from attend.perception.nonlinear_smoothers import EvidenceBelowFloor
+    from attend.perception.nonlinear_smoothers.kalman import evidence_bound_per_sample
+
+    system = NonlinearSystem(lambda x, v: np.array([x[1], -np.sin(x[0]) - 0.2 * x[1]]),
+                             lambda x, v: np.array([np.sin(x[0]), x[1]]), 2, 0, 2)
+    log = simulate_nonlinear(system, 80, 0.1, kernel_width=0.0, process_std=0.05, measurement_std=0.1,
+                             initial_state=[1.0, 0.0], seed=4)
+    options = dict(process_covariance=np.diag([1e-4, 1e-4]), measurement_covariance=np.diag([0.01, 0.02]),
+                   initial_mean=[0.0, 0.0], initial_covariance=np.eye(2), substeps=2)
+    full = unscented_kalman(system, 0.1, log.outputs, **options)
+    bound = evidence_bound_per_sample(options["measurement_covariance"])
+    assert bound == pytest.approx(-0.5 * (np.log(0.01 * 0.02) + 2 * np.log(2 * np.pi)), rel=1e-14)
+    assert full.log_likelihood <= len(log.outputs) * bound
+    reached = unscented_kalman(system, 0.1, log.outputs, evidence_floor=full.log_likelihood - 1e-9, **options)
+    assert reached.log_likelihood == full.log_likelihood
+    np.testing.assert_array_equal(reached.states, full.states)
+    np.testing.assert_array_equal(reached.state_std, full.state_std)
+    floor = full.log_likelihood + 5.0
+    with pytest.raises(EvidenceBelowFloor) as stopped:
+        unscented_kalman(system, 0.1, log.outputs, evidence_floor=floor, **options)
+    k, N = stopped.value.samples, len(log.outputs)
+    assert 1 <= k < N
+
+    def reachable(samples):  # the log-likelihood of the first samples plus the most the others can add
+        prefix = unscented_kalman(system, 0.1, log.outputs[:samples], smooth=False, **options)
+        return prefix.log_likelihood + (N - samples) * bound
+
+    assert reachable(k) < floor
+    assert k == 1 or reachable(k - 1) >= floor
+    negative = unscented_kalman(system, 0.1, log.outputs, alpha=0.5, **options)  # weight on the mean -0.25
+    assert unscented_kalman(system, 0.1, log.outputs, alpha=0.5, evidence_floor=negative.log_likelihood + 5.0,
+                            **options).log_likelihood == negative.log_likelihood
 
 
 def test_particle_smoother_near_exact_posterior_on_a_linear_model():

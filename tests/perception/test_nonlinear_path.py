@@ -242,7 +242,7 @@ def test_the_smoother_start_is_the_unscented_smoother_with_the_documented_settin
     prior = (np.array([0.5, 0.0]), np.array([1 / 0.05**2, 1 / 0.2**2]))
     states, inputs = smoother_start(dem, signals, prior, start=None)
     substeps = smoother_substeps(dem, d_step_basis(dem, signals, None))
-    assert substeps == 2  # dt rho(df/dx) = 0.05 s x sqrt(9.81) rad/s = 0.16: ceil(0.16 / 0.1) RK4 steps
+    assert substeps == 1  # dt rho(df/dx) = 0.05 s x sqrt(9.81) rad/s = 0.16: ceil(0.16 / 0.2) RK4 steps
     direct = unscented_kalman(dem.system, dem.dt, log.outputs, process_covariance=dem.dt**2 * np.linalg.inv(
         dem.process_precision), measurement_covariance=np.linalg.inv(dem.sensor_precision),
         input_variance=np.diag(input_random_walk_variance(np.array([0.135]), kernel_width=0.7,

@@ -188,3 +188,35 @@ def test_each_start_is_smoothed_once(monkeypatch):
                                 prior_dof=np.inf, extra_starts=[([5.0], [1.0])], **_options(unknown=False))
     assert len(starts) == len(set(starts))
     assert found.modes[0].misfit < search.MISFIT_LIMIT
+
+
+def test_a_start_that_cannot_come_near_the_best_stops_early_and_changes_nothing(monkeypatch):
+    """The modes run first; an anchor (here the prior N(0, 1), far from the truth at 5.6) stops as soon
+    as its score cannot come within AMBIGUITY_NATS + FLOOR_MARGIN_NATS of the best mode's. The result
+    equals the search without floors (every run to the end): the same modes, scores and estimates."""
+    from attend.perception.nonlinear_smoothers import EvidenceBelowFloor
+
+    system, log = _double_well(5.6, 4.0, samples=96)
+    stopped = []
+    smoothed = search._smoothed
+
+    def recorded(system, dt, outputs, inputs, options, mean, std):
+        try:
+            return smoothed(system, dt, outputs, inputs, options, mean, std)
+        except EvidenceBelowFloor as stop:
+            stopped.append(stop.samples)
+            raise
+
+    monkeypatch.setattr(search, "_smoothed", recorded)
+    found = search.search_start(system, DT, log.outputs, log.inputs, substeps=8, prior_mean=[0.0], prior_scale=[1.0],
+                                **_options(unknown=False))
+    assert len(stopped) == 1 and stopped[0] < len(log.outputs)
+    monkeypatch.setattr(search, "_floor", lambda *unused: None)
+    every = search.search_start(system, DT, log.outputs, log.inputs, substeps=8, prior_mean=[0.0], prior_scale=[1.0],
+                                **_options(unknown=False))
+    assert len(stopped) == 1  # none without floors
+    assert found.ambiguous == every.ambiguous and len(found.modes) == len(every.modes)
+    for mode, reference in zip(found.modes, every.modes):
+        assert mode.score == reference.score
+        np.testing.assert_array_equal(mode.mean, reference.mean)
+        np.testing.assert_array_equal(mode.states, reference.states)

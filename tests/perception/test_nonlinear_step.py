@@ -104,3 +104,33 @@ def test_expm_last_column_checks_its_route_once_and_falls_back(monkeypatch):
     np.testing.assert_array_equal(expm_last_column(block), reference * (1 + 1e-12))
     assert _linalg._fast_path["usable"] is False
     np.testing.assert_array_equal(expm_last_column(block), reference * (1 + 1e-12))
+
+
+def test_the_start_of_the_flow_is_searched_once_per_first_sample(monkeypatch):
+    """NonlinearDEM.initial_state keeps what Gauss-Newton found for a first sample: the D-step on the
+    whole log and on its first samples (as attend estimate runs them) search once, and give the
+    estimates of a fresh estimator to the bit."""
+    import attend.perception.nonlinear.dem as dem_module
+    from attend.models import simulate_nonlinear
+
+    dem = CASES["lorenz"]()
+    log = simulate_nonlinear(dem.system, 60, dem.dt, kernel_width=0.02, process_std=20.0, measurement_std=1.0,
+                             initial_state=[1.0, 1.0, 20.0], seed=2)
+    searches = []
+    search = dem_module.gauss_newton_start
+
+    def counted(*args, **kwargs):
+        searches.append(1)
+        return search(*args, **kwargs)
+
+    monkeypatch.setattr(dem_module, "gauss_newton_start", counted)
+    whole = dem.estimate(log.outputs)
+    first = dem.estimate(log.outputs[:20])
+    again = dem.estimate(log.outputs)
+    assert len(searches) == 1
+    np.testing.assert_array_equal(again.states, whole.states)
+    for outputs, estimate in ((log.outputs, whole), (log.outputs[:20], first)):
+        np.testing.assert_array_equal(CASES["lorenz"]().estimate(outputs).states, estimate.states)
+    assert len(searches) == 3
+    dem.estimate(log.outputs, initial_state=[1.0, 1.0, 20.0])  # another guess: another search
+    assert len(searches) == 4

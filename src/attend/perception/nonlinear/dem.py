@@ -116,6 +116,8 @@ class NonlinearDEM:
     path_starts: str = "both"
     noise: InitVar[NoiseModel | None] = None
     _matrices: dict = field(default_factory=dict, repr=False)
+    #: the starts :meth:`initial_state` found, by their data, guess and iterations (each found once)
+    _starts: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self, noise):
         system = self.system
@@ -484,10 +486,17 @@ class NonlinearDEM:
         with step halving so F never decreases. For a linear model one step reaches
         inv(Pi_X) B_obs Y[0], the linear observer's start. y_tilde, u_tilde: the first sample's
         embedded outputs and inputs (see :meth:`errors`); iterations: the most Gauss-Newton steps."""
-        evaluate = self._gradient_curvature
-        if self.motion == "linearized" and self.integration == "attend":  # the same, with fewer calls
-            evaluate = StepWorkspace(self).gradient_curvature
-        return gauss_newton_start(lambda X: evaluate(X, y_tilde, u_tilde), self.generalized_guess(guess), iterations)
+        guess = self.generalized_guess(guess)
+        # the same first sample is often started twice (attend estimate runs the D-step on the whole log
+        # and on its first samples): the search is deterministic, so its result is kept
+        key = (np.asarray(y_tilde, dtype=float).tobytes(), np.asarray(u_tilde, dtype=float).tobytes(), guess.tobytes(),
+               int(iterations))
+        if key not in self._starts:
+            evaluate = self._gradient_curvature
+            if self.motion == "linearized" and self.integration == "attend":  # the same, with fewer calls
+                evaluate = StepWorkspace(self).gradient_curvature
+            self._starts[key] = gauss_newton_start(lambda X: evaluate(X, y_tilde, u_tilde), guess, iterations)
+        return self._starts[key].copy()
 
     # data --------------------------------------------------------------------------------------
 

@@ -30,12 +30,17 @@ filters (a Gaussian sum) over a broad prior on x[0] along the log and keeps what
    after the first max(20, N / 10)) makes the start ambiguous (:attr:`StartSearch.ambiguous`);
    modes that differ only during the start-up are the same estimate (the data resolved them).
 
-Cost, with the smoother's RK4 sub-steps divided by SEARCH_SUBSTEP_FRACTION: the bank moves (2d + 1)
-sigma points of up to 141 components (n = 3) over its first samples, then a few; then two smoother
-runs per mode and one per anchor (no error spread; each start is smoothed once, so a mode whose first
-run starts where an anchor does reuses that run). On the 128-sample logs of
-``benchmarks/bench_nonlinear_start.py`` the search takes ~0.05-0.6 s (Lorenz 0.3-0.6 s: f is called
-~100 000 times).
+Cost: the bank moves (2d + 1) sigma points of up to 141 components (n = 3) over its first samples,
+then a few, with the smoother's RK4 sub-steps divided by BANK_SUBSTEP_FRACTION; then two smoother runs
+per mode and one per anchor, with the sub-steps divided by SEARCH_SUBSTEP_FRACTION (no error spread;
+each start is smoothed once, so a mode whose first run starts where an anchor does reuses that run).
+The modes run first; a mode's second run and an anchor then stop as soon as their score can no longer
+come within AMBIGUITY_NATS + FLOOR_MARGIN_NATS of the best so far (the filter's evidence_floor: each
+later sample adds at most -1/2 log|2 pi R| to the log-likelihood), so a hopeless start (on Lorenz, the
+prior N(0, I) itself, ~3000 nats below) costs a few samples, not a whole run; the starts that finish,
+and so the choice and the ambiguity, are the same. On the first three Lorenz logs of
+``benchmarks/bench_nonlinear_start.py`` (128 samples) the search calls f 35 000-72 000 times (51 000-
+113 000 before issue 29's bank sub-steps and floors).
 """
 
 from __future__ import annotations
@@ -62,8 +67,14 @@ MAX_MODES = 4
 AMBIGUITY_NATS = 3.0
 #: the std of x0_hat is widened by this before the mode's second run (it has seen the data once)
 START_STD_INFLATION = 2.0
-#: the search integrates with this fraction of the smoother's RK4 sub-steps (rounded up)
-SEARCH_SUBSTEP_FRACTION = 4
+#: the search's smoother runs integrate with this fraction of the smoother's RK4 sub-steps (rounded up):
+#: h rho <= 0.4 where the smoother's follow rk4_substeps (h rho <= 0.2)
+SEARCH_SUBSTEP_FRACTION = 2
+#: the bank integrates with this fraction of the smoother's RK4 sub-steps (rounded up): h rho <= 0.8
+BANK_SUBSTEP_FRACTION = 4
+#: a mode's second run or an anchor stops once its score can no longer come within AMBIGUITY_NATS plus
+#: this margin of the best score so far (then it can be neither the best nor a rival of the best)
+FLOOR_MARGIN_NATS = 1.0
 #: a best start whose estimate leaves the outputs this many sensor noise variances from the log
 #: (mean r' inv(R) r / m; about 1 or less where the estimate follows the log) did not find the log
 MISFIT_LIMIT = 4.0
@@ -215,18 +226,31 @@ def search_start(system, dt: float, outputs, inputs=None, *, process_covariance,
         if np.all(np.isfinite(mean)) and np.all(np.isfinite(std)) and np.all(std > 0):
             centres, stds = np.vstack([centres, mean]), np.vstack([stds, std])
             extra.append(len(centres) - 1)
-    # the search only ranks starts: RK4 at a quarter of the smoother's sub-steps (h rho <= 0.4 where the
-    # smoother's follow rk4_substeps, local error ~ 0.4^5 / 120 ~ 1e-4) is accurate enough for that
+    # the search only ranks starts: RK4 at half the smoother's sub-steps (h rho <= 0.4 where the smoother's
+    # follow rk4_substeps, local error ~ 0.4^5 / 120 ~ 1e-4) is accurate enough for that
     options = dict(process_covariance=process_covariance, measurement_covariance=measurement_covariance,
                    input_variance=input_variance, input_mean=input_mean, known_inputs=known_inputs,
                    substeps=max(1, int(np.ceil(substeps / SEARCH_SUBSTEP_FRACTION))))
-    survivors, searched = _Bank(system, dt, outputs, inputs, options, centres, stds, prior).run()
+    # the bank only prunes (by PRUNE_NATS, generously) and ranks: at h rho <= 0.8 the estimates are those
+    # of a bank at the smoother runs' 0.4 to the bit on the 22 logs of benchmarks/bench_nonlinear_start.py
+    bank_options = dict(options, substeps=max(1, int(np.ceil(substeps / BANK_SUBSTEP_FRACTION))))
+    try:
+        bank = _Bank(system, dt, outputs, inputs, bank_options, centres, stds, prior)
+    except AttendInputError:  # e.g. too few sub-steps for RK4 to be stable at x = 0: the runs' sub-steps
+        bank = _Bank(system, dt, outputs, inputs, options, centres, stds, prior)
+    survivors, searched = bank.run()
     starts = [(centre, scale)] + [(centres[k], stds[k]) for k in extra
                                   if not (np.allclose(centres[k], centre) and np.allclose(stds[k], scale))]
     runs: dict = {}  # a mode's first run is often an anchor's (DEM's start survives the bank): run it once
-    anchors = [_anchor(system, dt, outputs, inputs, options, mean, std, prior, runs) for mean, std in starts]
-    modes = [_mode(system, dt, outputs, inputs, options, centres[k], stds[k], prior, runs)
-             for k in survivors[:MAX_MODES]]
+    # modes first, then anchors; each run after the first score stops where it can no longer come near
+    # the best score so far (_floor): the modes and anchors that finish are the same
+    best, modes, anchors = -np.inf, [], []
+    for k in survivors[:MAX_MODES]:
+        modes.append(_mode(system, dt, outputs, inputs, options, centres[k], stds[k], prior, runs, best))
+        best = max([best] + [mode.score for mode in modes[-1:] if mode is not None])
+    for mean, std in starts:
+        anchors.append(_anchor(system, dt, outputs, inputs, options, mean, std, prior, runs, best))
+        best = max([best] + [anchor.score for anchor in anchors[-1:] if anchor is not None])
     basins = _basins([mode for mode in modes + anchors if mode is not None])
     if not basins:
         raise AttendInputError("initial_state: the search found no start from which the unscented smoother "
@@ -255,13 +279,21 @@ def _differ(a: StartMode, b: StartMode) -> bool:
     return bool(np.mean(apart) > 0.01)
 
 
-def _smoother(system, dt, outputs, inputs, options, mean, std, runs: dict | None = None):
-    """The unscented RTS smoother from N(mean, diag(std^2)) (no error spread), or None where it fails;
-    runs: the runs so far of this search by their start (each start is smoothed once), or None."""
+def _smoother(system, dt, outputs, inputs, options, mean, std, runs: dict | None = None, floor: float | None = None):
+    """The unscented RTS smoother from N(mean, diag(std^2)) (no error spread), or None where it fails
+    or its log-likelihood falls below ``floor`` [nats] (None: no floor; the filter then stops early,
+    :class:`~attend.perception.nonlinear_smoothers.EvidenceBelowFloor`); runs: the runs so far of this
+    search by their start (each start is smoothed once; a run stopped at its floor is not kept), or None."""
     key = None if runs is None else (np.asarray(mean, dtype=float).tobytes(), np.asarray(std, dtype=float).tobytes())
     if key is not None and key in runs:
         return runs[key]
-    run = _smoothed(system, dt, outputs, inputs, options, mean, std)
+    from attend.perception.nonlinear_smoothers import EvidenceBelowFloor
+
+    try:
+        run = _smoothed(system, dt, outputs, inputs, options if floor is None else dict(options, evidence_floor=floor),
+                        mean, std)
+    except EvidenceBelowFloor:
+        return None
     if key is not None:
         runs[key] = run
     return run
@@ -281,18 +313,36 @@ def _smoothed(system, dt, outputs, inputs, options, mean, std):
     return run if finite and np.isfinite(run.log_likelihood) else None
 
 
+def _prior_mass(mean, std, prior: StartPrior) -> float:
+    """log p(mean) + 1/2 log|2 pi diag(std^2)|: what a start N(mean, diag(std^2)) adds to its run's
+    log-likelihood in its score (:class:`StartMode`)."""
+    return float(prior.log_density(mean)) + 0.5 * float(np.sum(np.log(2 * np.pi * std**2)))
+
+
+def _floor(best: float, mean, std, prior: StartPrior) -> float | None:
+    """The log-likelihood below which a run from N(mean, diag(std^2)) scores less than ``best`` (the
+    best score so far) - AMBIGUITY_NATS - FLOOR_MARGIN_NATS: it could be neither the best start nor
+    one within AMBIGUITY_NATS of it, so it changes neither the choice nor the ambiguity. None
+    while there is no best yet."""
+    if not np.isfinite(best):
+        return None
+    return best - AMBIGUITY_NATS - FLOOR_MARGIN_NATS - _prior_mass(mean, std, prior)
+
+
 def _scored(system, outputs, options, run, mean, std, prior: StartPrior) -> StartMode:
     """The :class:`StartMode` of a smoother run from N(mean, diag(std^2))."""
-    score = run.log_likelihood + float(prior.log_density(mean)) + 0.5 * float(np.sum(np.log(2 * np.pi * std**2)))
+    score = run.log_likelihood + _prior_mass(mean, std, prior)
     return StartMode(np.asarray(mean, dtype=float), std, float(score), run.states, run.state_std,
                      _misfit(system, outputs, run, options["measurement_covariance"]))
 
 
-def _mode(system, dt, outputs, inputs, options, mean, std, prior: StartPrior, runs: dict | None = None
-          ) -> StartMode | None:
+def _mode(system, dt, outputs, inputs, options, mean, std, prior: StartPrior, runs: dict | None = None,
+          best: float = -np.inf) -> StartMode | None:
     """Smooth from the component's N(mean, diag(std^2)); combine what the log says of x[0]
     (:func:`data_information`) with the prior (:func:`prior_map`); smooth again from there with
-    the std widened by START_STD_INFLATION. None where a run fails. runs: as :func:`_smoother`."""
+    the std widened by START_STD_INFLATION. None where a run fails, or where the second run cannot
+    score within AMBIGUITY_NATS of ``best``, the best score so far (:func:`_floor`). runs: as
+    :func:`_smoother`."""
     first = _smoother(system, dt, outputs, inputs, options, mean, std, runs)
     if first is None:
         return None
@@ -304,16 +354,17 @@ def _mode(system, dt, outputs, inputs, options, mean, std, prior: StartPrior, ru
     except np.linalg.LinAlgError:
         return None
     start_std = np.maximum(np.sqrt(np.clip(np.diag(covariance), 0, None)), 1e-9 * (1.0 + np.abs(start)))
-    second = _smoother(system, dt, outputs, inputs, options, start, start_std, runs)
+    second = _smoother(system, dt, outputs, inputs, options, start, start_std, runs,
+                       _floor(best, start, start_std, prior))
     return None if second is None else _scored(system, outputs, options, second, start, start_std, prior)
 
 
-def _anchor(system, dt, outputs, inputs, options, mean, std, prior: StartPrior, runs: dict | None = None
-            ) -> StartMode | None:
-    """The smoother from N(mean, diag(std^2)) as it is, scored like a mode; None where it fails.
-    runs: as :func:`_smoother`."""
+def _anchor(system, dt, outputs, inputs, options, mean, std, prior: StartPrior, runs: dict | None = None,
+            best: float = -np.inf) -> StartMode | None:
+    """The smoother from N(mean, diag(std^2)) as it is, scored like a mode; None where it fails or
+    cannot score within AMBIGUITY_NATS of ``best`` (:func:`_floor`). runs: as :func:`_smoother`."""
     std = np.maximum(np.asarray(std, dtype=float), 1e-9 * (1.0 + np.abs(mean)))
-    run = _smoother(system, dt, outputs, inputs, options, mean, std, runs)
+    run = _smoother(system, dt, outputs, inputs, options, mean, std, runs, _floor(best, mean, std, prior))
     return None if run is None else _scored(system, outputs, options, run, mean, std, prior)
 
 

@@ -47,6 +47,7 @@ from attend._lazy import lazy_exports
 _EXPORTS = {
     "coloured_unscented_smoother": "attend.perception.nonlinear_smoothers.coloured",
     "extended_kalman": "attend.perception.nonlinear_smoothers.kalman",
+    "EvidenceBelowFloor": "attend.perception.nonlinear_smoothers.kalman",
     "input_random_walk_variance": "attend.perception.nonlinear_smoothers.kalman",
     "unscented_kalman": "attend.perception.nonlinear_smoothers.kalman",
     "white_noise_covariances": "attend.perception.nonlinear_smoothers.kalman",
@@ -63,6 +64,7 @@ __all__ = [
     "input_random_walk_variance",
     "extended_kalman",
     "unscented_kalman",
+    "EvidenceBelowFloor",
     "particle_smoother",
     "coloured_unscented_smoother",
     "ParticleEstimate",

@@ -84,8 +84,11 @@ def white_noise_options(dt: float, *, process_precision, sensor_precision, input
     return options
 
 
-#: RK4 sub-steps are chosen so that h rho(df/dx) <= RK4_STEP_RATE (local error ~ (h rho)^5 / 120 ~ 1e-7)
-RK4_STEP_RATE = 0.1
+#: RK4 sub-steps are chosen so that h rho(df/dx) <= RK4_STEP_RATE (local error ~ (h rho)^5 / 120 ~ 3e-6 of
+#: the state per sub-step). 0.1 until issue 29 (~1e-7, twice the sub-steps): on the 22 logs of
+#: benchmarks/bench_nonlinear_start.py through `attend estimate` the estimates moved by at most 0.05 of
+#: their std with x[0] known (median 0.003) and 0.006 with x[0] searched, their std by at most 0.3 %
+RK4_STEP_RATE = 0.2
 
 
 def rk4_substeps(system: NonlinearSystem, dt: float, states, inputs, limit: int = 1000) -> int:
@@ -93,7 +96,7 @@ def rk4_substeps(system: NonlinearSystem, dt: float, states, inputs, limit: int 
     with rho the largest spectral radius of df/dx over up to 50 of the given points (rows of
     states (N, n), inputs (N, r), e.g. a D-step estimate of the log), between 1 and ``limit``; 10
     (the baselines' default) where a Jacobian is not finite. Fast enough for slow systems (Lorenz
-    at dt = 0.01 s: 2 instead of 10) and stable for stiff ones (10 fixed sub-steps diverge once
+    at dt = 0.01 s: 1-2 instead of 10) and stable for stiff ones (10 fixed sub-steps diverge once
     dt rho > 28). system: the NonlinearSystem; dt: sample time [s]."""
     states, inputs = np.asarray(states, dtype=float), np.asarray(inputs, dtype=float)
     rows = np.unique(np.linspace(0, len(states) - 1, min(50, len(states))).astype(int))
@@ -465,7 +468,7 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
                      initial_covariance=None, smooth: bool | int = True, substeps: int = 10, alpha: float = 1.0,
                      beta: float = 2.0, kappa: float = 0.0, known_inputs=None, noise_kernel_width: float | None = None,
                      input_prior=None, spread_draws: int | None = 200, seed: int = 0,
-                     noise: NoiseModel | None = None) -> KalmanEstimate:
+                     noise: NoiseModel | None = None, evidence_floor: float | None = None) -> KalmanEstimate:
     """Unscented Kalman filter (``smooth=False``), filter + unscented RTS smoother (``True``,
     Sarkka 2008) or fixed-lag smoother (``smooth=L`` samples).
 
@@ -486,6 +489,12 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
     width s_v [s]) of the prior their truth is drawn from there. None (default): the white-noise
     model's own covariance. noise: an :class:`attend.models.NoiseModel` instead of
     process_covariance and measurement_covariance (as :func:`extended_kalman`).
+    evidence_floor: a log-likelihood [nats] below which the caller has no use for the run (comparing
+    starts or models by their evidence): the filter stops with :class:`EvidenceBelowFloor` as soon as
+    its log-likelihood so far plus the most the remaining samples can add
+    (:func:`evidence_bound_per_sample`) is below it. None (default): never; also ignored for a spread
+    (alpha, beta, kappa) with a negative covariance weight, and on logs with missing outputs (NaN),
+    where the bound does not hold.
     """
     process_covariance, measurement_covariance = covariances_from_noise(
         system, dt, noise, process_covariance, measurement_covariance, "unscented_kalman")
@@ -494,7 +503,7 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
     spread = _spread_settings(model, smooth, noise_kernel_width, input_prior, spread_draws)
     record = {}
     means, covs, ll = _unscented(model.transition_points, model.observation_points, model.y, model.m0, model.P0, model.Qz,
-                                 model.R, smooth, (alpha, beta, kappa), "unscented_kalman", record)
+                                 model.R, smooth, (alpha, beta, kappa), "unscented_kalman", record, evidence_floor)
     return model.result(means, _error_spread(model, smooth, spread, record, spread_draws, seed, covs), ll)
 
 
@@ -559,14 +568,46 @@ def _unscented_update(observation, mean, cov, R, spread, y, k):
     return mean, cov, step_ll, gain, Cy, points_cov
 
 
-def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, record=None):
+class EvidenceBelowFloor(Exception):
+    """The unscented filter stopped early: its log-likelihood can no longer reach the evidence_floor
+    it was given (:func:`unscented_kalman`). samples: how many samples it had filtered."""
+
+    def __init__(self, samples: int):
+        super().__init__(f"the log-likelihood fell below the evidence floor after {samples} samples")
+        self.samples = samples
+
+
+def evidence_bound_per_sample(measurement_covariance) -> float:
+    """The most one sample can add to an unscented filter's log-likelihood with sensor noise
+    covariance R (m, m) [nats]: -1/2 (log|R| + m log 2 pi). Each sample adds
+    -1/2 (e' inv(S) e + log|S| + m log 2 pi) with S = sum_i w_i (Y_i - y)(Y_i - y)' + R >= R when
+    the covariance weights w_i are >= 0 (the default spread: 2 on the mean, 1 / 2d on the others),
+    so log|S| >= log|R| and e' inv(S) e >= 0."""
+    R = np.atleast_2d(np.asarray(measurement_covariance, dtype=float))
+    return float(-0.5 * (np.linalg.slogdet(R)[1] + R.shape[0] * np.log(2 * np.pi)))
+
+
+def _nonnegative_weights(spread, d: int) -> bool:
+    """Whether the sigma points of (alpha, beta, kappa) in d dimensions have covariance weights >= 0."""
+    alpha, beta, kappa = spread
+    lam = alpha**2 * (d + kappa) - d
+    return d + lam > 0 and lam / (d + lam) + 1 - alpha**2 + beta >= 0
+
+
+def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, record=None, floor=None):
     """Unscented filter (+ RTS smoother) for z[k] = transition(z[k-1], k) + q, y[k] = observation(z[k], k) + r;
     transition and observation take the sigma points as rows (P, d) and return rows. record: a
     dict that receives the filter's statistical linearisation (:mod:`.error_spread`): the
     covariances Pf, Pp, cross (k -> k + 1), the output cross covariances Cy = Cov(z_k, y_k), the
     gains K, the RTS gains (None for the filter), and the covariances the sigma points of the
-    transition (Pf_points, samples 0..N-2) and of the observation (Pp_points) stand for."""
+    transition (Pf_points, samples 0..N-2) and of the observation (Pp_points) stand for. floor: the
+    evidence_floor of :func:`unscented_kalman` (EvidenceBelowFloor), or None."""
     N, d = y.shape[0], m0.shape[0]
+    # the bound holds for samples with every output; a sample with missing outputs adds the terms of
+    # fewer channels, which can exceed it: no floor on logs with gaps
+    complete = not np.isnan(y).any()
+    bound = None if floor is None or not complete or not _nonnegative_weights(spread, d) \
+        else evidence_bound_per_sample(R)
     mf, Pf = np.empty((N, d)), np.empty((N, d, d))
     mp, Pp = np.empty((N, d)), np.empty((N, d, d))
     cross = np.empty((max(N - 1, 0), d, d))
@@ -582,6 +623,8 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, 
         mean, cov, step_ll, K[k], Cy[k], Pp_points[k] = _unscented_update(observation, mean, cov, R, spread, y[k], k)
         ll += step_ll
         mf[k], Pf[k] = mean, cov
+        if bound is not None and ll + (N - 1 - k) * bound < floor:  # False for NaN: _check reports it
+            raise EvidenceBelowFloor(k + 1)
     _check(mf, name)
     gains = smoother_gains(Pp, cross) if smooth is True else None
     if record is not None:

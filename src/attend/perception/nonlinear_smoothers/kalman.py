@@ -493,8 +493,8 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
     starts or models by their evidence): the filter stops with :class:`EvidenceBelowFloor` as soon as
     its log-likelihood so far plus the most the remaining samples can add
     (:func:`evidence_bound_per_sample`) is below it. None (default): never; also ignored for a spread
-    (alpha, beta, kappa) with a negative covariance weight, and on logs with missing outputs (NaN),
-    where the bound does not hold.
+    (alpha, beta, kappa) with a negative covariance weight, where the bound does not hold (the
+    outputs are complete: the filter refuses NaN).
     """
     process_covariance, measurement_covariance = covariances_from_noise(
         system, dt, noise, process_covariance, measurement_covariance, "unscented_kalman")
@@ -603,11 +603,7 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, 
     transition (Pf_points, samples 0..N-2) and of the observation (Pp_points) stand for. floor: the
     evidence_floor of :func:`unscented_kalman` (EvidenceBelowFloor), or None."""
     N, d = y.shape[0], m0.shape[0]
-    # the bound holds for samples with every output; a sample with missing outputs adds the terms of
-    # fewer channels, which can exceed it: no floor on logs with gaps
-    complete = not np.isnan(y).any()
-    bound = None if floor is None or not complete or not _nonnegative_weights(spread, d) \
-        else evidence_bound_per_sample(R)
+    bound = None if floor is None or not _nonnegative_weights(spread, d) else evidence_bound_per_sample(R)
     mf, Pf = np.empty((N, d)), np.empty((N, d, d))
     mp, Pp = np.empty((N, d)), np.empty((N, d, d))
     cross = np.empty((max(N - 1, 0), d, d))

@@ -5,12 +5,15 @@ expected number of people against time."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from attend.action.search_mission import SearchLog
-from attend.action.world import SearchWorld
 from attend.plotting import figure
+
+if TYPE_CHECKING:  # only named in annotations: attend plan's map.png needs block_max alone
+    from attend.action.search_mission import SearchLog
+    from attend.action.world import SearchWorld
 
 #: Largest map side [cells] drawn as it is; larger maps are shown by block maxima.
 DRAWN_CELLS = 800

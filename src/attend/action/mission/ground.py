@@ -200,40 +200,35 @@ class SearchGround:
     def _graph_distances_to(self, goal: np.ndarray) -> np.ndarray:
         """(k,) [m] length of the shortest route from each corner of the graph to ``goal`` (inf:
         none), kept per goal."""
-        from scipy.sparse.csgraph import csgraph_from_dense, dijkstra
-
         key = (float(goal[0]), float(goal[1]))
         if key not in self._to_goal:
-            nodes = self._nodes
-            k = len(nodes)
-            lengths = np.full((k + 1, k + 1), np.inf)
-            lengths[:k, :k] = self._graph
-            if k:
-                ok = self.legs_allowed(np.broadcast_to(goal, nodes.shape), nodes)
-                lengths[k, :k] = lengths[:k, k] = np.where(ok, np.maximum(np.hypot(*(nodes - goal).T), 1e-9), np.inf)
-            self._to_goal[key] = dijkstra(csgraph_from_dense(lengths, null_value=np.inf), indices=k)[:k]
+            lengths = self._graph_with((goal,))
+            self._to_goal[key] = shortest_routes(lengths, len(self._nodes))[0][: len(self._nodes)]
         return self._to_goal[key]
 
-    def _graph_path(self, start: np.ndarray, goal: np.ndarray):
-        from scipy.sparse.csgraph import csgraph_from_dense, dijkstra  # only when a leg is not straight
-
+    def _graph_with(self, points) -> np.ndarray:
+        """The corners' visibility graph (k + j, k + j) [m] with ``points`` (j of (x, y)) appended:
+        leg lengths (at least 1e-9 m) where the straight leg lies in F', inf where it does not."""
         nodes = self._nodes
         k = len(nodes)
+        lengths = np.full((k + len(points), k + len(points)), np.inf)
+        lengths[:k, :k] = self._graph
+        if k:
+            for index, point in enumerate(points, start=k):
+                ok = self.legs_allowed(np.broadcast_to(point, nodes.shape), nodes)
+                lengths[index, :k] = lengths[:k, index] = np.where(
+                    ok, np.maximum(np.hypot(*(nodes - point).T), 1e-9), np.inf)
+        return lengths
+
+    def _graph_path(self, start: np.ndarray, goal: np.ndarray):
+        k = len(self._nodes)
         if k == 0:
             return None
-        lengths = np.full((k + 2, k + 2), np.inf)
-        lengths[:k, :k] = self._graph
-        for index, point in ((k, start), (k + 1, goal)):
-            ok = self.legs_allowed(np.broadcast_to(point, nodes.shape), nodes)
-            d = np.hypot(*(nodes - point).T)
-            lengths[index, :k] = np.where(ok, np.maximum(d, 1e-9), np.inf)
-            lengths[:k, index] = lengths[index, :k]
-        distance, previous = dijkstra(csgraph_from_dense(lengths, null_value=np.inf), indices=k,
-                                      return_predecessors=True)
+        distance, previous = shortest_routes(self._graph_with((start, goal)), k)
         if not np.isfinite(distance[k + 1]):
             return None
         path, node = [], k + 1
-        all_nodes = np.vstack([nodes, start[None], goal[None]])
+        all_nodes = np.vstack([self._nodes, start[None], goal[None]])
         while node != k:
             path.append(all_nodes[node])
             node = previous[node]
@@ -249,6 +244,30 @@ class SearchGround:
         d = np.maximum(np.hypot(*(nodes[j] - nodes[i]).T), 1e-9)
         lengths[i[ok], j[ok]] = lengths[j[ok], i[ok]] = d[ok]
         return lengths
+
+
+def shortest_routes(lengths: np.ndarray, source: int) -> tuple[np.ndarray, np.ndarray]:
+    """Dijkstra's shortest routes on a dense graph: (distance (k,) [m] from ``source`` to each
+    node, inf when unreachable; previous (k,) the node before each on its route, -1 for the source
+    and unreachable nodes). lengths: (k, k) edge lengths >= 0, inf where there is no edge. O(k^2),
+    written here because the graphs are small (a polygon's corners) and importing
+    scipy.sparse.csgraph costs a third of a second of each ``attend plan`` call."""
+    k = len(lengths)
+    distance = np.full(k, np.inf)
+    distance[source] = 0.0
+    previous = np.full(k, -1, dtype=np.intp)
+    done = np.zeros(k, dtype=bool)
+    for _ in range(k):
+        open_distance = np.where(done, np.inf, distance)
+        node = int(np.argmin(open_distance))
+        if not np.isfinite(open_distance[node]):
+            break
+        done[node] = True
+        through = distance[node] + lengths[node]
+        better = ~done & (through < distance)
+        distance[better] = through[better]
+        previous[better] = node
+    return distance, previous
 
 
 def ring_vertices(geometry) -> np.ndarray:

@@ -3,7 +3,7 @@
     python benchmarks/bench_control.py                  # all three plants: tune on 5 seeds, 150 runs, evaluate 20 seeds
     python benchmarks/bench_control.py --plant both     # the mass-spring-damper and the roll axis
     python benchmarks/bench_control.py --plant roll     # the quadrotor roll axis only (408 s on 2 shared cores)
-    python benchmarks/bench_control.py --plant arm      # the two-link arm only (1091 s on 2 shared cores)
+    python benchmarks/bench_control.py --plant arm      # the two-link arm only (892 s on 2 shared cores)
     python benchmarks/bench_control.py --quick          # 3 tuning seeds, 50 runs, 8 evaluation seeds
     python benchmarks/bench_control.py --plots DIR      # where the arm's response plots go (default results/control)
 
@@ -57,7 +57,7 @@ plant (mean over evaluation seeds); ITAE under +-30 % error in each plant parame
 gain b) as a ratio to the nominal ITAE; step and tracking while sensor 2 degrades (noise x10 from the
 middle of the run): active inference with online sensory-precision learning (relative and absolute
 level) vs fixed precision, paired over seeds (mean difference, 95 % t-interval);
-the controller's step time for a 4-state model (target <= 100 us).
+the controller's step time for a 4-state model and for the arm's agent (arm_step_time) (target <= 100 us).
 """
 
 from __future__ import annotations
@@ -525,10 +525,12 @@ def arm_reference(task, cfg):
         target = np.asarray(cfg["target"], dtype=float)
         return (lambda t: target), (lambda t: (target, np.zeros(2), np.zeros(2)))
     centre, amp, rate = (np.asarray(cfg[k], dtype=float) for k in ("track_centre", "track_amplitude", "track_rate"))
+    speed, curvature = amp * rate, -amp * rate**2
 
     def trajectory(t):
-        return (centre + amp * np.sin(rate * t), amp * rate * np.cos(rate * t), -amp * rate**2 * np.sin(rate * t))
-    return (lambda t: trajectory(t)[0]), trajectory
+        sine = np.sin(rate * t)
+        return centre + amp * sine, speed * np.cos(rate * t), curvature * sine
+    return (lambda t: centre + amp * np.sin(rate * t)), trajectory
 
 
 def arm_start(task, cfg):
@@ -584,20 +586,31 @@ def make_arm_lqg(theta, task, cfg):
                       sensor_covariance=cfg["sensor_std"] ** 2 * np.eye(4), torque_limits=cfg["torque_limits"])
 
 
-def make_arm_aif(theta, task, cfg, learning=None, feedforward=True):
+def arm_action_jacobian(cfg):
+    """dy~/da of the agent: the nominal arm at the believed pose (held over dt with cfg["action_hold"])."""
+    return arm.ArmActionJacobian(arm.ArmParameters(), cfg["embedding_order"], tolerance=cfg["jacobian_tolerance"],
+                                 hold=cfg["dt"] if cfg["action_hold"] else 0.0)
+
+
+def make_arm_aif(theta, task, cfg, learning=None, feedforward=True, action_jacobian=None):
     """Active inference: each joint believed drawn critically damped to the reference (r, r') (prior on the causes);
-    dy~/da from the nominal arm at the believed pose; plus the nominal gravity torque at the believed pose."""
+    dy~/da from the nominal arm at the believed pose (``action_jacobian``: default :func:`arm_action_jacobian`); plus
+    the nominal gravity torque at the believed pose."""
     omega, process_precision, gain, kernel_width = np.exp(theta)
     _, trajectory = arm_reference(task, cfg)
 
     with_acceleration = cfg["reference_acceleration"]
 
+    squared_rate = -np.asarray(cfg["track_rate"]) ** 2
+    held = np.concatenate([trajectory(0.0)[0], np.zeros(10 if with_acceleration else 6)])
+
     def prior(t):  # eta~ = [v; v'], v = (r, r') or (r, r', r''), v' its derivative
+        if task == "step":  # the target, at rest
+            return held.copy()
         q, w, acc = trajectory(t)
         if not with_acceleration:
             return np.concatenate([q, w, w, acc])
-        jerk = -np.asarray(cfg["track_rate"]) ** 2 * w if task == "track" else np.zeros(2)
-        return np.concatenate([q, w, acc, w, acc, jerk])
+        return np.concatenate([q, w, acc, w, acc, squared_rate * w])
     model = arm.critically_damped_model(
         omega, sensor_std=cfg["sensor_std"], process_precision=process_precision, kernel_width=kernel_width,
         cause_prior=prior, cause_prior_precision=np.exp(cfg["cause_prior_log_precision"]),
@@ -607,11 +620,37 @@ def make_arm_aif(theta, task, cfg, learning=None, feedforward=True):
     limit = np.asarray(cfg["torque_limits"])
     controller = ActiveInferenceController(
         model, cfg["dt"], action_gain=gain, n_actions=2,
-        action_jacobian=arm.ArmActionJacobian(nominal, cfg["embedding_order"], tolerance=cfg["jacobian_tolerance"],
-                                              hold=cfg["dt"] if cfg["action_hold"] else 0.0),
+        action_jacobian=arm_action_jacobian(cfg) if action_jacobian is None else action_jacobian,
         action_limits=(-limit, limit), precision_learning=learning, embedding_window=cfg["embedding_window"],
         sensory_orders=cfg["sensory_orders"], data_motion=cfg.get("data_motion", "held"))
     return arm.GravityFeedforward(controller, nominal, "believed") if feedforward else controller
+
+
+#: the agent's tuned point in docs/control.md (w 11.5 rad/s, Pi_w 2.1e6, kappa 533, s 12.2 ms), for its step time
+ARM_TIMING_THETA = np.log([11.5, 2.1e6, 533.0, 0.0122])
+
+
+def arm_step_time(cfg, theta=ARM_TIMING_THETA, runs=5, warm_up=20):
+    """{task: (median, mean) wall time [s] of the arm agent's step, refreshes of dy~/da per run}: the outputs of seed
+    0's closed loop are replayed through ``runs`` fresh agents (the same beliefs and actions as in the loop), each
+    step timed alone (GravityFeedforward(ActiveInferenceController).step), the first ``warm_up`` steps of each run
+    left out."""
+    out = {}
+    for task in ("step", "track"):
+        outputs = arm_run(make_arm_aif(theta, task, cfg), task, cfg, 0).outputs
+        times = []
+        for _ in range(runs):
+            jacobian = arm_action_jacobian(cfg)
+            agent = make_arm_aif(theta, task, cfg, action_jacobian=jacobian)
+            taken = np.empty(len(outputs))
+            for i, y in enumerate(outputs):
+                started = time.perf_counter()
+                agent.step(y)
+                taken[i] = time.perf_counter() - started
+            times.append(taken[warm_up:])
+        times = np.concatenate(times)
+        out[task] = (float(np.median(times)), float(np.mean(times)), jacobian.refreshes)
+    return out
 
 
 ARM_MAKERS = {"PID": make_arm_pid, "LQG": make_arm_lqg, "active inference": make_arm_aif}
@@ -862,6 +901,11 @@ def main():
             continue
         print(f"\ncontroller step, 4 states, p = 4, {label}: {value * 1e6:.1f} us (target <= 100 us: "
               f"{'met' if value <= 1e-4 else 'NOT met'})", end="")
+    for task, (median, mean, refreshes) in arm_step_time(dict(ARM_SETTINGS)).items():
+        print(f"\ncontroller step, two-link arm (4 states, 6 causes, p = 2, dy~/da held over dt, refreshed on "
+              f"{refreshes} of {round(ARM_SETTINGS['duration'] / ARM_SETTINGS['dt'])} samples), {task}: median "
+              f"{median * 1e6:.1f} us (target <= 100 us: {'met' if median <= 1e-4 else 'NOT met'}), mean "
+              f"{mean * 1e6:.1f} us", end="")
     print(f"\n\nwall time {time.perf_counter() - started:.0f} s")
 
 

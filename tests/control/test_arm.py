@@ -163,6 +163,70 @@ def test_action_jacobian_of_angle_sensors_is_the_inverse_mass_matrix_at_order_tw
     assert cached(x + [0.0, 0.5, 0.0, 0.0], None, None) is not first and cached.refreshes == 2
 
 
+def _action_jacobian_by_markov_parameters(params, x, embedding_order, sensors_per_joint, hold):
+    """dy~/da as ArmActionJacobian computed it before its closed-form path: state_jacobians at tau = g(q), then
+    markov_parameters (the held column by Horner's rule, or one exponential above |f_x tau|_1 = 1)."""
+    from attend.control import markov_parameters
+
+    fx, fa = arm.state_jacobians(params, x, arm.gravity_torque(params, x[:2]))
+    C = arm.sensor_matrix(sensors_per_joint)
+    return markov_parameters(fx, fa, C, np.zeros((C.shape[0], 2)), embedding_order + 1, hold=hold)
+
+
+@pytest.mark.parametrize("hold", [0.0, 0.01, 0.02, 0.2])
+def test_action_jacobian_equals_its_markov_parameters_path(hold):
+    """ArmActionJacobian's Jacobians in floats (M^-1 by its adjugate) and its held series by Krylov doubling equal
+    markov_parameters of state_jacobians to rounding, over random states (velocities up to 3 rad/s), orders 0..4
+    and 1..3 sensors per joint; hold 0.2 s takes the exponential (|f_x tau|_1 > 1) at most states."""
+    heavy = PARAMS.scaled(link_masses=1.3, joint_friction=(2.0, 0.5))
+    for params in (PARAMS, heavy):
+        for i, (q, w) in enumerate(zip(POSES, VELOCITIES)):
+            x = np.concatenate([q, w])
+            order, sensors = i % 5, 1 + i % 3
+            expected = _action_jacobian_by_markov_parameters(params, x, order, sensors, hold)
+            G = arm.ArmActionJacobian(params, order, sensors, tolerance=0.0, hold=hold)(x, None, None)
+            assert G.shape == expected.shape
+            # entries ~1e-4..10 (M^-1 tau^2 / 2 .. M^-1); the two paths round differently (~1e-16 relative)
+            np.testing.assert_allclose(G, expected, rtol=1e-13, atol=1e-14 * np.abs(expected).max())
+
+
+def test_held_integral_by_krylov_doubling_is_the_truncated_series():
+    """_held_integral: tau sum_{j <= J} (f_x tau)^j f_a / (j + 1)! (J from the size bound), against the sum written
+    out term by term in exact rational arithmetic on the float inputs, for |f_x tau|_1 from 0.01 to 1."""
+    from fractions import Fraction
+
+    rng = np.random.default_rng(5)
+    tau = 0.01
+    for size in (0.01, 0.3, 0.7138, 1.0):
+        fx = rng.standard_normal((4, 4))
+        fx *= size / (np.abs(fx).sum(axis=0).max() * tau)
+        fa = rng.standard_normal((4, 2))
+        measured = np.abs(fx * tau).sum(axis=0).max()
+        got = arm._held_integral(fx, fa, tau, measured, {})
+        terms, bound = 0, 1.0
+        while bound > 2.0**-53 and terms < 30:
+            terms += 1
+            bound *= measured / (terms + 1)
+        X = [[Fraction(float(v)) * Fraction(tau) for v in row] for row in fx]
+        column = [[Fraction(float(v)) for v in row] for row in fa]
+        total = [[Fraction(0)] * 2 for _ in range(4)]
+        for j in range(terms + 1):
+            weight = Fraction(tau) / math.factorial(j + 1)
+            total = [[total[r][c] + weight * column[r][c] for c in range(2)] for r in range(4)]
+            column = [[sum(X[r][i] * column[i][c] for i in range(4)) for c in range(2)] for r in range(4)]
+        exact = np.array([[float(v) for v in row] for row in total])
+        np.testing.assert_allclose(got, exact, rtol=1e-14, atol=1e-15 * np.abs(exact).max())
+
+
+def test_gravity_feedforward_adds_the_gravity_torque_at_the_believed_angles():
+    wrapped = _aif()
+    y = arm.sensor_matrix(2) @ np.array([-1.2, 0.4, 0.0, 0.0])
+    for _ in range(3):
+        torque = wrapped.step(y)
+        action = wrapped.controller.action
+        np.testing.assert_array_equal(torque, action + arm.gravity_torque(PARAMS, wrapped.controller.states[:2]))
+
+
 def test_sensor_matrix_orders_outputs_sensor_major():
     assert np.array_equal(arm.sensor_matrix(2) @ [1.0, 2.0, 3.0, 4.0], [1.0, 2.0, 1.0, 2.0])
 
@@ -333,7 +397,9 @@ def test_scaled_names_an_unknown_field_and_validates_the_result():
     (lambda: arm.joint_pid(PARAMS, 0.01, gains=np.ones((2, 3)), reference=TARGET), "gains: expected a \\(2, 4\\)"),
     (lambda: arm.joint_pid(PARAMS, 0.01, gains=np.ones((2, 4)), reference=[0.1]), "reference: expected 2"),
     (lambda: arm.GravityFeedforward(_aif().controller, PARAMS, "true"), "angles: expected 'believed' or 'measured'"),
+    (lambda: arm.GravityFeedforward(_aif().controller, {"gravity": 9.81}), "params: expected attend.control.arm"),
     (lambda: arm.ArmActionJacobian(PARAMS, tolerance=-0.1), "tolerance: expected a finite number >= 0"),
+    (lambda: arm.ArmActionJacobian(PARAMS)([0.0, 0.0, 0.0], None, None), "states: expected 4"),
     (lambda: arm.ArmActionJacobian(PARAMS, embedding_order=-1), "embedding_order"),
     (lambda: arm.ArmLQG(PARAMS, 0.01, operating_angles=[0.1], reference=TARGET), "operating_angles: expected 2"),
     (lambda: arm.ArmLQG(PARAMS, 0.01, operating_angles=TARGET, reference=TARGET, reference_trajectory=1.0),

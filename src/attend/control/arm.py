@@ -301,22 +301,109 @@ class ArmActionJacobian:
         if not math.isfinite(hold) or hold < 0:
             raise AttendInputError(f"hold: expected a finite time >= 0 (s), got {hold!r}")
         self.hold = hold
+        self._constants = (params, params._constants())
+        self._sensors = self._C.shape[0] // 2
+        self._workspace: dict = {}
         self._last = None
+        self._scale = 0.0
         self.refreshes = 0
 
     def __call__(self, x, v, a) -> np.ndarray:
-        from attend.control.process import markov_parameters
-
-        x = np.asarray(x, dtype=float)
-        fx, fa = state_jacobians(self.params, x, gravity_torque(self.params, x[:2]))
-        G = markov_parameters(fx, fa, self._C, np.zeros((self._C.shape[0], 2)), self.embedding_order + 1,
-                              hold=self.hold)
+        G = self._column(x)
         last = self._last
-        if last is not None and np.abs(G - last).max() <= self.tolerance * np.abs(last).max():
+        if last is not None and np.abs(G - last).max() <= self.tolerance * self._scale:
             return last
         self._last = G
+        self._scale = np.abs(G).max()
         self.refreshes += 1
         return G
+
+    def _column(self, x) -> np.ndarray:
+        """dy~/da at the beliefs x (no caching): the arm's Jacobians in closed form (:func:`_jacobian_blocks`) and,
+        with a hold, the held column by :func:`_held_integral`; equal to ``markov_parameters(*state_jacobians(params,
+        x, g(q)), C, 0, p + 1, hold)`` up to rounding (tests/control/test_arm.py)."""
+        from attend.control.process import markov_parameters
+
+        values = np.asarray(x, dtype=float).reshape(-1).tolist()
+        if len(values) != 4:
+            raise AttendInputError(f"states: expected 4 values (q1, q2, q1', q2') [rad, rad/s], got {len(values)}")
+        q1, q2, w1, w2 = values
+        if self._constants[0] is not self.params:  # params is an attribute: follow it if it is replaced
+            self._constants = (self.params, self.params._constants())
+        K, D, Minv = _jacobian_blocks(self._constants[1], q1, q2, w1, w2)
+        fx = np.array([[0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0], [K[0], K[1], D[0], D[1]],
+                       [K[2], K[3], D[2], D[3]]])
+        fa = np.array([[0.0, 0.0], [0.0, 0.0], [Minv[0], Minv[1]], [Minv[2], Minv[3]]])
+        hold, P = self.hold, self.embedding_order + 1
+        # |f_x tau|_1, summed as numpy sums the columns of f_x tau (the series' length depends on it)
+        size = max(abs(K[0] * hold) + abs(K[2] * hold), abs(K[1] * hold) + abs(K[3] * hold),
+                   (hold + abs(D[0] * hold)) + abs(D[2] * hold), (hold + abs(D[1] * hold)) + abs(D[3] * hold))
+        if hold == 0.0 or size > 1.0:  # the instantaneous column, or a long hold: the general path
+            return markov_parameters(fx, fa, self._C, np.zeros((self._C.shape[0], 2)), P, hold=hold)
+        integral = _held_integral(fx, fa, hold, size, self._workspace)
+        # g_x = [I 0] per sensor and f_x = [[0, I], [K, D]]: order 0 is the top of Gamma f_a, order 1 the top of
+        # expm(f_x tau) f_a = f_a + f_x Gamma f_a, which is the bottom of Gamma f_a, and order i >= 2 the bottom of
+        # f_x^(i - 2) expm(f_x tau) f_a
+        out = np.empty((P, self._sensors, 2, 2))
+        out[0] = integral[:2]  # each order's block repeated for every sensor (C = [I 0] per sensor)
+        if P > 1:
+            out[1] = integral[2:]
+        column = integral
+        for order in range(2, P):
+            column = fa + fx @ column if order == 2 else fx @ column
+            out[order] = column[2:]
+        return out.reshape(P * 2 * self._sensors, 2)
+
+
+def _jacobian_blocks(constants: tuple, q1: float, q2: float, w1: float, w2: float) -> tuple:
+    """(K, D, M^-1), each a 2 x 2 matrix as 4 floats row by row, of the arm (``ArmParameters._constants()``) at
+    x = (q1, q2, w1, w2) held by its gravity torque: f_x = [[0, I], [K, D]], f_a = [0; M^-1] (:func:`state_jacobians`
+    at tau = g(q), written out in floats; M^-1 from the adjugate)."""
+    a, b, d, g1, g2, b1, b2 = constants
+    c2, s2 = math.cos(q2), math.sin(q2)
+    s1, s12, c12 = math.sin(q1), math.sin(q1 + q2), math.cos(q1 + q2)
+    acc1, acc2 = _acceleration(constants, q1, q2, w1, w2, g1 * math.cos(q1) + g2 * c12, g2 * c12)
+    m11, m12 = a + 2 * b * c2, d + b * c2
+    det = m11 * d - m12 * m12
+    i11, i12, i22 = d / det, -m12 / det, m11 / det
+    # d(M q'' + C q' + g)/dq at q'' = acc (only M and C q' depend on q2)
+    bs2, bc2 = b * s2, b * c2
+    p00, p10 = -(g1 * s1 + g2 * s12), -(g2 * s12)
+    p01 = p10 + (-2 * bs2 * acc1 + -bs2 * acc2 + bc2 * -(2 * w1 * w2 + w2 * w2))
+    p11 = p10 + (-bs2 * acc1 + bc2 * (w1 * w1))
+    # d(C q')/dq' + B
+    r00, r01, r10, r11 = bs2 * (-2 * w2) + b1, bs2 * (-2 * (w1 + w2)), bs2 * (2 * w1), b2
+    K = (-(i11 * p00 + i12 * p10), -(i11 * p01 + i12 * p11), -(i12 * p00 + i22 * p10), -(i12 * p01 + i22 * p11))
+    D = (-(i11 * r00 + i12 * r10), -(i11 * r01 + i12 * r11), -(i12 * r00 + i22 * r10), -(i12 * r01 + i22 * r11))
+    return K, D, (i11, i12, i12, i22)
+
+
+def _held_integral(fx: np.ndarray, fa: np.ndarray, hold: float, size: float, workspace: dict) -> np.ndarray:
+    """Gamma(tau) f_a = tau sum_{j <= J} (f_x tau)^j f_a / (j + 1)! for |f_x tau|_1 = ``size`` <= 1, J the first j whose
+    bound size^j / (j + 1)! is below 2^-53 (the series and truncation of :func:`markov_parameters`'s hold, there summed
+    by Horner's rule). The Krylov columns (f_x tau)^j f_a, j < 2^L, come from L doublings, V[c:2c] = X^c V[:c] with
+    X^c by squaring, and one product with the weights tau / (j + 1)!: about 2 L + 1 small array operations against 3
+    per term. ``workspace`` holds the columns' array and the weights per J."""
+    terms, bound = 0, 1.0
+    while bound > 2.0**-53 and terms < 30:
+        terms += 1
+        bound *= size / (terms + 1)
+    n, k = fa.shape
+    columns = workspace.get("columns")
+    if columns is None or columns.shape[1:] != (n, k):
+        columns = workspace["columns"] = np.empty((32, n, k))
+    columns[0] = fa
+    X, count = fx * hold, 1
+    while True:
+        np.matmul(X, columns[:count], out=columns[count: 2 * count])
+        count *= 2
+        if count > terms:
+            break
+        X = X @ X
+    weight = workspace.get(terms)
+    if weight is None:
+        weight = workspace[terms] = np.array([hold / math.factorial(j + 1) for j in range(terms + 1)])
+    return (weight @ columns[: terms + 1].reshape(terms + 1, n * k)).reshape(n, k)
 
 
 class GravityFeedforward:
@@ -330,7 +417,10 @@ class GravityFeedforward:
     def __init__(self, controller, params: ArmParameters, angles: str = "measured"):
         if angles not in ("believed", "measured"):
             raise AttendInputError(f"angles: expected 'believed' or 'measured', got {angles!r}")
+        if not isinstance(params, ArmParameters):
+            raise AttendInputError(f"params: expected attend.control.arm.ArmParameters, got {type(params).__name__}")
         self.controller, self.params, self.angles = controller, params, angles
+        self._constants = (params, params._constants())
         self.dt, self.n_actions = controller.dt, controller.n_actions
 
     def reset(self) -> None:
@@ -342,7 +432,12 @@ class GravityFeedforward:
         """Take y[k] (2 s,), return the torques a[k] (2,) [N m]."""
         action = np.asarray(self.controller.step(y), dtype=float)
         q = self.controller.states[:2] if self.angles == "believed" else _joint_means(y)
-        return action + gravity_torque(self.params, q)
+        if self._constants[0] is not self.params:
+            self._constants = (self.params, self.params._constants())
+        g1, g2 = self._constants[1][3:5]
+        q1, q2 = q.tolist()
+        c12 = math.cos(q1 + q2)  # gravity_torque(params, q) without its input checks
+        return action + np.array([g1 * math.cos(q1) + g2 * c12, g2 * c12])
 
 
 def joint_pid(params: ArmParameters, dt: float, *, gains, reference, sensors_per_joint: int = 2, torque_limits=None):

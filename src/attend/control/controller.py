@@ -468,8 +468,9 @@ class ActiveInferenceController:
             Z = self._fast_step(G, y_t, eta)
         else:
             Z = self._general_step(G, y_t, eta, t)
-        if self.action_limits is not None:
-            np.clip(Z[-self.n_actions:], self.action_limits[0], self.action_limits[1], out=Z[-self.n_actions:])
+        if self.action_limits is not None:  # np.clip's values, without its Python-level overhead
+            action = Z[-self.n_actions:]
+            np.minimum(np.maximum(action, self.action_limits[0], out=action), self.action_limits[1], out=action)
         if not np.abs(Z).max() <= self.divergence_limit:  # also catches NaN (a comparison with NaN is False)
             self._diverged(Z, t)
         self._Z = Z

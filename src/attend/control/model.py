@@ -143,7 +143,7 @@ class GenerativeModel:
             out = value.copy()
         else:
             raise AttendInputError(f"cause_prior(t): expected {r} or {orders * r} values, got {value.shape[0]}")
-        if not np.all(np.isfinite(out)):
+        if not np.isfinite(out).all():
             raise AttendInputError(f"cause_prior(t): returned non-finite values at t = {time} s")
         return out
 

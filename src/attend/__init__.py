@@ -9,7 +9,8 @@ Public API (everything else is private):
   :func:`shift_operator`
 - perception: :class:`KalmanEstimator` (coloured-noise Kalman smoother/filter, the default of
   ``attend estimate``), :class:`StateEstimate`, :class:`DEMObserver`, :class:`DEMEstimate`;
-  :class:`Estimate`, the one result type every estimator's result converts to (``as_estimate()``)
+  :class:`Estimate`, the one result type every estimator's ``.estimate()`` returns (the
+  estimator's own StateEstimate or DEMEstimate in ``details``)
 - learning: :func:`identify` (settings :class:`LearningSettings`), :class:`IdentificationResult`
 - nonlinear perception: :class:`NonlinearDEM` for a :class:`NonlinearSystem`
 - action (UAV search, :mod:`attend.action`): at field scale :func:`make_world`,

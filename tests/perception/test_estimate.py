@@ -1,5 +1,6 @@
 """One shape for the estimators: noise=NoiseModel gives the very numbers of the separate keywords,
-every result converts to the one Estimate type, and .online() runs the batch filter sample by sample."""
+every estimator's .estimate() returns the one Estimate type (the estimator's own result, with the
+same arrays, in details), and .online() runs the batch filter sample by sample."""
 
 from __future__ import annotations
 
@@ -47,7 +48,9 @@ def nonlinear_log():
 
 
 def same(a, b) -> bool:
-    """Two results equal field by field, exactly (None, arrays and numbers alike)."""
+    """Two results equal field by field, exactly (None, arrays and numbers alike); an Estimate is
+    compared by its details (the estimator's own result, with every field)."""
+    a, b = (x.details if isinstance(x, Estimate) else x for x in (a, b))
     return all((x is None and y is None) or np.array_equal(x, y) for x, y in zip(a, b))
 
 
@@ -183,41 +186,130 @@ def test_missing_or_unusable_noise(build, message):
 
 # --- one result type ---------------------------------------------------------------------------------
 
-def check_estimate(estimate, result, method, inputs_estimated):
+def check_estimate(estimate, result, method):
+    """estimate: the Estimate of ``result`` (its details), the very arrays, bit for bit."""
     assert isinstance(estimate, Estimate) and estimate.details is result and estimate.method == method
-    for name in ("time", "states", "state_std", "inputs"):
+    for name in ("time", "states", "inputs", "state_std", "input_std"):
         assert getattr(estimate, name) is getattr(result, name)
-    if inputs_estimated:
-        assert estimate.input_std is result.input_std
-    else:
-        assert estimate.input_std is None and not np.any(result.input_std)
     assert as_estimate(estimate) is estimate
 
 
-def test_every_result_converts_to_an_estimate(linear_log, nonlinear_log):
+def test_every_estimator_returns_an_estimate(linear_log, nonlinear_log):
+    """.estimate() of every estimator is an Estimate whose arrays are those of the estimator's own
+    result (details), and those equal, bit for bit, what the functions behind the estimators return."""
     y, u = linear_log.outputs, linear_log.inputs
     kalman = KalmanEstimator(LINEAR, DT, noise=NOISE)
-    result = kalman.estimate(y, u)
-    check_estimate(result.as_estimate(), result, "kalman smoother", False)
-    result = kalman.filter(y, u)
-    check_estimate(as_estimate(result), result, "kalman filter", False)
-    result = KalmanEstimator(LINEAR, DT, noise=NOISE, known_inputs=False, input_prior_precision=1.0).estimate(y)
-    check_estimate(result.as_estimate(), result, "kalman smoother", True)
-    result = DEMObserver(LINEAR, DT, noise=NOISE, known_inputs=False, input_prior_precision=1.0).estimate(y)
-    check_estimate(result.as_estimate(), result, "dem", True)
-    result = exact_posterior(LINEAR, DT, y[:60], u[:60], noise=NOISE)
-    check_estimate(result.as_estimate(), result, "exact posterior", False)
+    estimate = kalman.estimate(y, u)
+    check_estimate(estimate, estimate.details, "kalman smoother")
+    assert type(estimate.details).__name__ == "StateEstimate" and not np.any(estimate.input_std)
+    unknown = dict(known_inputs=False, input_prior_precision=1.0)
+    estimate = KalmanEstimator(LINEAR, DT, noise=NOISE, **unknown).estimate(y)
+    check_estimate(estimate, estimate.details, "kalman smoother")
+    assert np.all(estimate.input_std > 0)
+    estimate = DEMObserver(LINEAR, DT, noise=NOISE, **unknown).estimate(y, keep_generalized=True)
+    check_estimate(estimate, estimate.details, "dem")
+    assert type(estimate.details).__name__ == "DEMEstimate" and estimate.generalized.shape[0] == len(y)
+    gappy = y.copy()
+    gappy[50] = np.nan
+    estimate = DEMObserver(LINEAR, DT, noise=NOISE, **unknown).estimate(gappy)  # through dem_gaps
+    check_estimate(estimate, estimate.details, "dem")
     y, u = nonlinear_log.outputs, nonlinear_log.inputs
-    result = NonlinearDEM(FORCED_PENDULUM, DT, noise=NOISE, embedding_order=4, known_inputs=True).estimate(y, u)
-    check_estimate(result.as_estimate("nonlinear dem"), result, "nonlinear dem", False)
-    result = UnscentedSmoother(FORCED_PENDULUM, DT, noise=NOISE).estimate(y, u)
-    check_estimate(as_estimate(result, "unscented kalman smoother"), result, "unscented kalman smoother", False)
-    result = ParticleSmoother(FORCED_PENDULUM, DT, noise=NOISE, n_particles=50, lag=3).estimate(y, u)
-    check_estimate(result.as_estimate(), result, "particle smoother", False)
+    estimate = NonlinearDEM(FORCED_PENDULUM, DT, noise=NOISE, embedding_order=4, known_inputs=True).estimate(y, u)
+    check_estimate(estimate, estimate.details, "nonlinear dem")
+    assert estimate.generalized is None
+    smoothers = [(UnscentedSmoother(FORCED_PENDULUM, DT, noise=NOISE), "unscented kalman smoother",
+                  unscented_kalman(FORCED_PENDULUM, DT, y, u, noise=NOISE)),
+                 (ExtendedSmoother(FORCED_PENDULUM, DT, noise=NOISE, smooth=False), "extended kalman filter",
+                  extended_kalman(FORCED_PENDULUM, DT, y, u, noise=NOISE, smooth=False)),
+                 (ParticleSmoother(FORCED_PENDULUM, DT, noise=NOISE, n_particles=50, lag=3), "particle smoother",
+                  particle_smoother(FORCED_PENDULUM, DT, y, u, noise=NOISE, n_particles=50, lag=3))]
+    for smoother, method, function_result in smoothers:
+        estimate = smoother.estimate(y, u)
+        check_estimate(estimate, estimate.details, method)
+        assert type(estimate.details) is type(function_result) and same(estimate.details, function_result)
+    assert estimate.effective_sample_size is estimate.details.effective_sample_size
+
+
+FORCED_PENDULUM_PY = """
+import numpy as np
+
+
+def f(x, v):
+    return np.array([x[1], -np.sin(x[0]) + v[0]])
+
+
+def g(x, v):
+    return x[:1]
+"""
+
+FORCED_PENDULUM_TOML = """
+[model]
+python = "model.py"
+n_states = 2
+n_inputs = 1
+n_outputs = 1
+
+[outputs]
+columns = ["angle"]
+
+[[inputs]]
+name = "push"
+column = "push"
+
+[observer]
+kernel_width = 0.3
+sensor_precision = 100.0
+process_precision = 25.0
+initial_state = [1.0, 0.0]
+"""
+
+
+@pytest.mark.parametrize("method, name", [("ukf", "unscented kalman smoother"), ("dem", "nonlinear dem")])
+def test_the_file_estimator_returns_an_estimate(nonlinear_log, tmp_path, method, name):
+    from attend.io.model_file import read_model
+    from attend.perception.file_estimators import file_estimator
+
+    (tmp_path / "model.py").write_text(FORCED_PENDULUM_PY)
+    (tmp_path / "model.toml").write_text(FORCED_PENDULUM_TOML + f'method = "{method}"\n')
+    model = read_model(tmp_path / "model.toml")
+    y, u = nonlinear_log.outputs, nonlinear_log.inputs
+    estimate = file_estimator(model, DT).estimate(y, u)
+    check_estimate(estimate, estimate.details, name)
+
+
+def test_function_results_convert_to_an_estimate(linear_log, nonlinear_log):
+    y, u = linear_log.outputs, linear_log.inputs
+    result = KalmanEstimator(LINEAR, DT, noise=NOISE).filter(y, u)
+    check_estimate(as_estimate(result), result, "kalman filter")
+    check_estimate(result.as_estimate(), result, "kalman filter")
+    result = exact_posterior(LINEAR, DT, y[:60], u[:60], noise=NOISE)
+    check_estimate(result.as_estimate(), result, "exact posterior")
+    assert result.as_estimate().log_likelihood == result.log_likelihood
+    y, u = nonlinear_log.outputs, nonlinear_log.inputs
+    result = unscented_kalman(FORCED_PENDULUM, DT, y, u, noise=NOISE)
+    check_estimate(as_estimate(result, "unscented kalman smoother"), result, "unscented kalman smoother")
+    result = particle_smoother(FORCED_PENDULUM, DT, y, u, noise=NOISE, n_particles=50, lag=3)
+    check_estimate(result.as_estimate(), result, "particle smoother")
     assert as_estimate(result, "reference").method == "reference"
     assert attend.Estimate is Estimate
     with pytest.raises(AttendInputError, match="result: expected an estimator's result"):
         as_estimate(np.zeros(3))
+
+
+def test_the_details_extra_fields_read_on_the_estimate(nonlinear_log):
+    """Estimate.__getattr__: the details' own fields read on the Estimate; names neither has are
+    AttributeErrors naming both; the extras are not the Estimate's fields (no _replace, 7 fields)."""
+    y, u = nonlinear_log.outputs, nonlinear_log.inputs
+    estimate = UnscentedSmoother(FORCED_PENDULUM, DT, noise=NOISE).estimate(y, u)
+    assert estimate.log_likelihood == estimate.details.log_likelihood
+    assert estimate.state_covariance is estimate.details.state_covariance
+    assert len(estimate) == 7 and estimate._fields[-2:] == ("method", "details")
+    with pytest.raises(AttributeError, match="'generalized': neither an Estimate field nor one of its details "
+                                             r"\(KalmanEstimate\)"):
+        estimate.generalized
+    assert not hasattr(estimate, "_private") and not hasattr(estimate, "__missing_dunder__")
+    with pytest.raises(ValueError):
+        estimate._replace(log_likelihood=0.0)
 
 
 # --- .online() ----------------------------------------------------------------------------------------

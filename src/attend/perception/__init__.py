@@ -3,15 +3,16 @@ noise precisions, and the baselines they are compared with.
 
 Entry points (re-exported here and from :mod:`attend`):
 
-- :class:`DEMObserver` (batch) and :class:`OnlineDEM` (sample by sample), results
-  :class:`DEMEstimate` (:mod:`attend.perception.dem`);
-- :class:`KalmanEstimator` and :class:`OnlineKalman`, results :class:`StateEstimate`
-  (:mod:`attend.perception.kalman`);
+- :class:`DEMObserver` (batch) and :class:`OnlineDEM` (sample by sample); the observer's own
+  result :class:`DEMEstimate` (:mod:`attend.perception.dem`);
+- :class:`KalmanEstimator` and :class:`OnlineKalman`; the smoother's own result
+  :class:`StateEstimate` (:mod:`attend.perception.kalman`);
 - :func:`identify` and :func:`learn_batch` with their settings :class:`LearningSettings`, results
   :class:`IdentificationResult` (:mod:`attend.perception.learning`);
 - :class:`NonlinearDEM` for a :class:`attend.models.NonlinearSystem` (:mod:`attend.perception.nonlinear`);
-- :class:`Estimate`, the one result type every estimator's result converts to
-  (``result.as_estimate()`` or :func:`as_estimate`; :mod:`attend.perception.estimate`).
+- :class:`Estimate`, the one result type every estimator's ``.estimate()`` returns, the
+  estimator's own result in ``details`` (:mod:`attend.perception.estimate`); :func:`as_estimate`
+  turns the results of the estimation functions into one.
 
 Every estimator takes its noise as ``noise=``:class:`attend.models.NoiseModel` (or the separate
 precision and kernel-width keywords), the system and dt first and the rest by keyword.

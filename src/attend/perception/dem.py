@@ -127,7 +127,8 @@ class DEMEstimate(NamedTuple):
 
     def as_estimate(self, method: str = "dem") -> Estimate:
         """This result as the common :class:`attend.perception.estimate.Estimate` (details: this
-        result); method: the estimator's name ("dem"; NonlinearDEM's results are DEMEstimates too)."""
+        result); method: the estimator's name ("dem"; "nonlinear dem" for NonlinearDEM, whose
+        details are DEMEstimates too)."""
         return as_estimate(self, method)
 
 
@@ -466,8 +467,9 @@ class DEMObserver:
 
     @with_single_blas_thread
     def estimate(self, outputs, inputs=None, *, keep_generalized: bool = False,
-                 initial_state=None, segment: int = 1 << 14, time=None) -> DEMEstimate:
-        """Batch estimation over a whole log.
+                 initial_state=None, segment: int = 1 << 14, time=None) -> Estimate:
+        """Batch estimation over a whole log, as an :class:`attend.perception.estimate.Estimate`
+        (method "dem"; details: the :class:`DEMEstimate`, with ``generalized``).
 
         outputs: (N, m) measured outputs; inputs: (N, r) measured inputs (known_inputs=True) or the
         input prior eta (unknown inputs; default 0). Gaps: NaN values, and time (N,) [s], the
@@ -500,8 +502,8 @@ class DEMObserver:
         if gaps:
             from attend.perception.dem_gaps import estimate_with_gaps
 
-            return estimate_with_gaps(self, outputs, inputs, time, keep_generalized=keep_generalized,
-                                      initial_state=initial_state, segment=segment)
+            return as_estimate(estimate_with_gaps(self, outputs, inputs, time, keep_generalized=keep_generalized,
+                                                  initial_state=initial_state, segment=segment), "dem")
         signals = self._signals(outputs, inputs)
         n_samples = signals.shape[0]
         n, r = self.system.n_states, self.system.n_inputs
@@ -532,7 +534,8 @@ class DEMObserver:
         self._warn_if_worse_than_the_prior(state_std, input_std)
         state_std = np.broadcast_to(state_std, (n_samples, n))
         input_std = np.broadcast_to(input_std, (n_samples, r))
-        return DEMEstimate(np.arange(n_samples) * self.dt, states, inputs_out, state_std, input_std, generalized)
+        return as_estimate(DEMEstimate(np.arange(n_samples) * self.dt, states, inputs_out, state_std, input_std,
+                                       generalized), "dem")
 
     def run_flow(self, signals: np.ndarray, state=None, keep_generalized: bool = False, segment: int = 1 << 14):
         """The flow over a whole log, without :meth:`estimate`'s checks and standard deviations:

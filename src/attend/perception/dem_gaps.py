@@ -44,7 +44,7 @@ def estimate_with_gaps(observer, outputs, inputs, time, **options):
     else:
         uniform = grid.time[0] + np.arange(int(np.ceil((grid.time[-1] - grid.time[0]) / dt - 1e-9)) + 1) * dt
         on_grid = np.column_stack([np.interp(uniform, grid.time, column) for column in columns.T])
-    result = observer.estimate(on_grid[:, :m], on_grid[:, m:] if r else None, **options)
+    result = observer.estimate(on_grid[:, :m], on_grid[:, m:] if r else None, **options).details  # a DEMEstimate
     log_time = grid.time[grid.rows]
 
     def at_rows(values):

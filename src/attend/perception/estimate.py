@@ -1,21 +1,31 @@
-"""One result type for every estimator (:class:`Estimate`), and the conversion to it.
+"""One result type for every estimator: :class:`Estimate`.
 
-Each estimator keeps the result it has always returned, with what only it computes:
+Every estimator's ``.estimate(outputs, inputs=None, ...)`` returns an :class:`Estimate`:
+:class:`attend.perception.kalman.KalmanEstimator` ("kalman smoother"),
+:class:`attend.perception.dem.DEMObserver` ("dem"), :class:`attend.perception.nonlinear.NonlinearDEM`
+("nonlinear dem"), :class:`attend.perception.nonlinear_smoothers.UnscentedSmoother` and
+``ExtendedSmoother`` ("unscented kalman smoother", "extended kalman smoother"; "... filter" with
+smooth=False), :class:`attend.perception.nonlinear_smoothers.ParticleSmoother` ("particle
+smoother") and :class:`attend.perception.file_estimators.NonlinearFileEstimator` (its method's).
+Code written for one estimator reads the others' results: time, states, inputs, state_std,
+input_std, method.
+
+What only one estimator computes stays in ``details``, that estimator's own result:
 :class:`attend.perception.kalman.StateEstimate` (Kalman smoother and filter),
-:class:`attend.perception.dem.DEMEstimate` (linear and nonlinear DEM: the generalised states),
-:class:`attend.perception.references.KalmanEstimate` (extended and unscented smoothers: the
-state covariances and the log-likelihood), :class:`attend.perception.nonlinear_smoothers.ParticleEstimate`
-(the effective sample size) and :class:`attend.perception.references.ExactPosterior` (the joint
-covariance, the causal means). Their first five fields are the same (time, states, inputs,
-state_std, input_std), so code written for one reads the others; :class:`Estimate` is that common
-part as one type, with the method's name and the estimator's own result (``details``) beside it.
+:class:`attend.perception.dem.DEMEstimate` (linear and nonlinear DEM: the generalised states
+``generalized``), :class:`attend.perception.references.KalmanEstimate` (extended and unscented
+smoothers: ``state_covariance``, ``log_likelihood``),
+:class:`attend.perception.nonlinear_smoothers.ParticleEstimate` (``effective_sample_size``) and
+:class:`attend.perception.references.ExactPosterior` (``covariance``, ``causal_states``, ...).
+Those extra fields are read on the Estimate itself too (``estimate.generalized`` is
+``estimate.details.generalized``): :meth:`Estimate.__getattr__` falls back to ``details`` for a
+name the Estimate does not have. They are read-only there: ``_replace`` takes the Estimate's own
+fields; replace an extra on ``details`` (``estimate.details._replace(...)``).
 
-Why a conversion rather than a new return type: ``estimate()`` results are used as tuples (unpacked,
-``_replace``-d, indexed by position) in the command line, the experiments and the tests, and their
-extra fields differ; turning them into one type would break those uses or lose the extras. So
-every result converts: ``result.as_estimate()`` on the result types of attend.perception's
-estimators, or :func:`as_estimate` on any of them (the extended and unscented smoothers' results
-included), and the Estimate keeps the original in ``details``: nothing is lost, no number changes.
+The arrays of an Estimate are those of ``details``, not copies: the numbers are the estimator's.
+Functions (not estimators) keep their own result types (:func:`attend.perception.references.kalman_filter`,
+:func:`attend.perception.references.exact_posterior`, ``unscented_kalman``, ...); :func:`as_estimate`
+(or ``result.as_estimate()``) turns any of them into an Estimate the same way.
 
 :func:`take_noise` is the estimators' side of ``noise=``: it writes an
 :class:`attend.models.NoiseModel` into an estimator's separate precision and width fields before
@@ -43,35 +53,50 @@ METHODS = {
 
 
 class Estimate(NamedTuple):
-    """The estimates of any estimator, in one type.
-
-    The fields come in the order of every estimator's own result (time, states, inputs,
-    state_std, input_std first), then the method and the result itself.
+    """The estimates of any estimator, in one type (every estimator's ``.estimate()`` returns one).
 
     time (N,) [s]: the samples' times; states (N, n): the state estimates (posterior means, or the
     DEM observer's); inputs (N, r): the inputs, the measured ones where they were given and the
-    estimates of the unknown ones; state_std (N, n): the states' standard deviations; input_std (N, r):
-    the unknown inputs' standard deviations (0 for measured ones), None when no input was estimated
-    (all inputs measured, or none at all); method: which estimator produced them (e.g. "kalman
-    smoother", "dem", "particle smoother"); details: the estimator's own result (a StateEstimate,
-    DEMEstimate, KalmanEstimate, ParticleEstimate or ExactPosterior), with what only that estimator
-    gives (generalised states, covariances, log-likelihood, effective sample size). The arrays are
-    those of ``details``, not copies.
+    estimates of the unknown ones; state_std (N, n): the states' standard deviations; input_std
+    (N, r): the inputs' standard deviations, 0 for measured inputs; method: which estimator
+    produced them (e.g. "kalman smoother", "dem", "particle smoother"); details: the estimator's
+    own result (a StateEstimate, DEMEstimate, KalmanEstimate, ParticleEstimate or ExactPosterior),
+    with what only that estimator gives (generalised states, covariances, log-likelihood,
+    effective sample size). The arrays are those of ``details``, not copies.
+
+    A name the Estimate does not have is looked up on ``details`` (read-only; see
+    :meth:`__getattr__`): ``estimate.generalized``, ``estimate.log_likelihood``,
+    ``estimate.effective_sample_size`` where the estimator gives them.
     """
 
     time: np.ndarray
     states: np.ndarray
     inputs: np.ndarray
     state_std: np.ndarray
-    input_std: np.ndarray | None
+    input_std: np.ndarray
     method: str
     details: object
 
+    def __getattr__(self, name: str):
+        """The field ``name`` of ``details`` (the estimator's own result), for the fields only it
+        has (e.g. ``generalized`` of a DEMEstimate, ``log_likelihood`` of a KalmanEstimate); an
+        AttributeError naming the Estimate and its details' type when neither has it. Called only
+        for names the Estimate itself does not have; private and special names are not looked up."""
+        if name.startswith("_"):
+            raise AttributeError(name)
+        details = tuple.__getitem__(self, 6)  # the field, without a new attribute lookup
+        try:
+            return getattr(details, name)
+        except AttributeError:
+            raise AttributeError(f"{name!r}: neither an Estimate field nor one of its details "
+                                 f"({type(details).__name__})") from None
+
 
 def as_estimate(result, method: str | None = None) -> Estimate:
-    """``result``, the result of any attend estimator (or an Estimate, returned as it is), as an
-    :class:`Estimate`: its time, states, state_std, inputs and input_std (None when every input's
-    std is exactly 0: all measured, or no inputs), ``details`` the result itself.
+    """``result``, the result of any attend estimator or estimation function (or an Estimate,
+    returned as it is), as an :class:`Estimate`: its time, states, inputs, state_std and
+    input_std (the same arrays), ``details`` the result itself. The estimators' ``.estimate()``
+    return what this gives for their own results.
 
     method: the estimator's name for ``Estimate.method``; default the result's own ``method`` field
     where it has one (StateEstimate), else the name of its type's estimator (METHODS).
@@ -86,7 +111,6 @@ def as_estimate(result, method: str | None = None) -> Estimate:
                                f"got {type(result).__name__}") from None
     if method is None:
         method = getattr(result, "method", None) or METHODS.get(type(result).__name__, type(result).__name__)
-    input_std = None if input_std is None or not np.any(input_std) else input_std
     return Estimate(time, states, inputs, state_std, input_std, str(method), result)
 
 

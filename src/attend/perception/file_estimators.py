@@ -189,8 +189,9 @@ class NonlinearFileEstimator:
         return self.model.input_kernel_width or self.model.kernel_width
 
     def estimate(self, outputs, signals):
-        """Estimates (time, states, inputs, state_std, input_std, ...) on outputs (N, m); signals
-        (N, r): measured inputs (operating point removed) or the prior means of the unknown ones."""
+        """Estimates on outputs (N, m), an :class:`attend.perception.estimate.Estimate` (method "nonlinear
+        dem" or "unscented kalman smoother"); signals (N, r): measured inputs (operating point
+        removed) or the prior means of the unknown ones."""
         model = self.model
         initial = None if model.initial_state is None else np.array(model.initial_state)
         if self.method == "dem":
@@ -220,10 +221,13 @@ class NonlinearFileEstimator:
         # the std: the smoother's error spread under the file's coloured noise, its exact covariance
         # through the smoother's linearisation (error_spread.smoother_error_covariance: no draws)
         prior = (1.0 / precisions, self.input_kernel_width) if unknown else None
-        return unscented_kalman(self.system, self.dt, outputs, inputs, initial_mean=mean,
-                                initial_covariance=np.diag(np.asarray(std, dtype=float) ** 2), substeps=substeps,
-                                noise_kernel_width=model.kernel_width, input_prior=prior, spread_draws=None,
-                                **options)
+        from attend.perception.estimate import as_estimate
+
+        return as_estimate(unscented_kalman(self.system, self.dt, outputs, inputs, initial_mean=mean,
+                                            initial_covariance=np.diag(np.asarray(std, dtype=float) ** 2),
+                                            substeps=substeps, noise_kernel_width=model.kernel_width,
+                                            input_prior=prior, spread_draws=None, **options),
+                           "unscented kalman smoother")
 
     def _start(self, outputs, signals, initial, inputs, options):
         """(x[0], its std, RK4 sub-steps) of the smoother. With the file's initial_state: it and

@@ -456,8 +456,10 @@ class KalmanEstimator:
 
     # --- estimation --------------------------------------------------------------------------
 
-    def estimate(self, outputs, inputs=None, *, time=None) -> StateEstimate:
-        """Posterior means and standard deviations given the whole log (Kalman + RTS smoother).
+    def estimate(self, outputs, inputs=None, *, time=None) -> Estimate:
+        """Posterior means and standard deviations given the whole log (Kalman + RTS smoother), as an
+        :class:`attend.perception.estimate.Estimate` (method "kalman smoother"; details: the
+        :class:`StateEstimate`).
 
         outputs (N, m), NaN where a value is missing (no update for that channel at that sample);
         inputs (N, r): the measured inputs (known_inputs) or the inputs' prior mean eta (unknown
@@ -466,7 +468,7 @@ class KalmanEstimator:
         steps off dt (jitter) are discretised exactly (:mod:`attend.models.sample_times`).
         Estimates are returned at every row, the missing ones included.
         """
-        return self._run(outputs, inputs, smooth=True, time=time)
+        return as_estimate(self._run(outputs, inputs, smooth=True, time=time))
 
     def filter(self, outputs, inputs=None, *, time=None) -> StateEstimate:
         """Causal estimates E[x[k] | y[0..k]] and their standard deviations (the Kalman filter);

@@ -13,7 +13,8 @@ from attend.perception.file_estimators import file_estimator, file_nonlinear_ord
 from attend.perception.nonlinear.start_search import AmbiguousStartError
 
 if TYPE_CHECKING:  # only named in annotations: each estimator is imported where the model file picks it
-    from attend.perception.dem import DEMEstimate, DEMObserver
+    from attend.perception.dem import DEMObserver
+    from attend.perception.estimate import Estimate
 
 
 def checked_sample_time(model: ModelFile, log: Log, minimum: int, why: str) -> float:
@@ -38,7 +39,7 @@ def _observer_of(model: ModelFile, dt: float, outputs=None, signals=None) -> DEM
         raise AttendInputError(f"{model.path}: [observer] {message}") from None
 
 
-def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, DEMEstimate]:
+def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, Estimate]:
     """Run the model file's observer on the log (checks columns, finiteness and sample time)."""
     outputs = log.matrix(model.output_columns)
     signals = np.zeros((len(log.time), model.system.n_inputs))

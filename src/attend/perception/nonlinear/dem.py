@@ -15,7 +15,7 @@ from attend.models.generalized import block_precisions, embedding_weights, shift
 from attend.models.noise_model import NoiseModel
 from attend.models.nonlinear import NonlinearSystem
 from attend.perception.dem import DEMEstimate
-from attend.perception.estimate import take_noise
+from attend.perception.estimate import Estimate, as_estimate, take_noise
 from attend.perception.nonlinear._linalg import (block_diagonal_positions, diagonal_blocks, expm_last_column,
                                                   inverse_diagonals)
 from attend.perception.nonlinear._workspace import StepWorkspace
@@ -583,8 +583,10 @@ class NonlinearDEM:
         return [(row[0], row[1], std[i, :n], input_std[i], row[3]) for i, row in enumerate(rows)]
 
     def estimate(self, outputs, inputs=None, *, keep_generalized: bool = False, initial_state=None,
-                 initial_state_std=None) -> DEMEstimate:
-        """Batch estimation over a whole log (same fields as the linear observer's DEMEstimate).
+                 initial_state_std=None) -> Estimate:
+        """Batch estimation over a whole log, as an :class:`attend.perception.estimate.Estimate`
+        (method "nonlinear dem"; details: a :class:`attend.perception.dem.DEMEstimate`, the linear
+        observer's fields).
 
         outputs: (N, m); inputs: (N, r) measured inputs (known_inputs=True) or the input prior
         mean eta (unknown inputs; default 0); initial_state: a guess of the order-0 states (n,)
@@ -599,14 +601,16 @@ class NonlinearDEM:
         """
         signals = self.checked_signals(outputs, inputs)
         if self.states == "path":
-            return estimate_path(self, signals, initial_state, initial_state_std=initial_state_std,
-                                 keep_generalized=keep_generalized)
-        if initial_state_std is not None:
+            result = estimate_path(self, signals, initial_state, initial_state_std=initial_state_std,
+                                   keep_generalized=keep_generalized)
+        elif initial_state_std is not None:
             raise AttendInputError("initial_state_std: a prior on x[0] is used by states='path' only (the D-step "
                                    "takes initial_state as the guess where its start is sought)")
-        if self.backend == "jax":
-            return estimate_with_jax(self, signals, initial_state, keep_generalized)
-        return self.dstep_estimate(signals, keep_generalized, initial_state)
+        elif self.backend == "jax":
+            result = estimate_with_jax(self, signals, initial_state, keep_generalized)
+        else:
+            result = self.dstep_estimate(signals, keep_generalized, initial_state)
+        return as_estimate(result, "nonlinear dem")
 
     def dstep_estimate(self, signals, keep_generalized: bool = False, initial_state=None,
                        check: bool = True) -> DEMEstimate:

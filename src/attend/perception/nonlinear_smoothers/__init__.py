@@ -16,8 +16,8 @@ u[k] = u[k-1] + e, e ~ N(0, input_variance) (a random walk), started at ``input_
 :func:`white_noise_covariances` gives the Q, R matching coloured noise (same variance per sample,
 or same low-frequency power).
 
-Results are :class:`attend.perception.references.KalmanEstimate` (time, states, inputs, state_std,
-input_std first, as :class:`attend.perception.dem.DEMEstimate`). With ``noise_kernel_width``, the
+The functions return :class:`attend.perception.references.KalmanEstimate` (time, states, inputs,
+state_std, input_std first, as :class:`attend.perception.dem.DEMEstimate`). With ``noise_kernel_width``, the
 unscented filter's or smoother's std is its error spread under coloured noise of that width
 (:mod:`attend.perception.nonlinear_smoothers.error_spread`) instead of the white-noise model's own
 covariance, which is too small there.
@@ -31,7 +31,7 @@ particles' ancestry. Its mean approximates the posterior mean under the coloured
 reference, not an estimator for use.
 
 The same as estimators (``Smoother(system, dt, *, noise=NoiseModel(...), ...)``, ``.estimate(outputs,
-inputs)``, ``.online()``): :class:`UnscentedSmoother`, :class:`ExtendedSmoother` (their online
+inputs)`` -> :class:`attend.perception.estimate.Estimate`, ``.online()``): :class:`UnscentedSmoother`, :class:`ExtendedSmoother` (their online
 filters :class:`OnlineUnscented`, :class:`OnlineExtended`) and :class:`ParticleSmoother` (online:
 :class:`OnlineParticle`, the same draws one sample at a time) (:mod:`.estimators`).
 

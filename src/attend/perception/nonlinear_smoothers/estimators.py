@@ -13,10 +13,10 @@ sample at a time, as :class:`attend.perception.kalman.KalmanEstimator` and the D
   :class:`OnlineParticle`, the same particles and draws fed one sample at a time (a fixed-lag
   smoother: sample k's estimate comes out with sample k + lag; lag=0 is the particle filter).
 
-Results: :class:`attend.perception.references.KalmanEstimate` and
-:class:`attend.perception.nonlinear_smoothers.ParticleEstimate` as before; each converts to the
-common :class:`attend.perception.estimate.Estimate` with
-:func:`attend.perception.estimate.as_estimate` (ParticleEstimate also with ``.as_estimate()``).
+Results: ``estimate`` returns an :class:`attend.perception.estimate.Estimate`, its ``details`` the
+functions' own result (:class:`attend.perception.references.KalmanEstimate`,
+:class:`attend.perception.nonlinear_smoothers.ParticleEstimate`), whose extra fields
+(state_covariance, log_likelihood, effective_sample_size) the Estimate reads too.
 """
 
 from __future__ import annotations
@@ -40,8 +40,8 @@ from attend.perception.nonlinear_smoothers.kalman import (
     extended_kalman,
     unscented_kalman,
 )
-from attend.perception.nonlinear_smoothers.particle import ParticleEstimate, ParticleRun, particle_smoother
-from attend.perception.references import KalmanEstimate
+from attend.perception.nonlinear_smoothers.particle import ParticleRun, particle_smoother
+from attend.perception.estimate import Estimate, as_estimate
 
 __all__ = ["UnscentedSmoother", "ExtendedSmoother", "ParticleSmoother", "OnlineUnscented", "OnlineExtended",
            "OnlineParticle"]
@@ -116,18 +116,20 @@ class UnscentedSmoother(_WhiteNoiseSmoother):
     kappa: float = 0.0
     known_inputs: np.ndarray | None = None
 
-    def estimate(self, outputs, inputs=None) -> KalmanEstimate:
+    def estimate(self, outputs, inputs=None) -> Estimate:
         """The estimates over a whole log: :func:`~attend.perception.nonlinear_smoothers.unscented_kalman`
-        with this smoother's settings. outputs (N, m); inputs (N, r): the measured inputs (None: zero,
-        or unknown with input_variance)."""
-        return unscented_kalman(self.system, self.dt, outputs, inputs, process_covariance=self.process_covariance,
-                                measurement_covariance=self.measurement_covariance,
-                                input_variance=self.input_variance, input_mean=self.input_mean,
-                                initial_mean=self.initial_mean, initial_covariance=self.initial_covariance,
-                                smooth=self.smooth, substeps=self.substeps, alpha=self.alpha, beta=self.beta,
-                                kappa=self.kappa, known_inputs=self.known_inputs,
-                                noise_kernel_width=self.noise_kernel_width, input_prior=self.input_prior,
-                                spread_draws=self.spread_draws, seed=self.seed)
+        with this smoother's settings, as an :class:`attend.perception.estimate.Estimate` (method:
+        :attr:`method`; details: the KalmanEstimate, with state_covariance and log_likelihood).
+        outputs (N, m); inputs (N, r): the measured inputs (None: zero, or unknown with input_variance)."""
+        result = unscented_kalman(self.system, self.dt, outputs, inputs, process_covariance=self.process_covariance,
+                                  measurement_covariance=self.measurement_covariance,
+                                  input_variance=self.input_variance, input_mean=self.input_mean,
+                                  initial_mean=self.initial_mean, initial_covariance=self.initial_covariance,
+                                  smooth=self.smooth, substeps=self.substeps, alpha=self.alpha, beta=self.beta,
+                                  kappa=self.kappa, known_inputs=self.known_inputs,
+                                  noise_kernel_width=self.noise_kernel_width, input_prior=self.input_prior,
+                                  spread_draws=self.spread_draws, seed=self.seed)
+        return as_estimate(result, self.method)
 
     def online(self) -> "OnlineUnscented":
         """The unscented filter fed one sample at a time (:class:`OnlineUnscented`)."""
@@ -149,16 +151,18 @@ class ExtendedSmoother(_WhiteNoiseSmoother):
 
     kind = "extended"
 
-    def estimate(self, outputs, inputs=None) -> KalmanEstimate:
+    def estimate(self, outputs, inputs=None) -> Estimate:
         """The estimates over a whole log: :func:`~attend.perception.nonlinear_smoothers.extended_kalman`
-        with this smoother's settings. outputs (N, m); inputs (N, r): the measured inputs (None: zero,
-        or unknown with input_variance)."""
-        return extended_kalman(self.system, self.dt, outputs, inputs, process_covariance=self.process_covariance,
-                               measurement_covariance=self.measurement_covariance,
-                               input_variance=self.input_variance, input_mean=self.input_mean,
-                               initial_mean=self.initial_mean, initial_covariance=self.initial_covariance,
-                               smooth=self.smooth, substeps=self.substeps, noise_kernel_width=self.noise_kernel_width,
-                               input_prior=self.input_prior, spread_draws=self.spread_draws, seed=self.seed)
+        with this smoother's settings, as an :class:`attend.perception.estimate.Estimate` (method:
+        :attr:`method`; details: the KalmanEstimate, with state_covariance and log_likelihood).
+        outputs (N, m); inputs (N, r): the measured inputs (None: zero, or unknown with input_variance)."""
+        result = extended_kalman(self.system, self.dt, outputs, inputs, process_covariance=self.process_covariance,
+                                 measurement_covariance=self.measurement_covariance,
+                                 input_variance=self.input_variance, input_mean=self.input_mean,
+                                 initial_mean=self.initial_mean, initial_covariance=self.initial_covariance,
+                                 smooth=self.smooth, substeps=self.substeps, noise_kernel_width=self.noise_kernel_width,
+                                 input_prior=self.input_prior, spread_draws=self.spread_draws, seed=self.seed)
+        return as_estimate(result, self.method)
 
     def online(self) -> "OnlineExtended":
         """The extended filter fed one sample at a time (:class:`OnlineExtended`)."""
@@ -318,18 +322,21 @@ class ParticleSmoother:
         """A short name of the estimator for reports."""
         return "particle smoother"
 
-    def estimate(self, outputs, inputs=None) -> ParticleEstimate:
+    def estimate(self, outputs, inputs=None) -> Estimate:
         """The estimates over a whole log: :func:`~attend.perception.nonlinear_smoothers.particle_smoother`
-        with these settings. outputs (N, m); inputs (N, r): the measured inputs, or, with
-        input_prior_std (unknown inputs), their prior mean eta (default 0)."""
+        with these settings, as an :class:`attend.perception.estimate.Estimate` (method "particle
+        smoother"; details: the ParticleEstimate, with effective_sample_size). outputs (N, m);
+        inputs (N, r): the measured inputs, or, with input_prior_std (unknown inputs), their prior
+        mean eta (default 0)."""
         unknown = self.input_prior_std is not None
-        return particle_smoother(self.system, self.dt, outputs, None if unknown else inputs,
-                                 kernel_width=self.kernel_width, process_std=self.process_std,
-                                 measurement_std=self.measurement_std, input_prior_std=self.input_prior_std,
-                                 input_prior_mean=inputs if unknown else None, initial_mean=self.initial_mean,
-                                 initial_std=self.initial_std, n_particles=self.n_particles, ar_order=self.ar_order,
-                                 lag=self.lag, substeps=self.substeps, seed=self.seed,
-                                 input_kernel_width=self.input_kernel_width)
+        result = particle_smoother(self.system, self.dt, outputs, None if unknown else inputs,
+                                   kernel_width=self.kernel_width, process_std=self.process_std,
+                                   measurement_std=self.measurement_std, input_prior_std=self.input_prior_std,
+                                   input_prior_mean=inputs if unknown else None, initial_mean=self.initial_mean,
+                                   initial_std=self.initial_std, n_particles=self.n_particles, ar_order=self.ar_order,
+                                   lag=self.lag, substeps=self.substeps, seed=self.seed,
+                                   input_kernel_width=self.input_kernel_width)
+        return as_estimate(result, self.method)
 
     def online(self) -> "OnlineParticle":
         """The same particle smoother fed one sample at a time (:class:`OnlineParticle`)."""

@@ -91,6 +91,15 @@ class _WhiteNoiseSmoother:
         """A short name of the estimator for reports."""
         return f"{self.kind} kalman " + ("filter" if self.smooth is False else "smoother")
 
+    def _settings(self) -> dict:
+        """The keyword arguments this smoother gives its function (unscented_kalman or
+        extended_kalman): the fields both take."""
+        return dict(process_covariance=self.process_covariance, measurement_covariance=self.measurement_covariance,
+                    input_variance=self.input_variance, input_mean=self.input_mean, initial_mean=self.initial_mean,
+                    initial_covariance=self.initial_covariance, smooth=self.smooth, substeps=self.substeps,
+                    noise_kernel_width=self.noise_kernel_width, input_prior=self.input_prior,
+                    spread_draws=self.spread_draws, seed=self.seed)
+
 
 @dataclass(frozen=True, eq=False)
 class UnscentedSmoother(_WhiteNoiseSmoother):
@@ -121,14 +130,8 @@ class UnscentedSmoother(_WhiteNoiseSmoother):
         with this smoother's settings, as an :class:`attend.perception.estimate.Estimate` (method:
         :attr:`method`; details: the KalmanEstimate, with state_covariance and log_likelihood).
         outputs (N, m); inputs (N, r): the measured inputs (None: zero, or unknown with input_variance)."""
-        result = unscented_kalman(self.system, self.dt, outputs, inputs, process_covariance=self.process_covariance,
-                                  measurement_covariance=self.measurement_covariance,
-                                  input_variance=self.input_variance, input_mean=self.input_mean,
-                                  initial_mean=self.initial_mean, initial_covariance=self.initial_covariance,
-                                  smooth=self.smooth, substeps=self.substeps, alpha=self.alpha, beta=self.beta,
-                                  kappa=self.kappa, known_inputs=self.known_inputs,
-                                  noise_kernel_width=self.noise_kernel_width, input_prior=self.input_prior,
-                                  spread_draws=self.spread_draws, seed=self.seed)
+        result = unscented_kalman(self.system, self.dt, outputs, inputs, alpha=self.alpha, beta=self.beta,
+                                  kappa=self.kappa, known_inputs=self.known_inputs, **self._settings())
         return as_estimate(result, self.method)
 
     def online(self) -> "OnlineUnscented":
@@ -156,12 +159,7 @@ class ExtendedSmoother(_WhiteNoiseSmoother):
         with this smoother's settings, as an :class:`attend.perception.estimate.Estimate` (method:
         :attr:`method`; details: the KalmanEstimate, with state_covariance and log_likelihood).
         outputs (N, m); inputs (N, r): the measured inputs (None: zero, or unknown with input_variance)."""
-        result = extended_kalman(self.system, self.dt, outputs, inputs, process_covariance=self.process_covariance,
-                                 measurement_covariance=self.measurement_covariance,
-                                 input_variance=self.input_variance, input_mean=self.input_mean,
-                                 initial_mean=self.initial_mean, initial_covariance=self.initial_covariance,
-                                 smooth=self.smooth, substeps=self.substeps, noise_kernel_width=self.noise_kernel_width,
-                                 input_prior=self.input_prior, spread_draws=self.spread_draws, seed=self.seed)
+        result = extended_kalman(self.system, self.dt, outputs, inputs, **self._settings())
         return as_estimate(result, self.method)
 
     def online(self) -> "OnlineExtended":

@@ -220,3 +220,18 @@ def test_a_start_that_cannot_come_near_the_best_stops_early_and_changes_nothing(
         assert mode.score == reference.score
         np.testing.assert_array_equal(mode.mean, reference.mean)
         np.testing.assert_array_equal(mode.states, reference.states)
+
+
+def test_a_model_stiff_only_near_zero_is_searched_about_the_priors_centre():
+    """dx/dt = -0.2 (x - 3) - 400 exp(-(x / 0.1)^2) x is stiff (rate 400) only within ~0.1 of 0 and
+    slow about the prior's centre 3: the bank checks its RK4 sub-steps where it starts (the
+    centre), not at x = 0 (where 2 sub-steps of 0.1 s are unstable), and the smoothed start lies
+    at the true x[0] = 3.5 within the sensor's noise."""
+    system = NonlinearSystem(lambda x, v: np.array([-0.2 * (x[0] - 3.0) - 400.0 * np.exp(-(x[0] / 0.1) ** 2) * x[0]]),
+                             lambda x, v: np.array([x[0]]), 1, 0, 1)
+    log = simulate_nonlinear(system, 60, 0.1, kernel_width=0.0, process_std=0.02, measurement_std=0.05,
+                             initial_state=[3.5], seed=1)
+    options = dict(process_covariance=np.array([[0.02**2 * 0.1]]), measurement_covariance=np.array([[0.05**2]]))
+    found = search.search_start(system, 0.1, log.outputs, None, substeps=2, prior_mean=[3.0], prior_scale=1.0,
+                                **options)
+    assert found.modes[0].states[0, 0] == pytest.approx(3.5, abs=3 * 0.05)

@@ -236,7 +236,7 @@ def search_start(system, dt: float, outputs, inputs=None, *, process_covariance,
     bank_options = dict(options, substeps=max(1, int(np.ceil(substeps / BANK_SUBSTEP_FRACTION))))
     try:
         bank = _Bank(system, dt, outputs, inputs, bank_options, centres, stds, prior)
-    except AttendInputError:  # e.g. too few sub-steps for RK4 to be stable at x = 0: the runs' sub-steps
+    except AttendInputError:  # e.g. too few sub-steps for RK4 to be stable at the centre: the runs' sub-steps
         bank = _Bank(system, dt, outputs, inputs, options, centres, stds, prior)
     survivors, searched = bank.run()
     starts = [(centre, scale)] + [(centres[k], stds[k]) for k in extra
@@ -432,8 +432,10 @@ class _Bank:
     def __init__(self, system, dt, outputs, inputs, options, centres, stds, prior: StartPrior):
         from attend.perception.nonlinear_smoothers.kalman import _Model
 
+        # the sub-steps are checked at the prior's centre (centres[0]), where the search starts, not at
+        # x = 0: a model may be stiff only near 0
         self.model = _Model(system, dt, outputs, inputs, options["input_variance"], options["input_mean"],
-                            options["process_covariance"], options["measurement_covariance"], None, None,
+                            options["process_covariance"], options["measurement_covariance"], centres[0], None,
                             options["substeps"], options["known_inputs"])
         n, d = system.n_states, self.model.size
         self.mean = np.tile(self.model.m0, (len(centres), 1))

@@ -183,8 +183,7 @@ def moving_data_transition(J: np.ndarray, K_y: np.ndarray, K_eta: np.ndarray, P:
     block[:N, N: N + ny] = K_y
     block[:N, N + ny: N + ny + nv] = K_eta
     block[:N, N + ny + nv:] = np.eye(N)
-    block[N: N + ny, N: N + ny] = np.kron(np.eye(P, k=1), np.eye(m))
-    block[N + ny: N + ny + nv, N + ny: N + ny + nv] = np.kron(np.eye(Q, k=1), np.eye(r))
+    block[N: N + ny + nv, N: N + ny + nv] = shift_matrix(P, m, Q, r)
     full = expm(block * dt)
     return full[:N, :N], full[:N, N + ny + nv:], full[:N, N: N + ny], full[:N, N + ny: N + ny + nv]
 

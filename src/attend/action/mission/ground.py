@@ -160,10 +160,7 @@ class SearchGround:
         (a start outside first goes to its entry point). Raises MissionInputError when the
         goal cannot be reached inside the area (it lies outside it, or in another part of it)."""
         start, goal = np.asarray(start_xy, float)[:2], np.asarray(goal_xy, float)[:2]
-        points = []
-        if not self.inside(*start):
-            start = self.entry_point(*start)
-            points.append(start)
+        start, points = self._entered(start)
         if self.legs_allowed(start[None], goal[None])[0]:
             return np.array(points + [goal])
         path = self._graph_path(start, goal)
@@ -177,11 +174,9 @@ class SearchGround:
         may lie outside the area (a home): route to its entry point, then straight to it."""
         start, goal = np.asarray(start_xy, float)[:2], np.asarray(goal_xy, float)[:2]
         end = self.entry_point(*goal) if leave_area else goal
-        length = float(np.hypot(*(goal - end)))
-        if not self.inside(*start):
-            entry = self.entry_point(*start)
-            length += float(np.hypot(*(entry - start)))
-            start = entry
+        inside, _ = self._entered(start)
+        length = float(np.hypot(*(goal - end))) + float(np.hypot(*(inside - start)))
+        start = inside
         if self.legs_allowed(start[None], end[None])[0]:
             return length + float(np.hypot(*(end - start)))
         # the shortest route's first corner: min over the corners seen from start of the leg to it
@@ -196,6 +191,14 @@ class SearchGround:
                 return length + float(first.min())
         raise MissionInputError(f"no route inside the area from ({start[0]:.1f}, {start[1]:.1f}) m to "
                                 f"({end[0]:.1f}, {end[1]:.1f}) m east/north of its centre")
+
+    def _entered(self, start: np.ndarray) -> tuple[np.ndarray, list]:
+        """(where a route from ``start`` begins inside F', [that point] when start lies outside
+        F' (the first waypoint), else [])."""
+        if self.inside(*start):
+            return start, []
+        entry = self.entry_point(*start)
+        return entry, [entry]
 
     def _graph_distances_to(self, goal: np.ndarray) -> np.ndarray:
         """(k,) [m] length of the shortest route from each corner of the graph to ``goal`` (inf:

@@ -247,10 +247,10 @@ def search_start(system, dt: float, outputs, inputs=None, *, process_covariance,
     best, modes, anchors = -np.inf, [], []
     for k in survivors[:MAX_MODES]:
         modes.append(_mode(system, dt, outputs, inputs, options, centres[k], stds[k], prior, runs, best))
-        best = max([best] + [mode.score for mode in modes[-1:] if mode is not None])
+        best = best if modes[-1] is None else max(best, modes[-1].score)
     for mean, std in starts:
         anchors.append(_anchor(system, dt, outputs, inputs, options, mean, std, prior, runs, best))
-        best = max([best] + [anchor.score for anchor in anchors[-1:] if anchor is not None])
+        best = best if anchors[-1] is None else max(best, anchors[-1].score)
     basins = _basins([mode for mode in modes + anchors if mode is not None])
     if not basins:
         raise AttendInputError("initial_state: the search found no start from which the unscented smoother "

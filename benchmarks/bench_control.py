@@ -57,7 +57,8 @@ plant (mean over evaluation seeds); ITAE under +-30 % error in each plant parame
 gain b) as a ratio to the nominal ITAE; step and tracking while sensor 2 degrades (noise x10 from the
 middle of the run): active inference with online sensory-precision learning (relative and absolute
 level) vs fixed precision, paired over seeds (mean difference, 95 % t-interval);
-the controller's step time for a 4-state model and for the arm's agent (arm_step_time) (target <= 100 us).
+the controller's step time for a 4-state model and for the arm's agent (arm_step_time; median and mean, each
+target <= 100 us: the mean carries the refreshes of dy~/da, each an exact transition of the 26-state joint flow).
 """
 
 from __future__ import annotations
@@ -905,7 +906,7 @@ def main():
         print(f"\ncontroller step, two-link arm (4 states, 6 causes, p = 2, dy~/da held over dt, refreshed on "
               f"{refreshes} of {round(ARM_SETTINGS['duration'] / ARM_SETTINGS['dt'])} samples), {task}: median "
               f"{median * 1e6:.1f} us (target <= 100 us: {'met' if median <= 1e-4 else 'NOT met'}), mean "
-              f"{mean * 1e6:.1f} us", end="")
+              f"{mean * 1e6:.1f} us (target <= 100 us: {'met' if mean <= 1e-4 else 'NOT met'})", end="")
     print(f"\n\nwall time {time.perf_counter() - started:.0f} s")
 
 

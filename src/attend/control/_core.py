@@ -10,7 +10,7 @@ import numpy as np
 from scipy.linalg import expm
 from scipy.linalg.blas import dgemm, dgemv
 
-from attend.control._exponential import AugmentedExponential
+from attend.control._exponential import AugmentedExponential, exponential_and_integral
 
 
 def causal_embedding_weights(n_orders: int, window: int, dt: float) -> np.ndarray:
@@ -159,7 +159,14 @@ def sensory_precision(S_by_order: list, orders: np.ndarray, precision: np.ndarra
 
 
 def discrete_transition(J: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """(expm(J dt), int_0^dt expm(J t) dt): the exact step of the linear flow dZ/dt = J Z + c, c held."""
+    """(expm(J dt), int_0^dt expm(J t) dt): the exact step of the linear flow dZ/dt = J Z + c, c held; the blocks of
+    expm([[J, I], [0, 0]] dt) from N x N products (:func:`exponential_and_integral`)."""
+    return exponential_and_integral(J, dt)
+
+
+def discrete_transition_reference(J: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`discrete_transition` as scipy.linalg.expm of the 2N x 2N block [[J, I], [0, 0]] dt (the definition;
+    slower, and less accurate when J dt is stiff), for tests."""
     N = J.shape[0]
     block = np.zeros((2 * N, 2 * N))
     block[:N, :N] = J * dt
@@ -175,17 +182,18 @@ def moving_data_transition(J: np.ndarray, K_y: np.ndarray, K_eta: np.ndarray, P:
     the sample: y~(t) = expm(D_y t) y~[k], eta~(t) = expm(D_v t) eta~[k], D the shift of P orders of m outputs
     and of Q orders of r causes (spm_DEM integrates [y~; x~; v~] jointly, with dy~/dt = D y~).
     Gamma_y = int_0^dt expm(J (dt - t)) K_y expm(D_y t) dt, and so for eta~: the upper blocks of
-    expm([[J, K_y, K_eta, I], [0, D_y, 0, 0], [0, 0, D_v, 0], [0, 0, 0, 0]] dt)."""
+    expm([[J, K_y, K_eta], [0, D_y, 0], [0, 0, D_v]] dt); expm(J dt) and its integral are :func:`discrete_transition`'s
+    (the same numbers as for held data)."""
     N, ny, nv = J.shape[0], P * m, Q * r
-    size = 2 * N + ny + nv
+    size = N + ny + nv
     block = np.zeros((size, size))
     block[:N, :N] = J
     block[:N, N: N + ny] = K_y
-    block[:N, N + ny: N + ny + nv] = K_eta
-    block[:N, N + ny + nv:] = np.eye(N)
-    block[N: N + ny + nv, N: N + ny + nv] = shift_matrix(P, m, Q, r)
+    block[:N, N + ny:] = K_eta
+    block[N:, N:] = shift_matrix(P, m, Q, r)
     full = expm(block * dt)
-    return full[:N, :N], full[:N, N + ny + nv:], full[:N, N: N + ny], full[:N, N + ny: N + ny + nv]
+    transition, integral = discrete_transition(J, dt)
+    return transition, integral, full[:N, N: N + ny], full[:N, N + ny:]
 
 
 def _diagonal_blocks_view(matrix: np.ndarray, row: int, col: int, count: int, height: int, width: int):

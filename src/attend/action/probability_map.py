@@ -25,7 +25,7 @@ positions d_1 .. d_k (:mod:`attend.action.detection`). For every searchable cell
          = g_x g_y,   g(t) = [Phi((t_hi - t) / sigma) - Phi((t_lo - t) / sigma)] / s,
 
 with D from before the image, N(c) the cells in view within k cells of c in x and in y (a square
-of 2k + 1 cells a side, k = ceil(max(target radius, 2 sigma) / s)) and M_c capped at 1 - 1e-9.
+of 2k + 1 cells a side, k = ceil(max(target radius, sigma) / s)) and M_c capped at 1 - 1e-9.
 This is the exact Bayes update of one person who is in N(c) with probability M_c, spread there
 as D / M_c, missed with probability 1 - pd or reported once at their centre (uniform in their
 cell of area a = s^2) plus N(0, sigma^2 I), every other detection coming from a Poisson field:
@@ -40,7 +40,9 @@ D_c <- D_c [(1 - pd) + sum_j pd f_jc / (kappa + pd sum_{c' in view} f_jc' D_c')]
 The PHD update alone is not calibrated over a mission of static people: it treats a cluster
 of mass 1 as Poisson, so a detection lifts it to about 2 - pd and a miss drops it to (1 - pd)
 whatever came before. The limit of this update: two people closer than the neighbourhood share
-the mass of one (targets then report one of them). Terms run only on the cells within reach r
+the mass of one (targets then report one of them). The neighbourhood is the target disc's square
+(or sigma's, where sigma is larger): with 2 sigma instead, people 2-7 m apart were explained away
+and P(all found) was over-confident (docs/search.md). Terms run only on the cells within reach r
 of each detection (widened by k cells for F), r being the distance beyond which
 pd f < 1e-3 (1 - pd) kappa; the cost of an update is O(cells in view + detections x cells within
 reach). kappa is floored at 1e-6 per m^2 (one false detection per km^2) so that a clutter-free
@@ -354,8 +356,8 @@ class ProbabilityMap:
 
     def neighbourhood_cells(self, sigma_m: float) -> int:
         """k, the half-width [cells] of the square neighbourhood taken as one person in the
-        update: ceil(max(target radius, 2 sigma) / s); sigma_m: the position error [m]."""
-        return max(1, int(np.ceil(max(self.default_target_radius_m(), 2.0 * sigma_m) / self.grid.cell_size_m - 1e-9)))
+        update: ceil(max(target radius, sigma) / s); sigma_m: the position error [m]."""
+        return max(1, int(np.ceil(max(self.default_target_radius_m(), sigma_m) / self.grid.cell_size_m - 1e-9)))
 
     def _add_detection_terms(
         self, detections_m: np.ndarray, window: tuple[slice, slice], in_view: np.ndarray, density: np.ndarray,

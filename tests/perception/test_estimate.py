@@ -279,7 +279,9 @@ def test_the_file_estimator_returns_an_estimate(nonlinear_log, tmp_path, method,
 
 def test_function_results_convert_to_an_estimate(linear_log, nonlinear_log):
     y, u = linear_log.outputs, linear_log.inputs
-    result = KalmanEstimator(LINEAR, DT, noise=NOISE).filter(y, u)
+    filtered = KalmanEstimator(LINEAR, DT, noise=NOISE).filter(y, u)  # .filter() is an Estimate too
+    result = filtered.details
+    check_estimate(filtered, result, "kalman filter")
     check_estimate(as_estimate(result), result, "kalman filter")
     check_estimate(result.as_estimate(), result, "kalman filter")
     result = exact_posterior(LINEAR, DT, y[:60], u[:60], noise=NOISE)

@@ -470,10 +470,11 @@ class KalmanEstimator:
         """
         return as_estimate(self._run(outputs, inputs, smooth=True, time=time))
 
-    def filter(self, outputs, inputs=None, *, time=None) -> StateEstimate:
-        """Causal estimates E[x[k] | y[0..k]] and their standard deviations (the Kalman filter);
-        outputs, inputs and time as :meth:`estimate`."""
-        return self._run(outputs, inputs, smooth=False, time=time)
+    def filter(self, outputs, inputs=None, *, time=None) -> Estimate:
+        """Causal estimates E[x[k] | y[0..k]] and their standard deviations (the Kalman filter),
+        as an :class:`attend.perception.estimate.Estimate` (method "kalman filter"; details: the
+        StateEstimate); outputs, inputs and time as :meth:`estimate`."""
+        return as_estimate(self._run(outputs, inputs, smooth=False, time=time))
 
     @with_single_blas_thread
     def _run(self, outputs, inputs, smooth: bool, time=None) -> StateEstimate:

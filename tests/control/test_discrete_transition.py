@@ -1,6 +1,6 @@
 """The exact step of a linear flow, (E, F) = (expm(J dt), int_0^dt expm(J t) dt) (control._exponential.
 exponential_and_integral, N x N products, E - I squared), against closed forms and against the computation it
-replaces: scipy.linalg.expm of the 2N x 2N block [[J, I], [0, 0]] dt (control._core.discrete_transition_reference).
+replaces: scipy.linalg.expm of the 2N x 2N block [[J, I], [0, 0]] dt (discrete_transition_reference below).
 
 Tolerances. Both are backward stable: each computes the exponential of the block plus dA with |dA|_1 <= u |A|_1
 (u = 2^-53, A = J dt, before the rounding of the products), and the block's exponential [[E, F], [0, I]] has norm at
@@ -18,19 +18,29 @@ import math
 
 import numpy as np
 import pytest
-from scipy.linalg import hadamard
+from scipy.linalg import expm, hadamard
 
 from attend.control import ActiveInferenceController, GenerativeModel, arm, markov_parameters, run
 from attend.control import controller as controller_module
 from attend.control._core import (
     discrete_transition,
-    discrete_transition_reference,
     error_jacobian,
     joint_system,
     shift_matrix,
 )
 from attend.control._exponential import UNIT_ROUNDOFF, exponential_and_integral
 from attend.models.generalized import smoothness_precision
+
+def discrete_transition_reference(J: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """discrete_transition as scipy.linalg.expm of the 2N x 2N block [[J, I], [0, 0]] dt (the definition, the
+    computation discrete_transition replaced: slower, and less accurate when J dt is stiff)."""
+    N = J.shape[0]
+    block = np.zeros((2 * N, 2 * N))
+    block[:N, :N] = J * dt
+    block[:N, N:] = np.eye(N) * dt
+    full = expm(block)
+    return full[:N, :N], full[:N, N:]
+
 
 DT = 2.0**-7  # a power of two: J dt is exact
 

@@ -164,17 +164,6 @@ def discrete_transition(J: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarra
     return exponential_and_integral(J, dt)
 
 
-def discrete_transition_reference(J: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`discrete_transition` as scipy.linalg.expm of the 2N x 2N block [[J, I], [0, 0]] dt (the definition;
-    slower, and less accurate when J dt is stiff), for tests."""
-    N = J.shape[0]
-    block = np.zeros((2 * N, 2 * N))
-    block[:N, :N] = J * dt
-    block[:N, N:] = np.eye(N) * dt
-    full = expm(block)
-    return full[:N, :N], full[:N, N:]
-
-
 def moving_data_transition(J: np.ndarray, K_y: np.ndarray, K_eta: np.ndarray, P: int, m: int, Q: int, r: int,
                            dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(expm(J dt), int_0^dt expm(J t) dt, Gamma_y, Gamma_eta): the exact step of

@@ -176,13 +176,8 @@ class AugmentedExponential:
             shift = math.ceil(math.log2(norm_c / max(norm, 1.0)))
             norm_c = math.ldexp(norm_c, -shift)
         norm = max(norm, norm_c)
-        index = bisect.bisect_left(_THETAS, norm)
-        if index < len(_PLANS):
-            squarings = 0
-            _, q, K, coefficients = _PLANS[index]
-        else:
-            squarings = max(0, math.ceil(math.log2(norm) - _LOG2_LARGEST_THETA))
-            _, q, K, coefficients = _PLANS[-1]
+        index, squarings = _scaling(norm)
+        _, q, K, coefficients = _PLANS[index]
         powers = self._powers
         X = powers[1]
         scales = self._scales

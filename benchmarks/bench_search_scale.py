@@ -60,9 +60,12 @@ import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ideal_sweep import ideal_sweep_t90  # noqa: E402
+from ideal_sweep import detect_and_confirm_t90, ideal_sweep_t90  # noqa: E402
 
 TUNING_SEED_OFFSET = 1000
+#: Seconds per confirming detour of the detect-and-confirm reference (part 3): free, and about what
+#: a turn, a descent, a look and the way back take at 10 m/s.
+DETOUR_SECONDS = (0.0, 3.0, 10.0)
 WORKERS = 2
 
 
@@ -177,11 +180,11 @@ def comparison_mission(seed: int, prior: str, planner_name: str, altitude_m: flo
     return log.time_to_fraction_s(0.9), len(log.found_times_s) == world.n_people, settings.budget_s, log.false_targets
 
 
-def world_ideal_sweep_t90(seed: int, prior: str) -> float:
-    """:func:`ideal_sweep.ideal_sweep_t90` [s] of a part-3 world: its searchable area and people,
-    the map's disc mass under a uniform prior, the planner's channel at 20-100 m (5 m steps), one
-    UAV; found times exact (the search checks them at every image). Buildings and occlusion are
-    ignored: a reference, not a bound."""
+def world_channels(seed: int, prior: str):
+    """(settings, searchable area [m^2], people, a target disc's prior mass m0 under a uniform
+    prior, channels (h, w_x, w_y, pd, pf) at 20-100 m in 5 m steps, association area [m^2] per
+    channel) of a part-3 world, for the sweep references of :mod:`ideal_sweep`. Buildings and
+    occlusion are ignored: references, not bounds."""
     world = scenario(seed, prior)
     settings = SearchSettings(budget_s=scenario_budget_s(world))
     grid, model, camera = world.grid, settings.model, settings.camera
@@ -189,16 +192,33 @@ def world_ideal_sweep_t90(seed: int, prior: str) -> float:
     belief = ProbabilityMap.uniform(grid, world.n_people, world.searchable)
     k = int(round(belief.default_target_radius_m() / cell))
     p0 = world.n_people / float(world.searchable.sum())
-    channels = []
+    channels, associations = [], []
     for h in np.arange(20.0, 101.0, 5.0):
         width, length = (float(v) for v in camera.footprint_m(h))
         association = cell**2 + np.pi * (ASSOCIATION_SIGMAS * float(model.position_error_m(h))) ** 2
         channels.append((h, width, length, float(model.detection_probability(h, settings.speed_m_s)),
                          float(model.false_alarm_probability_per_cell(h, camera, association))))
-    t90, _, _ = ideal_sweep_t90(float(world.searchable.sum()) * cell**2, world.n_people,
-                                min(1.0, p0 * (2 * k + 1) ** 2), channels, 1, settings.speed_m_s,
-                                1.0 / settings.image_rate_hz, settings.budget_s, settings.target_threshold,
-                                np.random.default_rng(seed))
+        associations.append(association)
+    return (settings, float(world.searchable.sum()) * cell**2, world.n_people, min(1.0, p0 * (2 * k + 1) ** 2),
+            channels, associations)
+
+
+def world_ideal_sweep_t90(seed: int, prior: str) -> float:
+    """:func:`ideal_sweep.ideal_sweep_t90` [s] of a part-3 world (:func:`world_channels`), one UAV;
+    found times exact (the search checks them at every image)."""
+    settings, area, people, mass, channels, _ = world_channels(seed, prior)
+    t90, _, _ = ideal_sweep_t90(area, people, mass, channels, 1, settings.speed_m_s, 1.0 / settings.image_rate_hz,
+                                settings.budget_s, settings.target_threshold, np.random.default_rng(seed))
+    return t90
+
+
+def world_detect_and_confirm_t90(seed: int, prior: str, confirm_s: float) -> float:
+    """:func:`ideal_sweep.detect_and_confirm_t90` [s] of a part-3 world: its ideal sweep confirming
+    every place with enough reports by a detour of ``confirm_s`` seconds (0: free)."""
+    settings, area, people, mass, channels, associations = world_channels(seed, prior)
+    t90, _, _ = detect_and_confirm_t90(area, people, mass, channels, associations, 1, settings.speed_m_s,
+                                       1.0 / settings.image_rate_hz, settings.budget_s, settings.target_threshold,
+                                       confirm_s, np.random.default_rng(seed))
     return t90
 
 
@@ -249,6 +269,10 @@ def part3(missions: int, tuning_seeds: int, quick: bool, priors=("uniform", "inf
             line(f"{prior}: median time to 90 %, ideal sweep (no transit, turns or buildings)",
                  f"{np.median(ideal):.0f} s; ideal / lawnmower {np.median(ideal / t_mow):.2f}, EFE / ideal "
                  f"{np.median(t_efe / ideal):.2f} (medians over missions)", "-")
+            for confirm_s in DETOUR_SECONDS:
+                adaptive = np.array([world_detect_and_confirm_t90(seed, prior, confirm_s) for seed in range(missions)])
+                line(f"{prior}: ideal sweep confirming by detours of {confirm_s:g} s / lawnmower",
+                     f"{np.median(adaptive / t_mow):.2f} (median over missions)", "-")
         line(f"{prior}: median time to 90 % EFE / lawnmower",
              f"{np.median(t_efe):.0f} s / {np.median(t_mow):.0f} s", "-")
         line(f"{prior}: P(all found by the end) EFE / lawnmower",

@@ -60,3 +60,47 @@ def ideal_sweep_t90(area_m2: float, people: int, prior_mass: float, channels, n_
             if t90 < best[0]:
                 best = (t90, float(h), overlap)
     return best
+
+
+def binomial_tail(trials: int, probability: float, at_least: int) -> float:
+    """P(J >= at_least) for J ~ Binomial(trials, probability)."""
+    return float(sum(math.comb(trials, j) * probability**j * (1 - probability) ** (trials - j)
+                     for j in range(max(at_least, 0), trials + 1)))
+
+
+def detect_and_confirm_t90(area_m2: float, people: int, prior_mass: float, channels, association_m2, n_uavs: int,
+                           speed_m_s: float, image_interval_s: float, budget_s: float, threshold: float,
+                           confirm_s: float, rng: np.random.Generator, draws: int = 4000) -> tuple[float, float, int]:
+    """(t90 [s], h [m], d): the median time to find 90 % of an ideal sweep that stops to confirm.
+
+    As :func:`ideal_sweep_t90` (one altitude h, no transit, turns or way back), but every place
+    with at least d of its L = l(h) / (v dt) looks reporting a detection is confirmed at once by
+    a detour costing ``confirm_s`` seconds, whatever the planner's channel says: a person is
+    found in the first sweep that gives them d reports or lifts their disc to the threshold,
+    P = max(P(J >= d), confirmation_probability), J ~ Binomial(L, pd); each sweep lasts
+    T = A / (n_uav v w(h)) + confirm_s (n P(J >= d, not confirmed) + (A / a) P(F >= d)),
+    F ~ Binomial(L, pf) the false reports of one association area a. With ``confirm_s`` = 0
+    this is a bound no sweep at one altitude can beat; with the seconds a real detour costs
+    (a turn, a descent, a look and the way back), what is left of the adaptive gain.
+
+    association_m2: a per channel (the area one report supports); the rest as
+    :func:`ideal_sweep_t90`; d tried 1, 2, 3 and the best (h, d) kept in hindsight."""
+    need = max(1, math.ceil(0.9 * people - 1e-9))
+    best = (math.inf, float("nan"), 0)
+    for (h, width, length, pd, pf), association in zip(channels, association_m2):
+        looks = max(1, int(round(length / (speed_m_s * image_interval_s))))
+        by_channel = float(confirmation_probability(prior_mass, pd, pf, looks, threshold))
+        for reports in (1, 2, 3):
+            by_reports = binomial_tail(looks, pd, reports)
+            found = max(by_reports, by_channel)
+            if found <= 1e-9:
+                continue
+            detours = people * max(by_reports - by_channel, 0.0) + area_m2 / association * binomial_tail(looks, pf, reports)
+            period = area_m2 / (n_uavs * speed_m_s * width) + confirm_s * detours
+            place = rng.uniform(size=(draws, people))
+            sweep = rng.geometric(min(found, 1.0), size=(draws, people)) - 1
+            t90 = np.sort((sweep + place) * period, axis=1)[:, need - 1]
+            t90 = float(np.median(np.where(t90 <= budget_s, t90, 2 * budget_s)))
+            if t90 < best[0]:
+                best = (t90, float(h), reports)
+    return best

@@ -1,0 +1,253 @@
+"""attend's active-inference reproductions against SPM12's own runs (issue 28).
+
+    PYTHONPATH=src python benchmarks/bench_spm_control.py               # compare with the stored SPM runs
+    PYTHONPATH=src python benchmarks/bench_spm_control.py --diagnose    # + attend with more sensory orders (~1 min)
+
+No Octave is needed: SPM's numbers are stored in benchmarks/spm/reference/ (README there). Two demos:
+
+- attenuation (attend.control.attenuation, SPM's ALAP_demo_attenuation through spm_ALAP): per attenuation
+  h = -4..6 the peak true force (the world's x) and the peak perceived self-generated force (the belief x1),
+  "fixed reflex precision" variant (SPM's G.U = [1 0]). SPM was run with the demo's world noise
+  (exp(8), rng('default') before each run; attenuation_spm.csv) and with a noiseless world
+  (attenuation_noiseless_spm.csv). attend is run with its SETTINGS (its own noise, seed 0) and with matched
+  settings: a noiseless world and the intention peaking at t = 15 s (SPM's bin 16 is t = 15 s, since SPM's
+  bin 1 is the initial state at t = 0).
+- reaching (attend.control.reaching, SPM's ADEM_reaching through spm_ADEM), "vision" variant: the finger's
+  path and the joint angles per bin. Matched settings: a noiseless world (SPM's exp(16) world noise changes
+  its path by < 1e-4) and the cue peaking at t = 31 s (SPM's bin 32).
+
+Targets: the curves within 5 %, attend >= 100x faster (CPU time of one run of the demo against the CPU
+time of the spm_ALAP / spm_ADEM call, as the drivers record it). Conventions that differ: docs/spm.md.
+
+Regenerating the references (needs GNU Octave and SPM12 r7771 outside the repository, see
+benchmarks/spm/README.md), from the repository root:
+
+    cd benchmarks/spm
+    octave --no-gui --quiet --eval "spm_root='/work/spm12'; noise=1; run('run_attenuation.m')"
+    octave --no-gui --quiet --eval "spm_root='/work/spm12'; noise=0; run('run_attenuation.m')"
+    octave --no-gui --quiet --eval "spm_root='/work/spm12'; cued=1; noise=1; run('run_reaching.m')"
+    octave --no-gui --quiet --eval "spm_root='/work/spm12'; cued=1; noise=0; run('run_reaching.m')"
+    octave --no-gui --quiet --eval "spm_root='/work/spm12'; cued=0; noise=0; run('run_reaching.m')"
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+REFERENCE = Path(__file__).resolve().parent / "spm" / "reference"
+NOISELESS = 64.0  # world log-precision of a noiseless attend world (noise std exp(-32))
+
+
+# ---------------------------------------------------------------------------------------------- references
+def spm_attenuation(tag: str = "attenuation_noiseless") -> dict:
+    """SPM's attenuation run ``tag``: h, peak true and perceived force, CPU seconds per run (arrays), the
+    time courses per h ((32, 7): bin, true x, belief x1, x2, action, belief v1, v2) and the JSON record."""
+    table = np.loadtxt(REFERENCE / f"{tag}_spm.csv", delimiter=",", ndmin=2)
+    traces = {int(h): np.loadtxt(REFERENCE / f"{tag}_h{int(h)}_spm.csv", delimiter=",") for h in table[:, 0]}
+    record = json.loads((REFERENCE / f"{tag}_spm.csv.json").read_text())
+    return dict(h=table[:, 0], true=table[:, 1], perceived=table[:, 2], cpu=table[:, 3], traces=traces,
+                record=record)
+
+
+def spm_reaching(tag: str = "reaching_noiseless") -> dict:
+    """SPM's reaching run ``tag``: per bin (128 rows) the true angles and velocities, finger, believed angles,
+    believed finger, action, believed causes, and the JSON record."""
+    data = np.loadtxt(REFERENCE / f"{tag}_spm.csv", delimiter=",")
+    record = json.loads((REFERENCE / f"{tag}_spm.csv.json").read_text())
+    return dict(bin=data[:, 0], states=data[:, 1:5], finger=data[:, 5:7], believed_angles=data[:, 7:9],
+                believed_finger=data[:, 9:11], action=data[:, 11:13], causes=data[:, 13:16], record=record)
+
+
+# ---------------------------------------------------------------------------------------------- attend runs
+def attenuation_settings(matched: bool = True) -> dict:
+    """attend.control.attenuation.SETTINGS, or (matched) with a noiseless world and the intention's peak at
+    t = 15 s, SPM's bin 16."""
+    from attend.control import attenuation
+
+    cfg = dict(attenuation.SETTINGS)
+    if matched:
+        cfg.update(world_log_precision=NOISELESS, intention_peak_s=15.0)
+    return cfg
+
+
+def attenuation_controller(h: float, cfg: dict, sensory_orders="relative_degree"):
+    """(world, controller) of attend's attenuation run ("fixed reflex precision", SPM's G.U) at h; with
+    sensory_orders other than attend's default the controller is rebuilt with it (a diagnostic)."""
+    from attend.control import ActiveInferenceController, attenuation
+
+    world, controller = attenuation.build(h, "fixed reflex precision", cfg)
+    if sensory_orders != "relative_degree":
+        controller = ActiveInferenceController(
+            controller.model, cfg["dt"], action_gain=cfg["action_gain"], n_actions=1, action_jacobian="process",
+            action_precision=cfg["reflex_precision"], action_prior_precision=np.exp(cfg["action_prior_log_precision"]),
+            sensory_orders=sensory_orders)
+    return world, controller
+
+
+#: the configuration that isolates the convention that differs: attend stepping once per SPM bin and
+#: attending sensory orders 0..3 (SPM weights all of 0..4; attend's default, "relative_degree", only 0..1)
+SPM_LIKE_ORDERS = 3
+
+
+def spm_like_attenuation_settings() -> dict:
+    """The matched settings (:func:`attenuation_settings`) at SPM's step, dt = 1 s (one sample per bin)."""
+    return dict(attenuation_settings(True), dt=1.0)
+
+
+def attend_attenuation(cfg: dict, sensory_orders="relative_degree") -> dict:
+    """attend's curve: per h of cfg the peak true and perceived force, the CPU seconds of each run, and the
+    time courses at SPM's bins (t = 0, 1, .. 31 s); a diverging run gives NaN."""
+    from attend.control import ClosedLoopDivergence, run
+
+    hs = cfg["attenuations"]
+    true, perceived, cpu, traces = [], [], [], {}
+    step = int(round(1.0 / cfg["dt"]))
+    for h in hs:
+        world, controller = attenuation_controller(h, cfg, sensory_orders)
+        start = time.process_time()
+        try:
+            loop = run(world, controller, cfg["duration"], seed=cfg["seed"])
+        except ClosedLoopDivergence:
+            true.append(np.nan), perceived.append(np.nan), cpu.append(np.nan)
+            continue
+        cpu.append(time.process_time() - start)
+        true.append(float(loop.states[:, 0].max()))
+        perceived.append(float(loop.belief_states[:, 0].max()))
+        traces[int(h)] = np.column_stack([loop.states[::step, 0], loop.belief_states[::step, :2]])
+    return dict(h=np.asarray(hs, dtype=float), true=np.array(true), perceived=np.array(perceived),
+                cpu=np.array(cpu), traces=traces)
+
+
+def reaching_settings(matched: bool = True) -> dict:
+    """attend.control.reaching.SETTINGS, or (matched) with a noiseless world and the cue's peak at t = 31 s,
+    SPM's bin 32."""
+    from attend.control import reaching
+
+    cfg = dict(reaching.SETTINGS)
+    if matched:
+        cfg.update(world_log_precision=NOISELESS, cue_peak_s=31.0)
+    return cfg
+
+
+def attend_reaching(cfg: dict, cued: bool = True) -> dict:
+    """attend's "vision" run: finger path, joint angles and belief at SPM's bins (t = 0 .. 127 s), the full
+    finger path with its times, and the CPU seconds of the run."""
+    from attend.control import reaching
+
+    start = time.process_time()
+    trace = reaching.simulate("vision", cued, cfg)
+    cpu = time.process_time() - start
+    step = int(round(1.0 / cfg["dt"]))
+    bins = int(round(cfg["duration"]))
+    return dict(finger=np.asarray(trace["finger"])[::step][:bins], angles=np.asarray(trace["angles"])[::step][:bins],
+                time_s=np.asarray(trace["time_s"]), finger_full=np.asarray(trace["finger"]), cpu=cpu)
+
+
+def path_gap(attend_finger: np.ndarray, spm_finger: np.ndarray) -> np.ndarray:
+    """|attend finger - SPM finger| per bin [arm length]."""
+    return np.linalg.norm(attend_finger - spm_finger, axis=1)
+
+
+def best_time_shift(run: dict, spm_finger: np.ndarray, shifts=np.arange(-1.0, 1.01, 0.125)) -> tuple[float, float]:
+    """(shift [s], RMS gap [arm length]): the time shift of attend's path (attend at t = bin - 1 + shift)
+    closest to SPM's, over the bins where it is defined."""
+    best = (0.0, np.inf)
+    for shift in shifts:
+        at = np.arange(spm_finger.shape[0]) + shift
+        keep = (at >= 0) & (at <= run["time_s"][-1])
+        path = np.column_stack([np.interp(at[keep], run["time_s"], run["finger_full"][:, k]) for k in range(2)])
+        rms = float(np.sqrt(np.mean(path_gap(path, spm_finger[keep]) ** 2)))
+        if rms < best[1]:
+            best = (float(shift), rms)
+    return best
+
+
+# ---------------------------------------------------------------------------------------------- report
+def _attenuation_report(diagnose: bool) -> None:
+    spm_noisy, spm = spm_attenuation("attenuation"), spm_attenuation("attenuation_noiseless")
+    own, matched = attend_attenuation(attenuation_settings(False)), attend_attenuation(attenuation_settings(True))
+    print("Sensory attenuation (fixed reflex precision = SPM's G.U): peak true / perceived force per h")
+    print(f"{'h':>3} | {'SPM demo noise':>15} | {'attend SETTINGS':>15} | {'SPM noiseless':>15} | "
+          f"{'attend matched':>15} | {'true ratio':>10} | {'perc. ratio':>11} | trace gap")
+    for i, h in enumerate(spm["h"]):
+        trace_gap = np.abs(matched["traces"][int(h)][:, 0] - spm["traces"][int(h)][:, 1]).max() / spm["true"][i]
+        print(f"{h:3.0f} | {spm_noisy['true'][i]:6.3f} / {spm_noisy['perceived'][i]:6.3f} | "
+              f"{own['true'][i]:6.3f} / {own['perceived'][i]:6.3f} | {spm['true'][i]:6.3f} / {spm['perceived'][i]:6.3f} | "
+              f"{matched['true'][i]:6.3f} / {matched['perceived'][i]:6.3f} | {matched['true'][i] / spm['true'][i]:10.3f} | "
+              f"{matched['perceived'][i] / spm['perceived'][i]:11.3f} | {trace_gap:8.3f}")
+    worst = np.max(np.abs(matched["true"] / spm["true"] - 1))
+    print(f"worst |attend / SPM - 1| of the true force (matched, noiseless): {worst:.3f} (target <= 0.05: "
+          f"{'met' if worst <= 0.05 else 'NOT met'}); trace gap: max |x_attend - x_SPM| over bins / SPM's peak")
+    spm_like = attend_attenuation(spm_like_attenuation_settings(), sensory_orders=SPM_LIKE_ORDERS)
+    ratio = spm_like["true"] / spm["true"]
+    print(f"attend at SPM's step (dt = 1 s) attending orders 0..{SPM_LIKE_ORDERS} (SPM: 0..4): true / SPM per h "
+          + " ".join(f"{r:.3f}" for r in ratio) + f"; worst |ratio - 1| {np.max(np.abs(ratio - 1)):.3f}; perceived / SPM "
+          + " ".join(f"{r:.3f}" for r in spm_like["perceived"] / spm["perceived"]))
+    if diagnose:
+        for dt, orders in ((attenuation_settings(True)["dt"], 3), (attenuation_settings(True)["dt"], "all"), (1.0, "all")):
+            probe = attend_attenuation(dict(attenuation_settings(True), dt=dt), sensory_orders=orders)
+            print(f"  diagnostic, attend with dt = {dt:g} s, sensory_orders={orders!r}: true / SPM per h "
+                  + " ".join("diverged" if np.isnan(r) else f"{r:.3f}" for r in probe["true"] / spm["true"])
+                  + "; perceived / SPM " + " ".join("diverged" if np.isnan(r) else f"{r:.3f}"
+                                                    for r in probe["perceived"] / spm["perceived"]))
+    per_run_spm = spm["record"]["cpu_seconds_per_run"]
+    per_run_attend = float(np.nanmedian(own["cpu"]))
+    print(f"speed: spm_ALAP {per_run_spm:.2f} s CPU per run (Octave {spm['record']['octave']}), attend "
+          f"{per_run_attend:.3f} s (median of {len(own['cpu'])} runs, {attenuation_settings(False)['duration'] / attenuation_settings(False)['dt']:.0f} samples): "
+          f"{per_run_spm / per_run_attend:.1f}x (target >= 100x); at SPM's step (32 samples) "
+          f"{float(np.nanmedian(spm_like['cpu'])):.4f} s: {per_run_spm / float(np.nanmedian(spm_like['cpu'])):.0f}x\n")
+
+
+def _reaching_report() -> None:
+    spm, spm_noisy, spm_still = spm_reaching("reaching_noiseless"), spm_reaching("reaching"), spm_reaching("reaching_nocue_noiseless")
+    cfg = reaching_settings(True)
+    own, matched = attend_reaching(reaching_settings(False)), attend_reaching(cfg)
+    still = attend_reaching(cfg, cued=False)
+    target = np.asarray(cfg["target"])
+    scale = float(np.linalg.norm(spm["finger"][0] - target))  # the distance the finger travels
+    print(f"Reaching (vision variant): finger path at SPM's 128 bins; scale = start-target distance {scale:.3f}")
+    gap, gap_own = path_gap(matched["finger"], spm["finger"]), path_gap(own["finger"], spm_noisy["finger"])
+    rows = [
+        ("max finger gap / scale", gap_own.max() / scale, gap.max() / scale),
+        ("RMS finger gap / scale", np.sqrt(np.mean(gap_own ** 2)) / scale, np.sqrt(np.mean(gap ** 2)) / scale),
+        ("max joint-angle gap [rad]", np.abs(own["angles"] - spm_noisy["states"][:, :2]).max(),
+         np.abs(matched["angles"] - spm["states"][:, :2]).max()),
+    ]
+    print(f"{'figure':34s} | {'attend SETTINGS':>15} | {'attend matched':>14}")
+    for name, a, b in rows:
+        print(f"{name:34s} | {a:15.4f} | {b:14.4f}")
+    print(f"{'figure':34s} | {'SPM':>8} | {'attend matched':>14} | ratio")
+    d_spm, d_att = np.linalg.norm(spm["finger"] - target, axis=1), np.linalg.norm(matched["finger"] - target, axis=1)
+    for name, s, a in [("closest finger-target distance", d_spm.min(), d_att.min()),
+                       ("bin of the closest approach", d_spm.argmin() + 1, d_att.argmin() + 1),
+                       ("distance at bin 32 (cue peak)", d_spm[31], d_att[31]),
+                       ("distance at bin 64", d_spm[63], d_att[63]),
+                       ("final distance (bin 128)", d_spm[-1], d_att[-1]),
+                       ("no cue: largest excursion", np.linalg.norm(spm_still["finger"] - spm_still["finger"][0], axis=1).max(),
+                        np.linalg.norm(still["finger"] - still["finger"][0], axis=1).max())]:
+        print(f"{name:34s} | {s:8.4f} | {a:14.4f} | {a / s:.3f}")
+    shift, rms = best_time_shift(matched, spm["finger"])
+    print(f"attend's path closest to SPM's when shifted by {shift:+.3f} s (RMS gap / scale {rms / scale:.4f})")
+    print(f"speed: spm_ADEM {spm_noisy['record']['cpu_seconds']:.2f} s CPU (128 bins, Octave "
+          f"{spm_noisy['record']['octave']}), attend {own['cpu']:.3f} s (1024 samples): "
+          f"{spm_noisy['record']['cpu_seconds'] / own['cpu']:.1f}x (target >= 100x)")
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--diagnose", action="store_true",
+                        help="also run attend's attenuation with sensory_orders=3 and 'all' (SPM weights every order)")
+    args = parser.parse_args(argv)
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    _attenuation_report(args.diagnose)
+    _reaching_report()
+
+
+if __name__ == "__main__":
+    main()

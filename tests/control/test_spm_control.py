@@ -1,0 +1,79 @@
+"""attend's active-inference demos against SPM12's own runs (issue 28).
+
+SPM's numbers are stored in benchmarks/spm/reference/ (spm_ALAP on the attenuation demo, spm_ADEM on the
+reaching demo, GNU Octave 7.3; benchmarks/spm/README.md); benchmarks/bench_spm_control.py runs attend the
+same way. No Octave is needed.
+
+What agrees and what does not (docs/spm.md, "Active inference"):
+- reaching: attend's finger path follows SPM's (RMS gap 2.3 % of the 0.57 arm-length reach, closest
+  approach 0.0205 against 0.0208 at the same bin), so the test asserts agreement within 5 %;
+- attenuation: with its own conventions attend's force is 63-86 % of SPM's. The difference is the orders of
+  sensory motion the agent attends to (attend's default: up to the relative degree, orders 0..1; SPM: all of
+  0..4). Stepping once per SPM bin and attending orders 0..3 brings attend within 5.1 % of SPM at every h
+  (orders 0..4 are unstable in attend's sampled loop at h >= 3); that is asserted at 6 %, the rest being
+  the sampled, causal embedding of the data (SPM integrates the world in exact generalised coordinates).
+  The default configuration is checked only for the documented shortfall, not for agreement.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import load_benchmark
+
+bench = load_benchmark("bench_spm_control")
+
+
+@pytest.fixture(scope="module")
+def spm_attenuation():
+    return bench.spm_attenuation("attenuation_noiseless")
+
+
+def test_references_are_complete(spm_attenuation):
+    assert spm_attenuation["h"].tolist() == list(range(-4, 7))
+    assert all(trace.shape == (32, 7) for trace in spm_attenuation["traces"].values())
+    # SPM's own curve: the movement grows with attenuation (the demo's claim)
+    assert np.all(np.diff(spm_attenuation["true"]) > 0)
+    for tag in ("reaching", "reaching_noiseless", "reaching_nocue_noiseless"):
+        run = bench.spm_reaching(tag)
+        assert run["finger"].shape == (128, 2)
+        assert run["record"]["cpu_seconds"] > 0
+
+
+def test_attenuation_at_spm_step_and_orders_matches_spm(spm_attenuation):
+    """Isolating the sensory orders: attend at dt = 1 s (SPM's step), attending orders 0..3, noiseless world,
+    intention at SPM's bin 16 (t = 15 s): peak true force within 6 % of SPM's at every h (observed <= 5.1 %)."""
+    own = bench.attend_attenuation(bench.spm_like_attenuation_settings(), sensory_orders=bench.SPM_LIKE_ORDERS)
+    ratio = own["true"] / spm_attenuation["true"]
+    assert np.all(np.abs(ratio - 1) < 0.06), ratio
+
+
+def test_attenuation_default_orders_fall_short_of_spm(spm_attenuation):
+    """attend's own conventions (orders up to the relative degree, dt = 1/8 s), matched otherwise: the same
+    shape as SPM (force rising with h) at 60-90 % of SPM's size. A documented difference, not agreement."""
+    own = bench.attend_attenuation(bench.attenuation_settings(matched=True))
+    ratio = own["true"] / spm_attenuation["true"]
+    assert np.all(np.diff(own["true"]) > 0)
+    assert np.all((ratio > 0.6) & (ratio < 0.9)), ratio
+
+
+def test_reaching_path_matches_spm():
+    spm = bench.spm_reaching("reaching_noiseless")
+    cfg = bench.reaching_settings(matched=True)
+    own = bench.attend_reaching(cfg)
+    target = np.asarray(cfg["target"])
+    scale = np.linalg.norm(spm["finger"][0] - target)
+    gap = bench.path_gap(own["finger"], spm["finger"])
+    assert np.sqrt(np.mean(gap**2)) / scale < 0.05  # observed 0.024
+    d_spm, d_own = (np.linalg.norm(path - target, axis=1) for path in (spm["finger"], own["finger"]))
+    assert d_own.min() == pytest.approx(d_spm.min(), rel=0.05)  # observed 0.0205 vs 0.0208
+    assert abs(int(d_own.argmin()) - int(d_spm.argmin())) <= 2
+    # the joint angles along the path (observed max gap 0.048 rad)
+    assert np.abs(own["angles"] - spm["states"][:, :2]).max() < 0.1
+
+
+def test_reaching_without_cue_stays_like_spm():
+    spm = bench.spm_reaching("reaching_nocue_noiseless")
+    own = bench.attend_reaching(bench.reaching_settings(matched=True), cued=False)
+    for path in (spm["finger"], own["finger"]):
+        assert np.linalg.norm(path - path[0], axis=1).max() < 0.01

@@ -21,7 +21,8 @@ one-sample steps), and the coloured UKS (AR(3) noise models). The score is the s
 samples p + 1 .. N - p - 2 (the smoothers see the ends as DEM does not); per case the ratio to
 the UKF smoother, then medians, the share of cases where DEM path mode is at or below the UKF
 smoother, the worst cases, the calibration of path mode's std (|error| < 2 std), its misfit
-warnings and its warnings that F has several maxima. Not part of the test run.
+warnings and its warnings that F has several maxima; with an unknown input, each method's input
+SSE over the same samples and the medians of its ratio to the UKF smoother's. Not part of the test run.
 """
 
 from __future__ import annotations
@@ -136,7 +137,7 @@ def run_case(case: dict) -> dict:
             input_kernel_width=case["input_width"] if unknown else None, initial_mean=np.zeros(n), initial_std=1.0),
     }
     trim = slice(p + 1, SAMPLES - p - 1)
-    out = dict(sse={}, seconds={}, failed={})
+    out = dict(sse={}, seconds={}, failed={}, input_sse={})
     for method, run in runs.items():
         start = time.perf_counter()
         try:
@@ -149,6 +150,9 @@ def run_case(case: dict) -> dict:
         out["seconds"][method] = time.perf_counter() - start
         error = (estimate.states - log.states)[trim]
         out["sse"][method] = float(np.sum(error ** 2)) if np.all(np.isfinite(error)) else np.inf
+        if unknown:  # the unknown push's SSE over the same samples
+            miss = (np.asarray(estimate.inputs).reshape(log.inputs.shape) - log.inputs)[trim]
+            out["input_sse"][method] = float(np.sum(miss ** 2)) if np.all(np.isfinite(miss)) else np.inf
         if method == "DEM path":
             out["coverage"] = float(np.mean(np.abs(error) < 2 * estimate.state_std[trim]))
             out["warned"] = any("far from DEM's generalised model" in str(w.message) for w in caught)
@@ -186,6 +190,12 @@ def summarise(rows: list[tuple[dict, dict]]) -> None:
         print(f"  {label:16s} {len(part):3d} cases: D-step {medians['DEM']:6.3f}  path {medians['DEM path']:6.3f} "
               f"(<= UKF in {share:4.0%}, 90th pct {np.nanpercentile(path, 90):7.3f})  coloured UKS "
               f"{medians['coloured UKS']:6.3f}")
+    pushed = [result for case, result in rows if result["input_sse"].get("UKF", np.inf) < np.inf]
+    if pushed:
+        medians = {method: np.nanmedian([result["input_sse"].get(method, np.nan) / result["input_sse"]["UKF"]
+                                         for result in pushed]) for method in ("DEM", "DEM path", "coloured UKS")}
+        print(f"  input SSE / UKF's, {len(pushed)} cases with an unknown input (median): "
+              + "  ".join(f"{method} {value:.3f}" for method, value in medians.items()))
     coverage = [result["coverage"] for _, result in rows if "coverage" in result]
     warned = [result.get("warned", False) for _, result in rows if "coverage" in result]
     calm = [ratio(result, "DEM path") for _, result in rows if "coverage" in result and not result["warned"]]
@@ -230,6 +240,9 @@ def main() -> None:
         flag = " WARNED" if result.get("warned") else ""
         print(f"  {describe(case)}: UKF SSE {ukf:9.3g}; / UKF: {text}; path 2-std {result.get('coverage', np.nan):.2f}"
               f"{flag}{notes}", flush=True)
+        if result["input_sse"]:
+            pushes = result["input_sse"]
+            print("      input SSE: " + "  ".join(f"{method} {value:.4g}" for method, value in pushes.items()), flush=True)
     summarise(rows)
 
 

@@ -167,3 +167,32 @@ def closed_loop_spectral_radius(process: GenerativeProcess, controller: ActiveIn
     Xnext += Bd @ select_a @ Znext
     M = np.vstack([Xnext, Buf, Znext])
     return float(np.max(np.abs(np.linalg.eigvals(M))))
+
+
+def linear_controller(controller: ActiveInferenceController, process: GenerativeProcess | None = None):
+    """The agent as a linear time-invariant map from its outputs to its action, or None where its step is not
+    one constant linear map (see :meth:`ActiveInferenceController.linear_update`)::
+
+        q[k+1] = A q[k] + B y[k],    a[k] = C q[k] + D y[k],    q[k] = [the embedding window before y[k]; Z[k]]
+
+    y[k] (m,) the newest outputs, a[k] (k,) the action the step returns, Z the joint state [x~; v~; a] of beliefs
+    and action. With ``action_limits`` the map holds while the action stays within them. The intention
+    enters as an input of its own (Gamma_eta eta~(t)), left out here: the map is the agent's feedback, the part a loop analysis needs (loop gain, sensitivity). The
+    first sample's clamp (the window filled with y[0]) is an initial state, q[0] = [y[0], ..., y[0]; Z[0]].
+    process: the world whose dy~/da is used when the controller takes it from the process."""
+    update = controller.linear_update(process)
+    if update is None:
+        return None
+    Phi, Gamma_y, embed, W = update
+    m, k = controller.model.n_outputs, controller.n_actions
+    N = Phi.shape[0]
+    shift = np.zeros((W * m, W * m))
+    shift[: (W - 1) * m, m:] = np.eye((W - 1) * m)
+    newest = np.zeros((W * m, m))
+    newest[(W - 1) * m:] = np.eye(m)
+    embedded = Gamma_y @ embed
+    A = np.block([[shift, np.zeros((W * m, N))], [embedded @ shift, Phi]])
+    B = np.vstack([newest, embedded @ newest])
+    C = np.hstack([embedded @ shift, Phi])[-k:]
+    D = (embedded @ newest)[-k:]
+    return A, B, C, D

@@ -71,3 +71,33 @@ def test_a_stiffer_intention_raises_the_reflexs_gain_in_the_winds_band():
     for omega in (1.0, 5.0):
         assert gain(stiff, omega) > 1.35 * gain(soft, omega)
     assert gain(stiff, 40.0) < 1.3 * gain(soft, 40.0)
+
+
+def arm_agent(cause_log_precision):
+    """The two-link arm's agent of benchmarks/bench_control.py at its tuned point of exp(8) (w, Pi_w, kappa, s =
+    11.5 rad/s, 2.1e6, 533, 12.2 ms; the reference's acceleration a cause, the held column, attending orders 0..2),
+    with dy~/da fixed at rest at the step's target (-0.6, 0.8) rad and the intention at precision
+    exp(cause_log_precision); without the gravity feed-forward."""
+    from attend.control import arm
+
+    target = np.array([-0.6, 0.8])
+    model = arm.critically_damped_model(
+        11.5, sensor_std=0.002, process_precision=2.1e6, kernel_width=0.0122,
+        cause_prior=lambda t: np.concatenate([target, np.zeros(10)]), cause_prior_precision=np.exp(cause_log_precision),
+        embedding_order=2, initial_angles=target, reference_acceleration=True)
+    G = arm.ArmActionJacobian(arm.ArmParameters(), 2, hold=0.01)(np.concatenate([target, [0.0, 0.0]]), None, None)
+    return ActiveInferenceController(model, 0.01, action_gain=533.0, n_actions=2, action_jacobian=G, sensory_orders=2)
+
+
+def test_on_the_arm_a_stiffer_intention_raises_each_joints_low_frequency_gain():
+    # the arm's agent at exp(8): its believed target yields to the joint angles (0.4-1.2 rad per rad at 1-10 rad/s,
+    # --loop-shape --plant arm); held at 1 / 0.002^2 the gain from a joint's angle to its own torque at 1 rad/s rises
+    # about 2.5x (shoulder) and 2x (elbow)
+    def joint_gain(agent, joint, omega):
+        A, B, C, D = linear_controller(agent)
+        z = np.exp(1j * omega * 0.01)
+        K = C @ np.linalg.solve(z * np.eye(A.shape[0]) - A, B) + D  # (torques, sensors [q1, q2, q1, q2])
+        return abs(K[joint, joint::2].sum())
+    soft, stiff = arm_agent(8.0), arm_agent(-2 * np.log(0.002))
+    for joint in (0, 1):
+        assert joint_gain(stiff, joint, 1.0) > 1.6 * joint_gain(soft, joint, 1.0)

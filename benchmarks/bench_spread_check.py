@@ -13,7 +13,20 @@ bank systems; (b) a position sensor whose noise std the model says is 100x small
 unknown force of a far too wide prior (std 1e3 against a true 0.3): the velocity, weakly pinned by
 the data, follows the noise's derivative.
 
+The input-prior check (``--input-prior``, spread_check.input_prior_findings: an unknown input's
+RMS about its prior mean over its prior std, t_j, against the (1 - INPUT_PRIOR_FALSE_RATE) quantile
+of the prior's own RMS over the log): (0) that quantile against 200000 draws of the prior (the
+bound a correct model's posterior mean stays under); false warnings on correct models with the
+inputs drawn from their prior: (1) bench_unknown_inputs.py's model-right cases (case i < 400,
+default_rng([29, i])), the smoother `attend estimate` builds; (2) bench_bank.py's unknown-input
+cases (its seed, i < 60, and seed 0, i < 40; GP inputs from the prior, and pulses under a GP prior), the Kalman smoother with
+the true widths and, where the widths are shared, DEM; (3) bench_unknown_inputs_misfit.py's bank
+drawn with the file's model as the truth (default_rng([2903, i]), i < 120; inputs 1/2-4x the
+process width, which the file does not state), through `attend estimate`'s default (the width and
+lambda* chosen from the log); then the misfit bench's own cases (which it warns). ~30 minutes on one core.
+
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_spread_check.py [--cases 60]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_spread_check.py --input-prior [--cases 120]
 """
 
 from __future__ import annotations
@@ -33,7 +46,8 @@ from attend import LinearSystem  # noqa: E402
 from attend._validation import AttendInputError  # noqa: E402
 from attend.perception.dem import DEMObserver  # noqa: E402
 from attend.perception.kalman import KalmanEstimator  # noqa: E402
-from attend.perception.spread_check import SPREAD_LIMIT, spread_findings  # noqa: E402
+from attend.perception.spread_check import (  # noqa: E402
+    INPUT_PRIOR_FALSE_RATE, SPREAD_LIMIT, input_prior_limit, input_prior_ratios, spread_findings)
 from attend.models.linear import ModelWarning, simulate  # noqa: E402
 
 
@@ -132,7 +146,10 @@ def case_ratios(case, estimates):
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", type=int, default=60)
+    parser.add_argument("--input-prior", action="store_true", help="the input-prior check (module docstring)")
     args = parser.parse_args(argv)
+    if args.input_prior:
+        return input_prior_main(args.cases)
     worst, alarms, count, true_alarms, missed = [], 0, 0, 0, 0
     for family, make in (("bank", bank_case), ("mechanical", mechanical_case)):
         values = []
@@ -196,6 +213,184 @@ def main(argv=None) -> int:
     print(f"mis-specified (b), sensor std 100x too small + input prior std 1e3: fires on "
           f"{np.sum(fired > SPREAD_LIMIT)} of {len(fired)}; largest ratio median {np.median(fired):.1f}, "
           f"min {fired.min():.1f}")
+    return 0
+
+
+# --- the input-prior check ------------------------------------------------------------------------
+
+def _tally(label: str, rows: list) -> None:
+    """rows: (name, t (r,), limit) per estimate; prints the false warnings (t_j > limit)."""
+    if not rows:
+        print(f"{label}: no estimate", flush=True)
+        return
+    tops = np.array([float(np.max(t / limit)) for _, t, limit in rows])
+    inputs = sum(len(t) for _, t, _ in rows)
+    fired = [(name, t, limit) for name, t, limit in rows if np.any(t > limit)]
+    print(f"{label}: {len(rows)} estimates, {inputs} unknown inputs; warned {len(fired)} "
+          f"(largest t / limit {tops.max():.3f}, 95 % {np.quantile(tops, 0.95):.3f})"
+          + "".join(f"\n    {name}: t {np.round(t, 3).tolist()}, limit {limit:.3f}" for name, t, limit in fired),
+          flush=True)
+
+
+def _limit_against_draws(draws: int = 200000) -> None:
+    """(0): the share of the prior's own RMS over N samples above input_prior_limit."""
+    from scipy.linalg import eigh
+
+    rng = np.random.default_rng(1)
+    worst = []
+    for N in (60, 111, 300, 1000):
+        for ratio in (0.25, 1.0, 2.0, 5.0, 10.0, 16.0):
+            lags = np.arange(N)
+            weights = np.clip(eigh(np.exp(-((lags[:, None] - lags[None, :]) ** 2) / (4 * ratio**2)),
+                                   eigvals_only=True), 0, None) / N
+            weights = weights[weights > 1e-12 * weights.max()]
+            limit = input_prior_limit(N, 1.0, ratio)
+            above = sum(int(np.sum((rng.standard_normal((20000, len(weights))) ** 2) @ weights > limit**2))
+                        for _ in range(draws // 20000))
+            worst.append((above / draws, N, ratio))
+    rates = np.array([w[0] for w in worst])
+    print(f"(0) limit against {draws} draws of the prior (N 60-1000, s_u / dt 0.25-16, 24 pairs): share above, "
+          f"nominal {INPUT_PRIOR_FALSE_RATE:g}: median {np.median(rates):.2e}, max {rates.max():.2e} "
+          f"(N {max(worst)[1]}, s_u / dt {max(worst)[2]:g})", flush=True)
+
+
+def _unknown_inputs_cases(count: int) -> list:
+    import bench_unknown_inputs as bu
+
+    rows = []
+    for index in range(count):
+        if index % 4 == 3:  # the bench's misfit cases
+            continue
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            case = bu.draw_case(index)
+            try:
+                estimate = bu.smoother(case).estimate(case.outputs, case.input_mean)
+            except AttendInputError:
+                continue
+        est = case.input_std > 0
+        t = input_prior_ratios(estimate.inputs[:, est], case.input_mean[:, est], case.input_std[est] ** -2.0)
+        rows.append((case.name, t, input_prior_limit(len(case.outputs), case.dt, case.input_width)))
+    return rows
+
+
+def _bank_cases(seeds: int) -> tuple[list, list]:
+    """(Kalman, DEM) rows on bench_bank's unknown-input cases (its seed, i < 60; seed 0, i < 40), the
+    model as the log was drawn."""
+    import bench_bank as bb
+
+    kalman, dem = [], []
+    for seed, count in ((bb.BANK_SEED, 60), (0, 40))[:seeds]:  # (draw_case([1, 23]) never returns)
+        for index in [i for i in range(count) if i % 4 in (2, 3)]:
+            case = bb.draw_case(index, seed=seed)
+            n = case.system.n_states
+            precision = case.input_prior_std**-2.0
+            noises = dict(sensor_precision=case.sensor_std**-2, process_precision=case.process_std**-2)
+            limit = input_prior_limit(len(case.outputs), case.dt, case.input_width)
+            name = f"bank {seed}/{index} ({case.input_kind})"
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    estimate = KalmanEstimator(
+                        case.system, case.dt, process_kernel_width=case.process_width,
+                        sensor_kernel_width=case.sensor_width, known_inputs=False, input_prior_precision=precision,
+                        input_kernel_width=case.input_width, initial_state=np.zeros(n),
+                        initial_state_std=max(case.initial_std, 1e-9), **noises).estimate(case.outputs,
+                                                                                            case.input_prior_mean)
+                kalman.append((name, input_prior_ratios(estimate.inputs, case.input_prior_mean, precision), limit))
+            except AttendInputError:
+                continue
+            if case.process_width > 0 and case.process_width == case.sensor_width:
+                try:
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore")
+                        estimate = DEMObserver(case.system, case.dt, kernel_width=case.process_width,
+                                               known_inputs=False, input_prior_precision=precision,
+                                               input_kernel_width=case.input_width, **noises
+                                               ).estimate(case.outputs, case.input_prior_mean)
+                    t = input_prior_ratios(estimate.inputs, case.input_prior_mean, precision)
+                    if np.all(np.isfinite(t)):
+                        dem.append((name, t, limit))
+                except AttendInputError:
+                    pass
+    return kalman, dem
+
+
+def _correct_file_case(index: int):
+    """bench_unknown_inputs_misfit's bank case drawn with the file's own model (no perturbation, the
+    stated noise stds), inputs from the prior at 1/2-4x the process width; default_rng([2903, index])."""
+    import bench_unknown_inputs_misfit as bm
+
+    rng = np.random.default_rng([2903, index])
+    if index % 9 == 8:
+        system, dt, N = bm.drone_like(), 0.04, 250
+        process_std = np.array([0.08, 0.08, 0.1, 0.5, 0.5, 0.8, 0.2, 0.2, 0.3, 28.0, 20.0, 5.0])
+        sensor_std = np.array([0.01, 0.01, 0.005, 7e-4, 7e-4, 1.5e-3])
+        prior_std = np.full(4, np.exp(rng.uniform(1, 3)))
+    else:
+        if index % 6 == 5:
+            system = bm.integrator_chain(2 + (index // 6) % 2, damping=0.2)
+        else:
+            n = int(rng.integers(2, 6))
+            m = int(rng.integers(1, min(n, 3) + 1))
+            system = bm.random_stable_system(rng, n, m, int(rng.integers(1, m + 1)))
+        dt, N = 0.1, int(rng.integers(150, 401))
+        process_std = 0.1 * 10 ** rng.uniform(-1, 1, size=system.n_states)
+        sensor_std = 0.05 * 10 ** rng.uniform(-1, 1, size=system.n_outputs)
+        prior_std = np.exp(rng.uniform(0, 3, size=system.n_inputs))
+    s = bm.KERNEL_RATIOS[index % 3] * dt
+    eta = rng.normal(size=system.n_inputs) * prior_std * 0.3
+    u = bm.gp_inputs(rng, N, dt, s * float(rng.choice([0.5, 1.0, 2.0, 4.0])), eta, prior_std)
+    log = bm.simulate(system, u, dt, kernel_width=s, process_std=process_std, measurement_std=sensor_std,
+                      initial_state=rng.normal(size=system.n_states) * 0.5, seed=rng)
+    start = dict(initial_state=np.zeros(system.n_states), initial_state_std=1.0) if index % 2 else {}
+    return bm.Case(f"{'drone' if index % 9 == 8 else 'chain' if index % 6 == 5 else 'random'}{index}", system, dt, s,
+                   1 / process_std**2, 1 / sensor_std**2, eta, 1 / prior_std**2, log.outputs, log.states, u, **start)
+
+
+def _default_rows(cases) -> list:
+    """Rows of `attend estimate`'s default (width and lambda* from the log) on misfit-bench cases."""
+    import tempfile
+
+    import bench_unknown_inputs_misfit as bm
+
+    from attend import io
+
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        for case in cases:
+            model_path, log_path = bm.write_files(case, Path(folder))
+            model = io.read_model(model_path)
+            log = io.read_log(log_path, model.time_column)
+            estimator, estimate, _ = bm.run_file(model, log)
+            if estimate is None:
+                continue
+            choice = estimator.input_width_choice
+            scale = choice.noise_scale if choice is not None else 1.0
+            width = choice.width if choice is not None else estimator.input_kernel_width
+            mean = np.tile(case.prior_mean, (len(estimate.inputs), 1))
+            rows.append((f"{case.name} (lambda* {scale:.3g})",
+                         input_prior_ratios(estimate.inputs, mean, case.prior_precision, scale),
+                         input_prior_limit(len(estimate.inputs), case.dt, width)))
+    return rows
+
+
+def input_prior_main(cases: int) -> int:
+    import bench_unknown_inputs_misfit as bm
+
+    _limit_against_draws()
+    _tally("(1) bench_unknown_inputs model-right cases, Kalman smoother", _unknown_inputs_cases(400))
+    kalman, dem = _bank_cases(2)
+    for label, rows in (("Kalman smoother", kalman), ("DEM", dem)):
+        for kind, what in (("unknown-gp", "GP inputs from the prior"), ("unknown-pulses", "pulses (not the prior)")):
+            _tally(f"(2) bench_bank {what}, {label}", [row for row in rows if kind in row[0]])
+    _tally("(3) misfit bank with the file's model as the truth, attend estimate's default",
+           _default_rows([_correct_file_case(i) for i in range(cases)]))
+    misfit = [bm.bank_case(i) for i in range(36)]
+    if (bm.DATA / f"{bm.FLIGHTS[0]}.csv").is_file():
+        misfit += [bm.flight_case(f, full) for full in (False, True) for f in bm.FLIGHTS]
+    _tally("bench_unknown_inputs_misfit's cases (models that do not fit), attend estimate's default",
+           _default_rows(misfit))
     return 0
 
 

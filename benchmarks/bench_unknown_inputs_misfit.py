@@ -266,7 +266,9 @@ def run_file(model, log):
                 estimate = estimator.estimate(log.matrix(model.output_columns), _prior_means(model, log))
             caught.append(warnings.WarningMessage(f"dem std not finite: {error}", UserWarning, "", 0))
         with np.errstate(all="ignore"):
-            findings = check_estimate(model, log, estimate, input_kernel_width=_input_width(estimator))
+            choice = getattr(estimator, "input_width_choice", None)
+            findings = check_estimate(model, log, estimate, input_kernel_width=_input_width(estimator),
+                                      noise_scale=None if choice is None else choice.noise_scale)
     texts = [str(w.message) for w in caught]
     texts += [f"spread: {f.name}" for f in findings]
     return estimator, estimate, texts

@@ -468,7 +468,8 @@ def _command_estimate(args) -> int:
             observer, estimate = workflows.estimate_from_files(model, log)
     elapsed = time.perf_counter() - started
     choice = getattr(observer, "input_width_choice", None)  # the unknown inputs' width, chosen from the log
-    _warn_if_spread_implausible(model, log, estimate, None if choice is None else choice.width)
+    _warn_if_spread_implausible(model, log, estimate, None if choice is None else choice.width,
+                                None if choice is None else choice.noise_scale)
     out = io.write_estimates(args.out, log, model.system, estimate)
     duration = log.time[-1] - log.time[0] + log.dt
     print(f"estimated {len(log.time)} samples ({duration:.2f} s of log) in {elapsed * 1e3:.1f} ms -> {out}")
@@ -494,17 +495,18 @@ def _command_estimate(args) -> int:
     return 0
 
 
-def _warn_if_spread_implausible(model, log, estimate, input_kernel_width=None) -> None:
+def _warn_if_spread_implausible(model, log, estimate, input_kernel_width=None, noise_scale=None) -> None:
     """One warning per state or unknown input whose estimate swings far beyond what the data and the
     model support (:mod:`attend.perception.spread_check`), whatever the estimator; input_kernel_width:
-    the inputs' prior width chosen from the log when the file gives none [s]."""
+    the inputs' prior width chosen from the log when the file gives none [s]; noise_scale: lambda* there."""
     import numpy as np
 
     from attend.models.linear import ModelWarning
     from attend.perception.spread_check import check_estimate, describe
 
     with np.errstate(all="ignore"):
-        findings = check_estimate(model, log, estimate, input_kernel_width=input_kernel_width)
+        findings = check_estimate(model, log, estimate, input_kernel_width=input_kernel_width,
+                                  noise_scale=noise_scale)
     for finding in findings:
         warnings.warn(f"{model.path}: {describe(finding)}", ModelWarning, stacklevel=2)
 

@@ -7,7 +7,9 @@ import pytest
 from attend.models.linear import simulate
 from attend.models.problems import mass_spring_damper
 from attend.perception.kalman import KalmanEstimator
-from attend.perception.spread_check import SPREAD_LIMIT, noise_intensity, spread_findings
+from attend.models.linear import LinearSystem
+from attend.perception.spread_check import (INPUT_PRIOR_REFERENCE, SPREAD_LIMIT, describe, effective_samples,
+                                            input_prior_limit, noise_intensity, spread_findings)
 
 DT, WIDTH, PROCESS_STD, SENSOR_STD = 0.05, 0.1, 0.3, 0.02
 
@@ -88,6 +90,71 @@ def test_unknown_input_beyond_its_prior_names_its_prior_precision():
 
 
 
+# --- the input-prior check: an unknown input's RMS about its prior mean against its prior std ------
+
+INPUT_WIDTH = 0.5  # s_u [s]
+
+
+def _prior_draw(rng, n_samples, width=INPUT_WIDTH, std=1.0):
+    """(N, 1) a draw of the inputs' prior: rho(tau) = exp(-tau^2 / (4 s_u^2)), std ``std``, mean 0."""
+    lags = np.arange(n_samples) * DT
+    R = np.exp(-((lags[:, None] - lags[None, :]) ** 2) / (4 * width**2))
+    w, V = np.linalg.eigh(R)
+    return std * (V * np.sqrt(np.clip(w, 0, None))) @ rng.standard_normal((n_samples, 1))
+
+
+def _unknown_force_case(seed, b_factor=1.0, n_samples=600):
+    """A mass-spring-damper pushed by a force drawn from its prior (std 1); the model's B is the
+    truth's times ``b_factor`` (1: the model is right). Returns (model, findings of the smoother)."""
+    truth = mass_spring_damper()
+    model = LinearSystem(truth.A, truth.B * b_factor, truth.C, state_names=truth.state_names,
+                         input_names=truth.input_names)
+    force = _prior_draw(np.random.default_rng(seed), n_samples)
+    log = simulate(truth, force, DT, kernel_width=WIDTH, process_std=[1e-3, PROCESS_STD], measurement_std=SENSOR_STD,
+                   seed=seed)
+    estimate = KalmanEstimator(model, DT, sensor_precision=SENSOR_STD**-2,
+                               process_precision=np.array([1e-3, PROCESS_STD]) ** -2.0, kernel_width=WIDTH,
+                               known_inputs=False, input_prior_precision=[1.0],
+                               input_kernel_width=INPUT_WIDTH).estimate(log.outputs, np.zeros_like(force))
+    return _check(model, log.outputs, estimate.states, estimate.inputs, unknown=True, drive=np.zeros_like(force),
+                  input_kernel_width=INPUT_WIDTH)
+
+
+def test_effective_samples_closed_forms():
+    assert effective_samples(500, 0.1, 0.0) == 500  # white: every sample
+    # N dt >> s >> dt: N dt / (s sqrt(2 pi))
+    assert effective_samples(20000, 0.01, 1.0) == pytest.approx(200 / np.sqrt(2 * np.pi), rel=0.01)
+
+
+def test_input_prior_limit_is_the_quantile_of_the_priors_own_rms():
+    """The share of the prior's own draws whose RMS passes the limit is the false rate asked for."""
+    rng = np.random.default_rng(5)
+    n_samples, draws, rate = 120, 20000, 0.02
+    lags = np.arange(n_samples) * DT
+    w = np.clip(np.linalg.eigvalsh(np.exp(-((lags[:, None] - lags[None, :]) ** 2) / (4 * INPUT_WIDTH**2))), 0, None)
+    mean_square = (rng.standard_normal((draws, n_samples)) ** 2) @ w / n_samples
+    above = np.mean(mean_square > input_prior_limit(n_samples, DT, INPUT_WIDTH, rate) ** 2)
+    assert above == pytest.approx(rate, abs=4 * np.sqrt(rate / draws)), above
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_input_prior_check_is_silent_when_the_input_follows_its_prior(seed):
+    assert _unknown_force_case(seed) == []
+
+
+def test_input_absorbing_a_wrong_b_is_named_with_its_prior_precision():
+    """The model's B is 1/4 of the truth's: the estimated force swings ~2x its prior std to make up for it,
+    under the spread check's limit of 8 but beyond what a correct model's posterior mean reaches (1.47x)."""
+    findings = _unknown_force_case(0, b_factor=0.25)
+    assert [f.name for f in findings] == ["force"], findings
+    finding = findings[0]
+    assert finding.reference == INPUT_PRIOR_REFERENCE and finding.limit < finding.ratio < SPREAD_LIMIT
+    assert finding.reference_rms == pytest.approx(1.0)
+    text = describe(finding)
+    assert "\n" not in text and text.startswith("unknown input 'force': its estimate's RMS about the prior mean")
+    assert "prior_precision ([[inputs]] force)" in text and "absorbing" in text
+
+
 # --- attend estimate: the check's warnings on a model file and a log ------------------------------
 
 ESTIMATE_MODEL = """
@@ -134,3 +201,23 @@ def test_estimate_warns_on_a_wild_estimate_naming_it_and_the_setting(tmp_path, c
 
 def test_estimate_does_not_warn_on_the_log_the_model_describes(tmp_path, capsys):
     assert _estimate_warnings(tmp_path, capsys, 1.0) == []
+
+
+def test_estimate_warns_on_an_input_absorbing_what_the_model_lacks(tmp_path, capsys):
+    """attend estimate on a model file whose B is 1/4 of the truth's: one line naming the force and its
+    prior_precision, through the same warnings as the spread check; the estimate is written as without it."""
+    from attend.cli import main
+
+    truth = mass_spring_damper()
+    force = _prior_draw(np.random.default_rng(1), 600)
+    log = simulate(truth, force, DT, kernel_width=WIDTH, process_std=[1e-3, PROCESS_STD], measurement_std=SENSOR_STD,
+                   seed=1)
+    model, path = tmp_path / "model.toml", tmp_path / "log.csv"
+    text = ESTIMATE_MODEL.format(A=truth.A.tolist(), B=(truth.B / 4).tolist(), C=truth.C.tolist(), width=WIDTH,
+                                 sensor_precision=SENSOR_STD**-2.0, process_precision=PROCESS_STD**-2.0)
+    model.write_text(text.replace("input_kernel_width = 1.0", f"input_kernel_width = {INPUT_WIDTH}"))
+    path.write_text("t,y\n" + "\n".join(f"{k * DT:.10g},{v:.12g}" for k, v in enumerate(log.outputs[:, 0])))
+    assert main(["estimate", str(model), str(path), "--out", str(tmp_path / "e.csv"), "--no-progress"]) == 0
+    lines = [line for line in capsys.readouterr().err.splitlines() if "prior std" in line]
+    assert len(lines) == 1 and "unknown input 'force'" in lines[0] and "model.toml" in lines[0], lines
+    assert "prior_precision ([[inputs]] force)" in lines[0] and "absorbing" in lines[0]

@@ -23,6 +23,21 @@ and reports those with ratio_i > SPREAD_LIMIT, naming the settings that decide t
 models use their Jacobians along the estimate, keeping only the entries that are the same at every
 point checked (a state read linearly by an output, or integrated into one); they have no prior
 spread here. States with no reference are not checked.
+
+Unknown inputs of a linear model also get a posterior predictive check of their prior
+(:func:`input_prior_findings`; those the check above names are left out)::
+
+    t_j = RMS_k(vhat_j[k] - eta_j[k]) / sigma_j        sigma_j = 1 / sqrt(P_v,jj min(lambda*, 1))
+
+vhat the estimate, eta the prior mean, lambda* the profiled noise level when the width was chosen
+from the log (every precision times lambda* leaves the smoother's mean as it is and makes the
+prior std 1 / sqrt(P_v lambda*); only a widening is taken). Under a correct model vhat = E[v | y],
+so Cov(vhat) = Cov(v) - E Cov(v | y) <= Cov(v) and, by Anderson's theorem, t_j^2 is
+stochastically below the mean square of N samples of the unit prior, M = (1 / N) sum_k e[k]^2
+with rho(tau) = exp(-tau^2 / (4 s_u^2)): cumulants 1, 2 tr(R^2) / N^2, 8 tr(R^3) / N^3 (R_kl =
+rho((k - l) dt); variance 2 / nu, nu ~ N dt / (s_u sqrt(2 pi)) effective samples). t_j above the
+(1 - INPUT_PRIOR_FALSE_RATE) quantile of sqrt(M) (:func:`input_prior_limit`) says the input
+absorbs something the model lacks.
 """
 
 from __future__ import annotations
@@ -38,13 +53,22 @@ import numpy as np
 SPREAD_LIMIT = 8.0
 
 
+#: The input-prior check's false-warning probability per unknown input under a correct model: its
+#: limit is this upper quantile of the prior's own RMS over the log (checked against 200000 draws of
+#: the prior, and on correct models: benchmarks/bench_spread_check.py --input-prior).
+INPUT_PRIOR_FALSE_RATE = 1e-3
+#: The reference label of the input-prior check's findings.
+INPUT_PRIOR_REFERENCE = "prior std about the prior mean"
+
+
 class SpreadFinding(NamedTuple):
     """One state or unknown input whose estimate swings far beyond its reference.
 
     name: the state's / input's name; estimate_rms: RMS of its estimate over the log;
     reference_rms: the spread the data or the model support; reference: what that is
     ("measured proxy y_j", "derivative of ...", "prior spread", "input prior"); ratio:
-    estimate_rms / reference_rms; settings: the model-file settings to check.
+    estimate_rms / reference_rms; settings: the model-file settings to check; limit: the ratio
+    above which it was reported.
     """
 
     name: str
@@ -53,6 +77,7 @@ class SpreadFinding(NamedTuple):
     reference: str
     ratio: float
     settings: str
+    limit: float = SPREAD_LIMIT
 
 
 def _single(row: np.ndarray, tolerance: float = 1e-12) -> int | None:
@@ -181,6 +206,80 @@ def implausible_spreads(states: np.ndarray, inputs: np.ndarray, references: np.n
     return findings
 
 
+def _mean_square_cumulants(n_samples: int, dt: float, kernel_width: float) -> tuple[float, float, float]:
+    """(k1, k2, k3) of (1 / N) sum_k e[k]^2, e unit-variance with rho(tau) = exp(-tau^2 / (4 s^2)):
+    k1 = 1, k2 = 2 tr(R^2) / N^2, k3 = 8 tr(R^3) / N^3, R_kl = rho((k - l) dt); tr(R^3) with the
+    inner sums over all lags (an upper bound: the tail a little heavier)."""
+    N = n_samples
+    if kernel_width <= 0:
+        return 1.0, 2.0 / N, 8.0 / N**2
+    lags = np.arange(-min(N - 1, int(np.ceil(10 * kernel_width / dt)) + 1),
+                     min(N - 1, int(np.ceil(10 * kernel_width / dt)) + 1) + 1)
+    rho = np.exp(-((lags * dt) ** 2) / (4 * kernel_width**2))
+    weight = N - np.abs(lags)
+    inner = np.convolve(rho, rho)[len(lags) // 2: len(lags) // 2 + len(lags)]  # (rho * rho) at the same lags
+    return 1.0, 2.0 * float(np.sum(weight * rho**2)) / N**2, 8.0 * float(np.sum(weight * rho * inner)) / N**3
+
+
+def effective_samples(n_samples: int, dt: float, kernel_width: float) -> float:
+    """nu = N^2 / sum_kl rho((k - l) dt)^2 = 2 / k2: the independent samples whose mean square varies
+    as that of N samples of the prior, ~ N dt / (s sqrt(2 pi)) for N dt >> s >> dt. n_samples: N;
+    dt: sample time [s]; kernel_width: s_u [s] (0: white, nu = N)."""
+    return 2.0 / _mean_square_cumulants(n_samples, dt, kernel_width)[1] if n_samples >= 1 else 0.0
+
+
+def input_prior_limit(n_samples: int, dt: float, kernel_width: float,
+                      false_rate: float = INPUT_PRIOR_FALSE_RATE) -> float:
+    """The (1 - false_rate) quantile of the RMS of N samples of a unit prior, the limit of t_j (module
+    docstring): the mean square's first three cumulants matched by a shifted chi-square (Pearson),
+    q = 1 + sqrt(k2) (chi2_d^-1(1 - false_rate) - d) / sqrt(2 d), d = 8 k2^3 / k3^2. n_samples: N;
+    dt: sample time [s]; kernel_width: s_u [s] (0: white); false_rate: the share of the prior's own
+    draws above the limit."""
+    from scipy.stats import chi2
+
+    if n_samples < 1:
+        return np.inf
+    _, k2, k3 = _mean_square_cumulants(n_samples, dt, kernel_width)
+    d = 8.0 * k2**3 / k3**2
+    return float(np.sqrt(1.0 + np.sqrt(k2) * (chi2.isf(false_rate, d) - d) / np.sqrt(2.0 * d)))
+
+
+def input_prior_ratios(inputs: np.ndarray, prior_mean: np.ndarray, prior_precision: np.ndarray,
+                       noise_scale: float = 1.0) -> np.ndarray:
+    """t_j = RMS_k(vhat_j[k] - eta_j[k]) sqrt(P_v,jj min(lambda*, 1)) per input (module docstring).
+    inputs, prior_mean (N, r): vhat, eta; prior_precision (r,): P_v; noise_scale: lambda* (1: none)."""
+    deviation = np.asarray(inputs, float) - np.asarray(prior_mean, float)
+    rms = np.sqrt(np.nanmean(deviation**2, axis=0)) if len(deviation) else np.zeros(deviation.shape[1])
+    return rms * np.sqrt(np.asarray(prior_precision, float) * _widening(noise_scale))
+
+
+def _widening(noise_scale: float) -> float:
+    """min(lambda*, 1), 1 for a lambda* that is not a positive number."""
+    return min(float(noise_scale), 1.0) if np.isfinite(noise_scale) and noise_scale > 0 else 1.0
+
+
+def input_prior_findings(inputs: np.ndarray, prior_mean: np.ndarray, prior_precision: np.ndarray, names, dt: float,
+                         input_kernel_width: float, noise_scale: float = 1.0,
+                         false_rate: float = INPUT_PRIOR_FALSE_RATE) -> list[SpreadFinding]:
+    """The unknown inputs with t_j above :func:`input_prior_limit` (the posterior predictive check of
+    the module docstring). inputs, prior_mean (N, r): vhat and eta of the unknown inputs;
+    prior_precision (r,): P_v; names (r,); dt [s]; input_kernel_width: s_u [s] the estimator used;
+    noise_scale: lambda*; false_rate: the limit's false-warning probability per input."""
+    inputs = np.asarray(inputs, float)
+    prior_precision = np.asarray(prior_precision, float)
+    ratio = input_prior_ratios(inputs, prior_mean, prior_precision, noise_scale)
+    findings = []
+    for j, name in enumerate(names):
+        count = int(np.sum(np.isfinite(inputs[:, j])))
+        limit = input_prior_limit(count, dt, input_kernel_width, false_rate)
+        if np.isfinite(ratio[j]) and ratio[j] > limit:
+            std = 1.0 / np.sqrt(prior_precision[j] * _widening(noise_scale))
+            findings.append(SpreadFinding(name, float(ratio[j] * std), float(std), INPUT_PRIOR_REFERENCE,
+                                          float(ratio[j]), f"its prior_precision ([[inputs]] {name}), then the "
+                                          "model's A and B", limit))
+    return findings
+
+
 def _reached_by(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """(n, r) True where input j reaches state i through the structure of (A, B)."""
     n = A.shape[0]
@@ -194,7 +293,8 @@ def _reached_by(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 def spread_findings(system, dt: float, outputs: np.ndarray, states: np.ndarray, inputs: np.ndarray, *,
                     process_precision, process_kernel_width: float, sensor_kernel_width: float,
                     unknown: np.ndarray, drive: np.ndarray, input_prior_precision: np.ndarray,
-                    input_kernel_width: float, limit: float = SPREAD_LIMIT, ratios: bool = False):
+                    input_kernel_width: float, limit: float = SPREAD_LIMIT, ratios: bool = False,
+                    noise_scale: float = 1.0):
     """The check of the module docstring on one estimate (any estimator).
 
     system: a LinearSystem or NonlinearSystem; dt: sample time [s]; outputs (N, m): the log (NaN
@@ -202,8 +302,9 @@ def spread_findings(system, dt: float, outputs: np.ndarray, states: np.ndarray, 
     (n,) or (n, n)); process_kernel_width, sensor_kernel_width, input_kernel_width: s_w, s_z, s_u
     [s] (0: white); unknown (r,): True for the estimated inputs; drive (N, r): the measured inputs
     and the unknown inputs' prior means; input_prior_precision (r,): P_v of the unknown inputs
-    (ignored for measured ones); limit: the ratio above which a finding is reported. Returns the
-    list of :class:`SpreadFinding`, or with ``ratios=True`` the ratios (n + r,) (NaN: no reference).
+    (ignored for measured ones); limit: the ratio above which a finding is reported; noise_scale:
+    lambda* of the input-prior check (linear models; 1: none). Returns the list of
+    :class:`SpreadFinding`, or with ``ratios=True`` the ratios (n + r,) (NaN: no reference).
     """
     states, inputs = np.asarray(states, float), np.asarray(inputs, float).reshape(len(states), -1)
     n, r = states.shape[1], inputs.shape[1]
@@ -258,16 +359,24 @@ def spread_findings(system, dt: float, outputs: np.ndarray, states: np.ndarray, 
         values = np.hstack([states, inputs])
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.sqrt(np.nanmean(values**2, axis=0)) / np.where(references > 0, references, np.nan)
-    return implausible_spreads(states, inputs, references, reference_labels, names, settings, limit)
+    findings = implausible_spreads(states, inputs, references, reference_labels, names, settings, limit)
+    if hasattr(system, "A") and unknown.any():  # the input-prior check, for inputs not named already
+        named = {finding.name for finding in findings}
+        checked = [j for j in np.flatnonzero(unknown) if input_names[j] not in named]
+        findings += input_prior_findings(inputs[:, checked], drive[:, checked], precision[checked],
+                                         [input_names[j] for j in checked], dt, input_kernel_width, noise_scale)
+    return findings
 
 
-def check_estimate(model, log, estimate, input_kernel_width: float | None = None) -> list[SpreadFinding]:
+def check_estimate(model, log, estimate, input_kernel_width: float | None = None,
+                   noise_scale: float | None = None) -> list[SpreadFinding]:
     """The spread check of ``attend estimate``: :func:`spread_findings` on an estimate of a model file.
 
     model: the :class:`attend.io.ModelFile`; log: the :class:`attend.io.Log` (its outputs by the
     model's output columns); estimate: the estimator's result (states (N, n), inputs (N, r));
     input_kernel_width: s_u [s] the estimator used when the file gives none (chosen from the log,
-    :mod:`attend.perception.input_width`; None: the file's, or the process width).
+    :mod:`attend.perception.input_width`; None: the file's, or the process width); noise_scale:
+    lambda* of that choice (None: 1).
     """
     states = np.asarray(estimate.states, float)
     r = model.system.n_inputs
@@ -287,7 +396,7 @@ def check_estimate(model, log, estimate, input_kernel_width: float | None = None
         process_kernel_width=process_width, sensor_kernel_width=sensor_width,
         unknown=np.array([not spec.known for spec in model.inputs], dtype=bool), drive=drive,
         input_prior_precision=np.array([spec.prior_precision for spec in model.inputs], dtype=float),
-        input_kernel_width=input_width)
+        input_kernel_width=input_width, noise_scale=1.0 if noise_scale is None else noise_scale)
 
 
 def _covariance(precision, n: int) -> np.ndarray:
@@ -306,6 +415,11 @@ def _covariance(precision, n: int) -> np.ndarray:
 
 def describe(finding: SpreadFinding) -> str:
     """One line for the command line's warning. finding: a :class:`SpreadFinding`."""
+    if finding.reference == INPUT_PRIOR_REFERENCE:
+        return (f"unknown input '{finding.name}': its estimate's RMS about the prior mean ({finding.estimate_rms:.3g}) "
+                f"is {finding.ratio:.3g}x the prior std ({finding.reference_rms:.3g}; the posterior mean under a correct "
+                f"model stays under {finding.limit:.3g}x on this log): the model may lack dynamics the input is "
+                f"absorbing, or the estimator is far from the posterior; check {finding.settings}")
     return (f"{finding.name}: the estimate's RMS {finding.estimate_rms:.3g} is {finding.ratio:.3g}x its "
             f"{finding.reference} ({finding.reference_rms:.3g}), far beyond what the data support: the model "
             f"does not fit this log there; check {finding.settings}")

@@ -70,7 +70,7 @@ import numpy as np  # noqa: E402
 from attend import io, workflows  # noqa: E402
 from attend._validation import AttendInputError  # noqa: E402
 from attend.models.linear import LinearSystem, simulate  # noqa: E402
-from attend.perception.spread_check import check_estimate  # noqa: E402
+from attend.perception.spread_check import INPUT_PRIOR_REFERENCE, check_estimate  # noqa: E402
 from bench_unknown_inputs import drone_like, gp_inputs, integrator_chain, perturbed, random_stable_system  # noqa: E402
 
 SSE_MEDIAN, SSE_WORST = 1.05, 2.0
@@ -270,7 +270,8 @@ def run_file(model, log):
             findings = check_estimate(model, log, estimate, input_kernel_width=_input_width(estimator),
                                       noise_scale=None if choice is None else choice.noise_scale)
     texts = [str(w.message) for w in caught]
-    texts += [f"spread: {f.name}" for f in findings]
+    texts += [f"spread: {f.name}" for f in findings if f.reference != INPUT_PRIOR_REFERENCE]
+    texts += [f"input prior: {f.name}" for f in findings if f.reference == INPUT_PRIOR_REFERENCE]
     return estimator, estimate, texts
 
 
@@ -298,7 +299,9 @@ def wild(estimate, truth, limit: float = WILD) -> list[int]:
 def warned(names_wild: list[str], texts: list[str]) -> str | None:
     """How `attend estimate` warned about these wild estimates: "spread check" (a finding names each),
     "model misfit" (the innovations are 10x off the model's prediction, :meth:`InputWidthChoice.misfit`),
-    "input width" (the likelihood was flat), or None (no warning)."""
+    "input width" (the likelihood was flat), "input prior" (an unknown input beyond what its prior allows
+    a posterior mean: the input absorbs dynamics the model lacks, which every state's estimate shares),
+    or None (no warning)."""
     spread = {t[len("spread: "):] for t in texts if t.startswith("spread: ")}
     if all(name in spread for name in names_wild):
         return "spread check"
@@ -306,6 +309,8 @@ def warned(names_wild: list[str], texts: list[str]) -> str | None:
         return "model misfit"
     if any("input_kernel_width" in t and "does not decide" in t for t in texts):
         return "input width"
+    if any(t.startswith("input prior: ") for t in texts):
+        return "input prior"
     return None
 
 

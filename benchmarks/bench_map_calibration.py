@@ -10,7 +10,9 @@ target within 3 m, by bins, and separately in missions where two people stand wi
 About 30 s for 600 missions on one core."""
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -18,6 +20,9 @@ from attend.action.camera import Camera
 from attend.action.detection import DetectionModel
 from attend.action.probability_map import ProbabilityMap
 from attend.action.world import make_world, simulate_image
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from calibration_table import print_calibration_bins  # noqa: E402
 
 FOUND_RADIUS_M = 3.0
 CLOSE_PAIR_M = 7.0
@@ -67,13 +72,7 @@ def main() -> None:
                   f"holding a person {hits[chosen].mean():.3f}")
     print(f"  false targets: {int((~hits).sum())} of {len(hits)}")
     print(f"  expected people / true number: {ratios.mean():.4f} +- {ratios.std() / np.sqrt(len(ratios)):.4f}")
-    for low, high in ((0.0, 0.5), (0.5, 0.9), (0.9, 1.01)):
-        chosen = (p_all >= low) & (p_all < high)
-        if chosen.any():
-            observed = found[chosen].mean()
-            error = np.sqrt(max(observed * (1 - observed), 1e-12) / chosen.sum())
-            print(f"  P(all found) in [{low}, {min(high, 1.0)}): {chosen.sum()} missions, mean {p_all[chosen].mean():.3f}, "
-                  f"everyone found {observed:.3f} (standard error {error:.3f})")
+    print_calibration_bins(p_all, found, "P(all found)", "missions")
     for label, chosen in ((f"two people within {CLOSE_PAIR_M:g} m", pairs), ("no such pair", ~pairs)):
         print(f"  {label}: {chosen.sum()} missions, mean P(all found) {p_all[chosen].mean():.3f}, "
               f"everyone found {found[chosen].mean():.3f}")

@@ -50,6 +50,7 @@ from attend.action.planners.salience import ASSOCIATION_SIGMAS, confirmation_pro
 from attend.action.mission.simulate import simulate_mission
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from calibration_table import print_calibration_bins  # noqa: E402
 from ideal_sweep import ideal_sweep_t90  # noqa: E402
 
 #: The simulator's found checks [s] (``simulate_mission``'s default found_check_s).
@@ -226,20 +227,12 @@ def main() -> None:
     observed = np.array([run["found_all"] for run in runs], dtype=float)
     print(f"P(all found) at the end, {len(runs)} flights: Brier score {np.mean((predicted - observed) ** 2):.3f} "
           f"(always saying the base rate {observed.mean():.2f}: {np.mean((observed.mean() - observed) ** 2):.3f})")
-    for low, high in ((0.0, 0.5), (0.5, 0.9), (0.9, 1.0001)):
-        inside = (predicted >= low) & (predicted < high)
-        if inside.any():
-            print(f"  P(all found) in [{low:.1f}, {min(high, 1):.1f}): {inside.sum():3d} flights, mean "
-                  f"{predicted[inside].mean():.2f}, all found in {observed[inside].mean():.2f}")
+    print_calibration_bins(predicted, observed, "P(all found)", "flights")
     # the same with the number of people known ([search] people_known = true): P(>= N targets are people)
     known = np.array([at_least(np.array([m for m, _ in r[k]["targets"]]), r["people"]) for r in rows
                       for k in ["efe"] + [f"lawnmower@{h:g}" for h in SWEEP_ALTITUDES_M]])
     print(f"P(all found) with the number of people known: Brier score {np.mean((known - observed) ** 2):.3f}")
-    for low, high in ((0.0, 0.5), (0.5, 0.9), (0.9, 1.0001)):
-        inside = (known >= low) & (known < high)
-        if inside.any():
-            print(f"  P(all found) in [{low:.1f}, {min(high, 1):.1f}): {inside.sum():3d} flights, mean "
-                  f"{known[inside].mean():.2f}, all found in {observed[inside].mean():.2f}")
+    print_calibration_bins(known, observed, "P(all found)", "flights")
 
     targets = np.array([t for run in runs for t in run["targets"]], dtype=float).reshape(-1, 2)
     if len(targets):

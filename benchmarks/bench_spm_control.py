@@ -1,7 +1,8 @@
 """attend's active-inference reproductions against SPM12's own runs (issue 28).
 
     PYTHONPATH=src python benchmarks/bench_spm_control.py               # compare with the stored SPM runs
-    PYTHONPATH=src python benchmarks/bench_spm_control.py --diagnose    # + attend with more sensory orders (~1 min)
+    PYTHONPATH=src python benchmarks/bench_spm_control.py --diagnose    # + attend with more sensory orders, and SPM's
+                                                                        # conventions switched back one at a time
 
 No Octave is needed: SPM's numbers are stored in benchmarks/spm/reference/ (README there). Two demos:
 
@@ -15,6 +16,9 @@ No Octave is needed: SPM's numbers are stored in benchmarks/spm/reference/ (READ
 - reaching (attend.control.reaching, SPM's ADEM_reaching through spm_ADEM), "vision" variant: the finger's
   path and the joint angles per bin. Matched settings: a noiseless world (SPM's exp(16) world noise changes
   its path by < 1e-4) and the cue peaking at t = 31 s (SPM's bin 32).
+
+The attenuation is also run in the "SPM conventions" variant (attend.control.attenuation.SPM_CONVENTIONS: SPM's step,
+every sensory order, the world's generalised response as data, the intention embedded per bin, integration="spm").
 
 Targets: the curves within 5 %, attend >= 100x faster (CPU time of one run of the demo against the CPU
 time of the spm_ALAP / spm_ADEM call, as the drivers record it). Conventions that differ: docs/spm.md.
@@ -124,6 +128,32 @@ def attend_attenuation(cfg: dict, sensory_orders="relative_degree") -> dict:
                 cpu=np.array(cpu), traces=traces)
 
 
+def spm_conventions_settings() -> dict:
+    """The matched settings (:func:`attenuation_settings`) with attend.control.attenuation.SPM_CONVENTIONS: one sample
+    per SPM bin, every sensory order, the world's generalised response as data, the intention embedded per bin and
+    spm_ALAP's D-step (``integration="spm"``)."""
+    from attend.control import attenuation
+
+    return dict(attenuation_settings(True), **attenuation.SPM_CONVENTIONS)
+
+
+def attend_attenuation_spm_conventions(cfg: dict | None = None) -> dict:
+    """As :func:`attend_attenuation` for the "SPM conventions" variant (attend.control.attenuation.simulate)."""
+    from attend.control import attenuation
+
+    cfg = spm_conventions_settings() if cfg is None else cfg
+    true, perceived, cpu, traces = [], [], [], {}
+    for h in cfg["attenuations"]:
+        start = time.process_time()
+        run = attenuation.simulate(h, "fixed reflex precision", cfg)
+        cpu.append(time.process_time() - start)
+        true.append(float(run["true_force"].max()))
+        perceived.append(float(run["perceived_self"].max()))
+        traces[int(h)] = np.column_stack([run["true_force"], run["perceived_self"], run["perceived_external"]])
+    return dict(h=np.asarray(cfg["attenuations"], dtype=float), true=np.array(true), perceived=np.array(perceived),
+                cpu=np.array(cpu), traces=traces)
+
+
 def reaching_settings(matched: bool = True) -> dict:
     """attend.control.reaching.SETTINGS, or (matched) with a noiseless world and the cue's peak at t = 31 s,
     SPM's bin 32."""
@@ -189,7 +219,15 @@ def _attenuation_report(diagnose: bool) -> None:
     print(f"attend at SPM's step (dt = 1 s) attending orders 0..{SPM_LIKE_ORDERS} (SPM: 0..4): true / SPM per h "
           + " ".join(f"{r:.3f}" for r in ratio) + f"; worst |ratio - 1| {np.max(np.abs(ratio - 1)):.3f}; perceived / SPM "
           + " ".join(f"{r:.3f}" for r in spm_like["perceived"] / spm["perceived"]))
+    conventions = attend_attenuation_spm_conventions()
+    true_ratio, perceived_ratio = conventions["true"] / spm["true"], conventions["perceived"] / spm["perceived"]
+    worst_conventions = max(np.max(np.abs(true_ratio - 1)), np.max(np.abs(perceived_ratio - 1)))
+    print("attend with SPM's conventions (attenuation.SPM_CONVENTIONS: dt = 1 s, orders 0..4, generalised data, "
+          "embedded intention, integration='spm'): true / SPM per h " + " ".join(f"{r:.3f}" for r in true_ratio)
+          + "; perceived / SPM " + " ".join(f"{r:.3f}" for r in perceived_ratio)
+          + f"; worst |ratio - 1| {worst_conventions:.3f} (target <= 0.05: {'met' if worst_conventions <= 0.05 else 'NOT met'})")
     if diagnose:
+        _spm_conventions_ablation(spm)
         for dt, orders in ((attenuation_settings(True)["dt"], 3), (attenuation_settings(True)["dt"], "all"), (1.0, "all")):
             probe = attend_attenuation(dict(attenuation_settings(True), dt=dt), sensory_orders=orders)
             print(f"  diagnostic, attend with dt = {dt:g} s, sensory_orders={orders!r}: true / SPM per h "
@@ -201,7 +239,55 @@ def _attenuation_report(diagnose: bool) -> None:
     print(f"speed: spm_ALAP {per_run_spm:.2f} s CPU per run (Octave {spm['record']['octave']}), attend "
           f"{per_run_attend:.3f} s (median of {len(own['cpu'])} runs, {attenuation_settings(False)['duration'] / attenuation_settings(False)['dt']:.0f} samples): "
           f"{per_run_spm / per_run_attend:.1f}x (target >= 100x); at SPM's step (32 samples) "
-          f"{float(np.nanmedian(spm_like['cpu'])):.4f} s: {per_run_spm / float(np.nanmedian(spm_like['cpu'])):.0f}x\n")
+          f"{float(np.nanmedian(spm_like['cpu'])):.4f} s: {per_run_spm / float(np.nanmedian(spm_like['cpu'])):.0f}x; "
+          f"with SPM's conventions (32 samples) {float(np.median(conventions['cpu'])):.4f} s: "
+          f"{per_run_spm / float(np.median(conventions['cpu'])):.0f}x\n")
+
+
+def _spm_conventions_ablation(spm: dict) -> None:
+    """Each of SPM's conventions switched back to attend's, one at a time, in the "SPM conventions" variant: which
+    source carries which part of the difference (worst |attend / SPM - 1| of the true and perceived force)."""
+    from attend.control import ClosedLoopDivergence, attenuation
+    from attend.control._core import JointFlow
+    from attend.models.generalized import smoothness_precision
+
+    def prior_precision_by_size(controller):  # integration="spm" without SPM's cause-prior precision
+        n, r, m, P, Q = controller._sizes
+        controller._Pi_v = np.kron(smoothness_precision(Q, controller.model.kernel_width),
+                                   controller.model.cause_prior_precision)
+        controller._joint = JointFlow(n, r, m, controller.n_actions, P, Q, controller._D, controller._Pi_x,
+                                      controller._Pi_v, controller.action_gain, controller.action_prior_precision,
+                                      controller.dt)
+
+    def data_held(controller):  # integration="spm" without the data's motion within the bin
+        controller._moving_data = False
+
+    base = spm_conventions_settings()
+    cases = [("SPM conventions (all of them)", base, None),
+             ("  sampled data, causal embedding", dict(base, generalised_data=False), None),
+             ("  sampled data, orders 0..3", dict(base, generalised_data=False, sensory_orders=3), None),
+             ("  orders 0..3 instead of 0..4", dict(base, sensory_orders=3), None),
+             ("  intention without motion", dict(base, embedded_intention=False), None),
+             ("  integration='attend' (both below)", dict(base, integration="attend"), None),
+             ("  data held within the bin", base, data_held),
+             ("  cause prior precision S(d + 1)", base, prior_precision_by_size)]
+    print("diagnostic: SPM's conventions, each switched back to attend's (true / SPM, perceived / SPM per h)")
+    for label, cfg, alter in cases:
+        true, perceived = [], []
+        for h in cfg["attenuations"]:
+            world, controller = attenuation.build(h, "fixed reflex precision", cfg)
+            if alter is not None:
+                alter(controller)
+                controller.reset()
+            try:
+                run = attenuation._simulate_built(world, controller, cfg)
+                true.append(run["true_force"].max()), perceived.append(run["perceived_self"].max())
+            except ClosedLoopDivergence:
+                true.append(np.nan), perceived.append(np.nan)
+        t, p = np.array(true) / spm["true"], np.array(perceived) / spm["perceived"]
+        worst = np.nanmax(np.abs(np.concatenate([t, p]) - 1)) if np.isfinite(np.concatenate([t, p])).any() else np.nan
+        print(f"  {label:38s} true " + " ".join(f"{r:.3f}" for r in t) + " | perceived "
+              + " ".join(f"{r:.3f}" for r in p) + f" | worst {worst:.3f}")
 
 
 def _reaching_report() -> None:
@@ -242,7 +328,8 @@ def _reaching_report() -> None:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--diagnose", action="store_true",
-                        help="also run attend's attenuation with sensory_orders=3 and 'all' (SPM weights every order)")
+                        help="also run attend's attenuation with sensory_orders=3 and 'all' (SPM weights every order), and the "
+                             "SPM-conventions variant with each convention switched back to attend's")
     args = parser.parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     _attenuation_report(args.diagnose)

@@ -10,9 +10,18 @@ What agrees and what does not (docs/spm.md, "Active inference"):
 - attenuation: with its own conventions attend's force is 63-86 % of SPM's. The difference is the orders of
   sensory motion the agent attends to (attend's default: up to the relative degree, orders 0..1; SPM: all of
   0..4). Stepping once per SPM bin and attending orders 0..3 brings attend within 5.1 % of SPM at every h
-  (orders 0..4 are unstable in attend's sampled loop at h >= 3); that is asserted at 6 %, the rest being
-  the sampled, causal embedding of the data (SPM integrates the world in exact generalised coordinates).
+  (orders 0..4 are unstable in attend's sampled loop at h >= 3); that is asserted at 6 %.
+  With SPM's conventions (attend.control.attenuation.SPM_CONVENTIONS: SPM's step, every order, the world's
+  generalised response as data, the intention embedded per bin, integration="spm") both the true and the
+  perceived force are within 5 % at every h (observed: true within 1.2 %, perceived within 3.9 %). What carries the
+  difference (bench_spm_control.py --diagnose switches each convention back): the cause prior's precision
+  (S at p + 1 orders, top-left block: up to 10 % at h = -4) and the data and prior moving within the bin (up to
+  8 % at h = 6); sampled data with every order oscillate for h >= 4.
   The default configuration is checked only for the documented shortfall, not for agreement.
+
+Tolerances: the runs are deterministic; changes at the rounding level (e.g. an analytic for a finite-difference
+gradient) moved the SPM-conventions ratios by < 1e-8, while each convention moves them by >= 1e-2. The ratios are
+pinned at 1e-4, and the 5 % target is asserted on top.
 """
 
 from __future__ import annotations
@@ -46,6 +55,32 @@ def test_attenuation_at_spm_step_and_orders_matches_spm(spm_attenuation):
     own = bench.attend_attenuation(bench.spm_like_attenuation_settings(), sensory_orders=bench.SPM_LIKE_ORDERS)
     ratio = own["true"] / spm_attenuation["true"]
     assert np.all(np.abs(ratio - 1) < 0.06), ratio
+
+
+#: attend / SPM per h = -4..6 with SPM's conventions (benchmarks/bench_spm_control.py), true and perceived force
+SPM_CONVENTIONS_TRUE = [0.99641, 0.99348, 0.99752, 1.00017, 0.9998, 1.00095, 1.00075, 1.01229, 0.99562, 1.00298, 1.00155]
+SPM_CONVENTIONS_PERCEIVED = [0.99857, 1.00274, 1.00583, 1.01407, 1.0173, 1.02163, 1.0267, 1.03827, 1.02687, 1.03918,
+                             1.03719]
+
+
+def test_attenuation_with_spm_conventions_matches_spm(spm_attenuation):
+    """attend with SPM's conventions: the peak true and perceived force within 5 % of SPM's at every h."""
+    own = bench.attend_attenuation_spm_conventions()
+    true, perceived = own["true"] / spm_attenuation["true"], own["perceived"] / spm_attenuation["perceived"]
+    assert np.all(np.abs(true - 1) <= 0.05) and np.all(np.abs(perceived - 1) <= 0.05), (true, perceived)
+    np.testing.assert_allclose(true, SPM_CONVENTIONS_TRUE, atol=1e-4)
+    np.testing.assert_allclose(perceived, SPM_CONVENTIONS_PERCEIVED, atol=1e-4)
+    # the traces follow SPM's too: the true force peaks within one bin of SPM's at every h
+    for h, trace in own["traces"].items():
+        assert abs(int(trace[:, 0].argmax()) - int(spm_attenuation["traces"][h][:, 1].argmax())) <= 1
+
+
+def test_attenuation_spm_conventions_need_spm_integration(spm_attenuation):
+    """The same variant with attend's integration (data held within the bin, the cause prior weighed by S(s) at d + 1
+    orders): outside 5 % (observed up to 8 % on the perceived force at h = 6)."""
+    own = bench.attend_attenuation_spm_conventions(dict(bench.spm_conventions_settings(), integration="attend"))
+    perceived = own["perceived"] / spm_attenuation["perceived"]
+    assert np.max(np.abs(perceived - 1)) > 0.05
 
 
 def test_attenuation_default_orders_fall_short_of_spm(spm_attenuation):

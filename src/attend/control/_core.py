@@ -237,6 +237,7 @@ class JointFlow:
         self.J = np.empty((N, N))
         self._augmented = np.zeros((N + 1, N + 1))
         self._exponential = AugmentedExponential(N + 1)
+        self._moving = None  # (block, shift, exponential) of :meth:`moving_data_increment`, made at first use
 
     _VIEWS = ("_F_X", "_gx", "_gv", "_fx", "_fv")
 
@@ -323,4 +324,34 @@ class JointFlow:
         np.multiply(self.J, self.dt, out=block[:N, :N])
         np.multiply(flow, self.dt, out=block[:N, N])
         column = self._exponential.last_column(block)
+        return None if column is None else column[:N]
+
+    def moving_data_increment(self, flow: np.ndarray, y_t: np.ndarray, eta_t: np.ndarray) -> np.ndarray | None:
+        """dZ over one sample when the data y~ and the prior eta~ move with their own generalised motion within it
+        (spm_DEM and spm_ALAP integrate [Z; y~; eta~] jointly): the first N entries of the last column of
+        expm(A dt) for the local linearisation of the joint flow of [Z; y~; eta~],
+
+            A = [[J, K_y, K_eta, flow], [0, D_y, 0, D_y y~], [0, 0, D_v, D_v eta~], [0, 0, 0, 0]],
+            K_y = d flow / d y~ = -H'_y,   K_eta = d flow / d eta~ = H'_v
+
+        (H'_y, H'_v: the columns of H' on e_y and e_v; D_y, D_v the shifts of P orders of m outputs and of Q orders
+        of r causes) at the last linearisation; flow: flow(Z) of :meth:`flow`, y_t: y~, eta_t: eta~ of this sample.
+        None when a value is not finite."""
+        n, r, m, k, P, Q = self.sizes
+        N, ny, nv = flow.shape[0], P * m, Q * r
+        size = N + ny + nv + 1
+        if self._moving is None or self._moving[0].shape[0] != size:
+            block = np.zeros((size, size))
+            shift = shift_matrix(P, m, Q, r)
+            self._moving = (block, shift, AugmentedExponential(size))
+        block, shift, exponential = self._moving
+        dt, H = self.dt, self.H
+        np.multiply(self.J, dt, out=block[:N, :N])
+        np.multiply(H[:ny].T, -dt, out=block[:N, N: N + ny])
+        np.multiply(H[ny + P * n:].T, dt, out=block[:N, N + ny: N + ny + nv])
+        np.multiply(shift, dt, out=block[N: N + ny + nv, N: N + ny + nv])
+        np.multiply(flow, dt, out=block[:N, -1])
+        data = np.concatenate([y_t, eta_t])
+        np.multiply(shift @ data, dt, out=block[N: N + ny + nv, -1])
+        column = exponential.last_column(block)
         return None if column is None else column[:N]

@@ -18,11 +18,14 @@ Two reflex arcs are compared (attend.control's action law da/dt = -kappa (dy~/da
 "model precision" weights the sensory errors by the agent's own (attenuated) Pi_z(x, v); "fixed
 reflex precision" by a fixed diag(1, 0) on proprioception (SPM's G.U), so attention acts only on
 perception. Settings are SPM's where it states them (precisions, orders, s = 1/2, P_a = exp(-2));
-time unit 1 s per SPM bin, sampled at dt = 1/8 s.
+time unit 1 s per SPM bin, sampled at dt = 1/8 s. :data:`SPM_CONVENTIONS` applied over the settings follows spm_ALAP's
+own conventions instead (one sample per bin, every sensory order, generalised data, the embedded intention and SPM's
+D-step; run by :func:`simulate`): then the forces are within 4 % of SPM's (docs/spm.md).
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +42,14 @@ SETTINGS = dict(
 
 #: reflex variant -> action_precision (None: the model's Pi_z(x, v))
 VARIANTS = {"model precision": None, "fixed reflex precision": "reflex_precision"}
+
+#: SPM's conventions (spm_ALAP), to be applied over SETTINGS: one sample per SPM bin (dt = 1 s); sensory precision
+#: on every order 0..p (kron(S, Pi_z)); the data are the world's generalised response, not embedded samples; the
+#: intention is sampled once per bin and embedded in generalised coordinates (centred window, as spm_DEM_embed), its
+#: errors counted at p + 1 orders with the causes' orders above d pinned at 0; the agent's D-step moves the data and
+#: the prior with their generalised motion within the bin (``integration="spm"``). The world itself is still attend's:
+#: integrated over the bin with the action held (SPM integrates it jointly with the agent).
+SPM_CONVENTIONS = dict(dt=1.0, sensory_orders="all", integration="spm", generalised_data=True, embedded_intention=True)
 
 
 def intention(t, cfg=SETTINGS) -> float:
@@ -57,6 +68,38 @@ def intended_force(cfg=SETTINGS) -> float:
     return peak
 
 
+def embedded_intention(cfg=SETTINGS):
+    """eta~(t) of SPM's prior on the causes: the intention sampled at t_k = k dt, embedded in p + 1 orders by the
+    centred window of spm_DEM_embed (the end samples repeated), and folded into the d + 1 orders the agent estimates.
+    SPM's prior errors at orders d + 1..p (where v~ is 0) are e = -eta^(d+1..p); with S = S(s) at p + 1 orders,
+    the gradient on the orders 0..d is that of a prior mean eta^(0..d) + inv(S_00) S_01 eta^(d+1..p) (S_00, S_01: the
+    blocks of S on orders 0..d and d + 1..p). Returns a function t [s] -> ((d + 1) r,) order-major (cfg: the settings)."""
+    from attend.models.generalized import embed, smoothness_precision
+
+    P, Q, dt = cfg["embedding_order"] + 1, cfg["cause_order"] + 1, cfg["dt"]
+    n_bins = int(round(cfg["duration"] / dt))
+    samples = np.array([intention(k * dt, cfg) for k in range(n_bins)])
+    generalised = embed(samples[:, None], P, dt)  # (n_bins, P)
+    S = smoothness_precision(P, cfg["kernel_width"])
+    folded = generalised[:, :Q] + generalised[:, Q:] @ np.linalg.solve(S[:Q, :Q], S[:Q, Q:]).T
+    table = np.zeros((n_bins, Q, 2))
+    table[:, :, 0] = folded
+
+    def prior(t):
+        return table[min(max(int(round(t / dt)), 0), n_bins - 1)].reshape(-1)
+
+    return prior
+
+
+def _precision_gradient(x, v, base: float, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """(dpi/dx (2, 2), dpi/dv (2, 2)) of pi = exp(base - h tanh(v1 + x1)) (1, 1): dpi/dx1 = dpi/dv1 = -h pi (1 - tanh^2)."""
+    slope = math.tanh(float(v[0]) + float(x[0]))
+    rate = -h * math.exp(base - h * slope) * (1.0 - slope * slope)
+    dx = np.zeros((2, 2))
+    dx[:, 0] = rate
+    return dx, dx.copy()
+
+
 def build(attenuation: float, variant: str = "model precision", cfg=SETTINGS):
     """(process, controller) of one run: attenuation h [log-precision], variant one of :data:`VARIANTS`,
     cfg the settings."""
@@ -68,9 +111,11 @@ def build(attenuation: float, variant: str = "model precision", cfg=SETTINGS):
     model = GenerativeModel(
         f=lambda x, v: v - x / 4, g=lambda x, v: mixing @ x, n_states=2, n_causes=2, n_outputs=2,
         sensor_precision=lambda x, v: np.exp(base - h * np.tanh(v[0] + x[0])) * np.ones(2),
+        sensor_precision_gradient=lambda x, v: _precision_gradient(x, v, base, h),
         process_precision=np.exp(cfg["model_process_log_precision"]),
         cause_prior_precision=np.exp([cfg["intention_log_precision"], cfg["external_log_precision"]]),
-        cause_prior=lambda t: np.array([intention(t, cfg), 0.0]), kernel_width=cfg["kernel_width"],
+        cause_prior=(embedded_intention(cfg) if cfg.get("embedded_intention", False)
+                     else (lambda t: np.array([intention(t, cfg), 0.0]))), kernel_width=cfg["kernel_width"],
         embedding_order=cfg["embedding_order"], cause_order=cfg["cause_order"],
         jacobian_f=lambda x, v: (-np.eye(2) / 4, np.eye(2)), jacobian_g=lambda x, v: (mixing, np.zeros((2, 2))))
     noise = np.exp(-cfg["world_log_precision"] / 2)
@@ -84,8 +129,45 @@ def build(attenuation: float, variant: str = "model precision", cfg=SETTINGS):
     controller = ActiveInferenceController(
         model, cfg["dt"], action_gain=cfg["action_gain"], n_actions=1, action_jacobian="process",
         action_precision=None if key is None else cfg[key],
-        action_prior_precision=np.exp(cfg["action_prior_log_precision"]))
+        action_prior_precision=np.exp(cfg["action_prior_log_precision"]),
+        sensory_orders=cfg.get("sensory_orders", "relative_degree"), integration=cfg.get("integration", "attend"))
     return world, controller
+
+
+def simulate(attenuation: float, variant: str = "fixed reflex precision", cfg=SETTINGS) -> dict:
+    """One run of :func:`build` (attenuation h, variant, cfg as there): time [s], the world's force x, the perceived
+    self-generated and external forces (beliefs x1, x2), the believed causes and the action, per sample. With
+    ``cfg["generalised_data"]`` (:data:`SPM_CONVENTIONS`) the agent is given the world's generalised response
+    (:meth:`GenerativeProcess.generalised_output`, the sampled output at order 0) instead of embedding its samples."""
+    world, controller = build(attenuation, variant, cfg)
+    return _simulate_built(world, controller, cfg)
+
+
+def _simulate_built(world, controller, cfg) -> dict:
+    """:func:`simulate` for a (world, controller) pair already built (the benchmark's diagnostics alter it)."""
+    from attend._threads import single_blas_thread
+    from attend.control import run as closed_loop
+
+    if not cfg.get("generalised_data", False):
+        loop = closed_loop(world, controller, cfg["duration"], seed=cfg["seed"])
+        return dict(time_s=loop.time, true_force=loop.states[:, 0], perceived_self=loop.belief_states[:, 0],
+                    perceived_external=loop.belief_states[:, 1], causes=loop.belief_causes, action=loop.actions[:, 0])
+    n_samples = int(round(cfg["duration"] / cfg["dt"]))
+    p = controller.model.embedding_order
+    run = world.start(n_samples, cfg["dt"], cfg["seed"])
+    controller.reset()
+    out = np.empty((n_samples, 6))
+    with single_blas_thread():
+        for k in range(n_samples):
+            y_tilde = world.generalised_output(run.x, run.applied, p)
+            y_tilde[: world.n_outputs] = run.output()
+            out[k, 0] = run.x[0]
+            action = controller.step_generalised(y_tilde, action_jacobian=world.action_jacobian(run.x, run.applied, p))
+            out[k, 1:3], out[k, 3:5] = controller.states, controller.causes
+            run.advance(action)
+            out[k, 5] = run.applied[0]
+    return dict(time_s=np.arange(n_samples) * cfg["dt"], true_force=out[:, 0], perceived_self=out[:, 1],
+                perceived_external=out[:, 2], causes=out[:, 3:5], action=out[:, 5])
 
 
 def run(quick: bool = True, progress: bool = True) -> ExperimentResult:

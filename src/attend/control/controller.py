@@ -170,7 +170,11 @@ class ActiveInferenceController:
     sample the agent holds its data y~[k] and prior eta~(t_k), so by the end of the sample a belief that moves with
     the data lags them by its motion times dt) or "generalised" (the data and the prior move with their own generalised
     motion within the sample, y~(t) = expm(D t) y~[k], as spm_DEM integrates [y~; x~; v~] jointly; needs the exact
-    linear step, and costs nothing per sample there).
+    linear step, and costs nothing per sample there). integration: "attend" (default) or "spm", the conventions of
+    spm_ADEM / spm_ALAP's D-step: the data and the prior move with their generalised motion within the sample (as
+    data_motion="generalised", for any model: the general step then integrates [Z; y~; eta~] jointly), and the cause
+    prior's precision on its d + 1 orders is the top-left block of S(s) at p + 1 orders (SPM weighs the prior errors
+    at p + 1 orders, those above d pinned at 0), not S(s) at d + 1 orders.
     """
 
     def __init__(self, model: GenerativeModel, dt: float, *, action_gain: float = 1.0, action_jacobian="process",
@@ -179,7 +183,7 @@ class ActiveInferenceController:
                  precision_learning: SensorPrecisionLearning | None = None, embedding_window: int | None = None,
                  precision_gradient: bool = True, divergence_limit: float = 1e8,
                  sensory_orders="relative_degree", jacobian_tolerance: float | None = None,
-                 data_motion: str = "held"):
+                 data_motion: str = "held", integration: str = "attend"):
         if not isinstance(model, GenerativeModel):
             raise AttendInputError(f"model: expected an attend.control.GenerativeModel, got {type(model).__name__}")
         self.model = model
@@ -255,6 +259,11 @@ class ActiveInferenceController:
         self._general_cache = None
         if data_motion not in ("held", "generalised"):
             raise AttendInputError(f"data_motion: expected 'held' or 'generalised', got {data_motion!r}")
+        if integration not in ("attend", "spm"):
+            raise AttendInputError(f"integration: expected 'attend' or 'spm', got {integration!r}")
+        self.integration = integration
+        if integration == "spm":  # spm_ADEM / spm_ALAP's D-step: the data and the prior move within the sample
+            data_motion = "generalised"
         self.data_motion = data_motion
         S_P = smoothness_precision(P, model.kernel_width)
         S_Q = smoothness_precision(Q, model.kernel_width)
@@ -266,12 +275,15 @@ class ActiveInferenceController:
             self._S_by_order.append(padded)
         self._S_logdet = [float(np.linalg.slogdet(S[: q + 1, : q + 1])[1]) for q, S in enumerate(self._S_by_order)]
         self._Pi_x = np.kron(S_P, model.process_precision)
-        self._Pi_v = np.kron(S_Q, model.cause_prior_precision)
+        # SPM weighs the cause prior's errors at p + 1 orders with S(s) of p + 1 orders, the orders above d pinned at 0:
+        # on the d + 1 orders estimated, the top-left block of that S (attend: S(s) of d + 1 orders)
+        S_v = S_P[:Q, :Q] if integration == "spm" and Q <= P else S_Q
+        self._Pi_v = np.kron(S_v, model.cause_prior_precision)
         self._D = shift_matrix(P, n, Q, r)
         self._logdet_fixed = (np.linalg.slogdet(self._Pi_x)[1] + (np.linalg.slogdet(self._Pi_v)[1] if r else 0.0))
         self._fast = (model.is_linear and not model.state_dependent_precision
                       and (self._multiplier is None or _is_constant_schedule(precision_schedule)))
-        if data_motion == "generalised" and not self._fast:
+        if data_motion == "generalised" and not self._fast and integration != "spm":
             raise AttendInputError("data_motion: 'generalised' needs the exact linear step (a linear model with "
                                    "constant or learned precision, no state-dependent precision or rhythm); use 'held'")
         self._fast_cache: dict = {}
@@ -284,6 +296,9 @@ class ActiveInferenceController:
             self._joint.set_jacobians(*model.matrices)
         self._joint_precision = None  # the Pi_z (and action_precision) last written into the joint flow
         self._joint_action_precision = None
+        self._joint_orders = None
+        self._joint_Pi_a = None  # Pi~ of the action precision last written into the joint flow
+        self._moving_data = integration == "spm"  # the data and the prior move within the sample (general step)
         self._G_fixed = None if self._G_source is not None else self._check_G(action_jacobian)
         self.reset()
 
@@ -313,6 +328,10 @@ class ActiveInferenceController:
             self._q = None  # set at the first update, when the attended orders are known
         self._last_precision = None
         self._general_cache = None
+        self._evaluation = None  # (x0, v0) and the model's values there (:meth:`_evaluate`)
+        self._last_prior = None  # (t, eta~(t)) of the last step
+        self._base_precision = None  # (x0, v0, Pi_z(x0, v0)) of the last call of :meth:`_precision`
+        self._logdet = None  # (Pi_z, log|Pi~_z|) of the last :meth:`_sensory_logdet`
 
     @property
     def time(self) -> float:
@@ -451,6 +470,7 @@ class ActiveInferenceController:
             base = np.diag(np.exp(self._log_precision))
         else:
             base = self.model.sensor_precision_at(x0, v0)
+            self._base_precision = (x0, v0, base)  # for the precision gradient at the same beliefs
         if self._multiplier is None:
             return base
         mult = np.asarray(self._multiplier(t), dtype=float).reshape(-1)
@@ -464,6 +484,7 @@ class ActiveInferenceController:
         n, r, m, P, Q = self._sizes
         t = self._k * self.dt
         eta = self.model.prior(t)
+        self._last_prior = (t, eta)  # for :meth:`info`
         if self._fast:
             Z = self._fast_step(G, y_t, eta)
         else:
@@ -572,15 +593,13 @@ class ActiveInferenceController:
             fx, fv, gx, gv = A, B, C, Dm
             f0, g0 = A @ x0 + B @ v0, C @ x0 + Dm @ v0
         else:  # shapes checked here; a non-finite Jacobian makes J non-finite, found by the exponential below
-            fx, fv, gx, gv = model.jacobians(x0, v0, check_finite=False)
-            f0 = np.asarray(model.f(x0, v0), dtype=float).reshape(-1)
-            g0 = np.asarray(model.g(x0, v0), dtype=float).reshape(-1)
+            fx, fv, gx, gv, f0, g0 = self._evaluate(x0, v0)
         precision = self._precision(x0, v0, t)
         self._last_precision = precision
         # reuse of the last sample's linearisation: same dy~/da and precision, Jacobians within jacobian_tolerance
         cached = self._general_cache
         tolerance = self.jacobian_tolerance
-        reuse = (tolerance is not None and cached is not None and cached["G"] is G
+        reuse = (tolerance is not None and not self._moving_data and cached is not None and cached["G"] is G
                  and np.array_equal(cached["precision"], precision)
                  and all(np.abs(new - old).max(initial=0.0) <= tolerance * max(1.0, np.abs(old).max(initial=0.0))
                          for new, old in zip((fx, fv, gx, gv), cached["jacobians"])))
@@ -595,9 +614,16 @@ class ActiveInferenceController:
                     or not (precision is model.sensor_precision and last is precision)
                     and not np.array_equal(precision, last)):
                 Pi_y = sensory_precision(self._S_by_order, self._orders, precision)
-                Pi_a = (None if self.action_precision is None
-                        else sensory_precision(self._S_by_order, self._orders, self.action_precision))
+                if self.action_precision is None:
+                    Pi_a = None
+                elif (self._joint_action_precision is self.action_precision and self._joint_Pi_a is not None
+                      and self._joint_orders is self._orders):
+                    Pi_a = self._joint_Pi_a  # a fixed action precision: its Pi~ is built once
+                else:
+                    Pi_a = sensory_precision(self._S_by_order, self._orders, self.action_precision)
                 joint.set_sensory_precision(Pi_y, Pi_a)
+                self._joint_Pi_a = Pi_a
+                self._joint_orders = self._orders
                 self._joint_action_precision = self.action_precision
                 self._joint_precision = precision if precision is model.sensor_precision else precision.copy()
             if not model.is_linear:
@@ -614,7 +640,8 @@ class ActiveInferenceController:
                 cached["integral"] = discrete_transition(cached["J"], self.dt)[1]
             Z = Z + cached["integral"] @ flow
         else:
-            increment = joint.increment(flow)
+            increment = (joint.moving_data_increment(flow, y_t, eta) if self._moving_data
+                         else joint.increment(flow))
             if increment is None:  # J or the flow is not finite: name a non-finite Jacobian, else diverge
                 model.jacobians(x0, v0)
                 increment = np.full(Z.shape, np.nan)
@@ -623,45 +650,96 @@ class ActiveInferenceController:
             self._learn(joint.errors[: P * m])  # the prediction error before the step absorbed this sample
         return Z
 
+    def _evaluate(self, x0: np.ndarray, v0: np.ndarray) -> tuple:
+        """(fx, fv, gx, gv, f(x, v), g(x, v)) of the model at the order-0 beliefs (x0, v0), Jacobians checked for
+        shape only. The last evaluation is kept: :meth:`info` after a step and the next step linearise at the same
+        beliefs, so the model (and a finite-difference Jacobian) is evaluated once per sample."""
+        model = self.model
+        key = np.concatenate([x0, v0])
+        cached = self._evaluation
+        if cached is not None and np.array_equal(cached[0], key):
+            return cached[1]
+        fx, fv, gx, gv = model.jacobians(x0, v0, check_finite=False)
+        f0 = np.asarray(model.f(x0, v0), dtype=float).reshape(-1)
+        g0 = np.asarray(model.g(x0, v0), dtype=float).reshape(-1)
+        values = (fx, fv, gx, gv, f0, g0)
+        self._evaluation = (key, values)
+        return values
+
     def _attended(self) -> np.ndarray:
         """Per output, the highest order of motion carrying sensory precision (all before the first dy~/da)."""
         _, _, m, P, _ = self._sizes
         return self._orders if self._orders is not None else np.full(m, P - 1)
 
     def _sensory_logdet(self, precision: np.ndarray) -> float:
-        """log|Pi~_z| over the attended orders."""
+        """log|Pi~_z| over the attended orders (kept for the last Pi_z: a constant one is summed once)."""
+        if self._logdet is not None and self._logdet[0] is precision and self._logdet[2] is self._orders:
+            return self._logdet[1]
         orders = self._attended()
         if _is_diagonal(precision):
-            return float(sum(self._S_logdet[q] + (q + 1) * math.log(precision[i, i]) for i, q in enumerate(orders)))
-        q = int(orders.min())
-        return float(precision.shape[0] * self._S_logdet[q] + (q + 1) * np.linalg.slogdet(precision)[1])
+            value = float(sum(self._S_logdet[q] + (q + 1) * math.log(precision[i, i]) for i, q in enumerate(orders)))
+        else:
+            q = int(orders.min())
+            value = float(precision.shape[0] * self._S_logdet[q] + (q + 1) * np.linalg.slogdet(precision)[1])
+        if precision is self.model.sensor_precision:  # the model's constant (never changed in place)
+            self._logdet = (precision, value, self._orders)
+        return value
 
     def _precision_gradient(self, x0, v0, e_y, t) -> np.ndarray:
-        """d/d(x, v) at order 0 of (log|Pi~_z| - e_y' Pi~_z e_y) / 2 for a state-dependent Pi_z(x, v), by central
-        differences of Pi_z (the log-determinant term is unchanged by the schedule's multiplier)."""
+        """d/d(x, v) at order 0 of (log|Pi~_z| - e_y' Pi~_z e_y) / 2 for a state-dependent Pi_z(x, v) (the
+        log-determinant term is unchanged by the schedule's multiplier pi(t))::
+
+            d/dz_j = sum_i (rho_i + 1) (dpi_i/dz_j) / pi_i / 2 - sum_i pi(t)_i (dpi_i/dz_j) e_i' S_(rho_i) e_i / 2
+
+        for a diagonal Pi_z = diag(pi) (e_i: the attended orders rho_i of output i's error), and
+        ((rho + 1) tr(Pi_z^-1 dPi_z/dz_j) - sum(dPi_z/dz_j * M * (E' S_rho E))) / 2 for a full one (M = root(pi(t))
+        root(pi(t))', E the (P, m) errors, rho the lowest order). dPi_z/dz_j from the model's
+        ``sensor_precision_gradient`` when it gives one, else by central differences of Pi_z (step eps^(1/3) max(1, |z_j|))."""
         n, r, m, P, Q = self._sizes
+        model = self.model
         out = np.zeros(P * n + Q * r)
-        point = np.concatenate([x0, v0])
-        precision = self.model.sensor_precision_at(x0, v0)
+        known = self._base_precision  # Pi_z(x, v) of this sample's step (:meth:`_precision`)
+        if known is not None and known[0] is x0 and known[1] is v0:
+            precision = known[2]
+        else:
+            precision = model.sensor_precision_at(x0, v0)
         diagonal = _is_diagonal(precision)
         orders = self._attended()
-        inverse = np.linalg.inv(precision)
-        mult = 1.0 if self._multiplier is None else np.asarray(self._multiplier(t), dtype=float).reshape(-1)
-        root = np.sqrt(np.broadcast_to(mult, (m,)))
+        mult = (np.ones(m) if self._multiplier is None
+                else np.broadcast_to(np.asarray(self._multiplier(t), dtype=float).reshape(-1), (m,)))
+        errors = e_y.reshape(P, m)
+        if diagonal:  # the quadratic form per output, and the log-determinant's weights, once per sample
+            pi = np.diagonal(precision)
+            quadratic = np.array([errors[:, i] @ self._S_by_order[orders[i]] @ errors[:, i] for i in range(m)])
+            weights = 0.5 * (orders + 1) / pi - 0.5 * mult * quadratic  # d/dz_j = weights . dpi/dz_j
+        else:
+            rho = int(orders.min())
+            root = np.sqrt(mult)
+            inverse = np.linalg.inv(precision)
+            # e' kron(S, dPi) e = sum(dPi * (E' S E)); the log-determinant's d/dz_j = (rho + 1) tr(Pi^-1 dPi) / 2
+            weights = 0.5 * (rho + 1) * inverse.T - 0.5 * (errors.T @ self._S_by_order[rho] @ errors) * np.outer(root, root)
+        derivatives = self._precision_derivatives(x0, v0, diagonal)  # (n + r, m) or (n + r, m, m)
+        values = derivatives.reshape(n + r, -1) @ weights.reshape(-1)
+        out[:n] = values[:n]
+        out[P * n: P * n + r] = values[n:]
+        return out
+
+    def _precision_derivatives(self, x0, v0, diagonal: bool) -> np.ndarray:
+        """dPi_z/dz_j for z = (x, v) at order 0: rows j of d diag(Pi_z) ((n + r, m), ``diagonal``) or of dPi_z
+        ((n + r, m, m)); from the model's ``sensor_precision_gradient`` (diagonal) or central differences."""
+        n, r, m = self._sizes[:3]
+        model = self.model
+        if diagonal and model.sensor_precision_gradient is not None:
+            return model.sensor_precision_derivatives(x0, v0)
+        point = np.concatenate([x0, v0])
         steps = np.cbrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(point))
+        out = np.empty((n + r, m) if diagonal else (n + r, m, m))
         for j, h in enumerate(steps):
             up, down = point.copy(), point.copy()
             up[j] += h
             down[j] -= h
-            dPi = (self.model.sensor_precision_at(up[:n], up[n:]) - self.model.sensor_precision_at(down[:n], down[n:])) / (2 * h)
-            if diagonal:
-                dPi = np.diag(np.diagonal(dPi))
-                logdet = 0.5 * float(np.sum((orders + 1) * np.diagonal(dPi) / np.diagonal(precision)))
-            else:
-                logdet = 0.5 * (int(orders.min()) + 1) * float(np.sum(inverse * dPi.T))
-            scaled = dPi * root[:, None] * root[None, :]
-            weighted = sensory_precision(self._S_by_order, orders, scaled)
-            out[j if j < n else P * n + (j - n)] = logdet - 0.5 * float(e_y @ weighted @ e_y)
+            dPi = (model.sensor_precision_at(up[:n], up[n:]) - model.sensor_precision_at(down[:n], down[n:])) / (2 * h)
+            out[j] = np.diagonal(dPi) if diagonal else dPi
         return out
 
     def _learn(self, e_y: np.ndarray) -> None:
@@ -707,13 +785,18 @@ class ActiveInferenceController:
         x_t, v_t = Z[: P * n], Z[P * n: nX]
         x0, v0 = x_t[:n], v_t[:r]
         t = max(self._k - 1, 0) * self.dt
-        fx, fv, gx, gv = model.jacobians(x0, v0)
-        f0 = np.asarray(model.f(x0, v0), dtype=float).reshape(-1)
-        g0 = np.asarray(model.g(x0, v0), dtype=float).reshape(-1)
-        eta = model.prior(t)
+        fx, fv, gx, gv, f0, g0 = self._evaluate(x0, v0)
+        if not math.isfinite(float(fx.sum()) + float(fv.sum()) + float(gx.sum()) + float(gv.sum())):
+            model.jacobians(x0, v0)  # names the non-finite Jacobian
+        eta = self._last_prior[1] if self._last_prior is not None and self._last_prior[0] == t else model.prior(t)
         e_y, e_x, e_v = generalised_errors(x_t, v_t, self._y_t, eta, f0, g0, fx, fv, gx, gv, P, Q)
         precision = self._last_precision if self._last_precision is not None else self._precision(x0, v0, t)
-        Pi_y = sensory_precision(self._S_by_order, self._attended(), precision)
+        joint_precision = self._joint_precision
+        if (not self._fast and joint_precision is not None and self._joint_action_precision is self.action_precision
+                and (precision is joint_precision or np.array_equal(precision, joint_precision))):
+            Pi_y = self._joint.Pi[: P * m, : P * m]  # the step's Pi~_z at this Pi_z, already built
+        else:
+            Pi_y = sensory_precision(self._S_by_order, self._attended(), precision)
         quadratic = e_y @ Pi_y @ e_y + e_x @ self._Pi_x @ e_x + e_v @ self._Pi_v @ e_v
         free_energy = -0.5 * quadratic + 0.5 * (self._sensory_logdet(precision) + self._logdet_fixed)
         return StepInfo(t, Z[nX:].copy(), x0.copy(), v0.copy(), e_y[:m].copy(), np.diag(precision).copy(),

@@ -48,6 +48,9 @@ class GenerativeModel:
     jacobian_f, jacobian_g: optional analytic Jacobians returning (d/dx, d/dv); else central
     differences. initial_states: x at t = 0 (default zeros); initial_causes: v at t = 0
     (default eta(0)). matrices: (A, B, C, D) when the model is linear (set by :meth:`linear`).
+    sensor_precision_gradient: optional, for a ``sensor_precision(x, v)`` returning m precisions pi
+    (diagonal Pi_z): ``(x, v) -> (dpi/dx (m, n), dpi/dv (m, r))``, the analytic derivatives the
+    controller's precision gradient uses (else central differences of sensor_precision).
     """
 
     f: Callable
@@ -67,6 +70,7 @@ class GenerativeModel:
     initial_states: object = None
     initial_causes: object = None
     matrices: tuple | None = field(default=None, repr=False)
+    sensor_precision_gradient: Callable | None = None
 
     def __post_init__(self) -> None:
         function(self.f, "f", "f(x, v) -> dx/dt")
@@ -101,6 +105,15 @@ class GenerativeModel:
         evaluated(self.g(x0, v0), m, "g(x, v)")
         if callable(self.sensor_precision):
             precision_value(self.sensor_precision(x0, v0), m, "sensor_precision(x, v)")
+        if self.sensor_precision_gradient is not None:
+            function(self.sensor_precision_gradient, "sensor_precision_gradient", "(x, v) -> (dpi/dx, dpi/dv)")
+            if not callable(self.sensor_precision):
+                raise AttendInputError("sensor_precision_gradient: given for a constant sensor_precision; it needs a "
+                                       "function sensor_precision(x, v)")
+            if np.ndim(self.sensor_precision(x0, v0)) > 1:
+                raise AttendInputError("sensor_precision_gradient: needs sensor_precision(x, v) to return m precisions "
+                                       "(a diagonal Pi_z), got a matrix")
+            self.sensor_precision_derivatives(x0, v0)
 
     # --- construction ---------------------------------------------------------------------
 
@@ -175,3 +188,13 @@ class GenerativeModel:
         if callable(self.sensor_precision):
             return precision_value(self.sensor_precision(x, v), self.n_outputs, "sensor_precision(x, v)")
         return self.sensor_precision
+
+    def sensor_precision_derivatives(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """d pi / d(x, v) as ((n + r), m) rows (row j: the derivative of the m precisions pi = diag(Pi_z) in the
+        j-th of (x, v)) from ``sensor_precision_gradient``, checked for shape and finite values."""
+        n, r, m = self.n_states, self.n_causes, self.n_outputs
+        dx, dv = jacobian_pair(self.sensor_precision_gradient(x, v), m, (n, r), "sensor_precision_gradient(x, v)", True)
+        out = np.empty((n + r, m))
+        out[:n] = dx.T
+        out[n:] = dv.T
+        return out

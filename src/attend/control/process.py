@@ -132,9 +132,27 @@ class GenerativeProcess:
 
     def action_jacobian(self, x, a, embedding_order: int) -> np.ndarray:
         """dy~/da at (x, a): ((p + 1) m, k), rows order-major [g_a; g_x f_a; g_x f_x f_a; ...], p = embedding_order."""
-        p = order(embedding_order, "embedding_order", 12)
+        p = (embedding_order if type(embedding_order) is int and 0 <= embedding_order <= 12
+             else order(embedding_order, "embedding_order", 12))
         fx, fa, gx, ga = self.jacobians(x, a)
         return markov_parameters(fx, fa, gx, ga, p + 1)
+
+    def generalised_output(self, x, a, embedding_order: int) -> np.ndarray:
+        """y~ ((p + 1) m,), order-major: the noiseless response of the world at (x, a) and its motion with the action
+        held, [g(x, a); g_x f(x, a); g_x f_x f(x, a); ...] (f_x, g_x at (x, a): exact for f and g linear in x, else
+        the local linearisation, as spm_ADEM_diff generates the world's generalised response; p = embedding_order).
+        What an agent sees in SPM's conventions, where the data are generalised coordinates, not samples."""
+        p = order(embedding_order, "embedding_order", 12)
+        x, a = np.asarray(x, dtype=float).reshape(-1), np.asarray(a, dtype=float).reshape(-1)
+        fx, _, gx, _ = self.jacobians(x, a)
+        m = self.n_outputs
+        out = np.empty((p + 1) * m)
+        out[:m] = np.asarray(self.g(x, a), dtype=float).reshape(-1)
+        motion = np.asarray(self.f(x, a), dtype=float).reshape(-1)
+        for i in range(1, p + 1):
+            out[i * m: (i + 1) * m] = gx @ motion
+            motion = fx @ motion
+        return out
 
     def saturate(self, action: np.ndarray) -> np.ndarray:
         """The action the actuator delivers: ``action`` clipped to ``action_limits``."""
@@ -165,12 +183,15 @@ def markov_parameters(fx, fa, gx, ga, n_orders: int, hold: float = 0.0) -> np.nd
     if hold > 0:
         return _held_response(np.asarray(fx, dtype=float), np.asarray(fa, dtype=float),
                               np.asarray(gx, dtype=float), np.asarray(ga, dtype=float), n_orders, hold)
-    blocks = [np.asarray(ga, dtype=float)]
+    ga, gx, fx = np.asarray(ga, dtype=float), np.asarray(gx, dtype=float), np.asarray(fx, dtype=float)
+    m = ga.shape[0]
+    out = np.empty((n_orders * m, ga.shape[1]))
+    out[:m] = ga
     column = np.asarray(fa, dtype=float)
-    for _ in range(1, n_orders):
-        blocks.append(gx @ column)
+    for i in range(1, n_orders):
+        np.dot(gx, column, out=out[i * m: (i + 1) * m])
         column = fx @ column
-    return np.vstack(blocks)
+    return out
 
 
 def _held_response(fx, fa, gx, ga, n_orders: int, hold: float) -> np.ndarray:

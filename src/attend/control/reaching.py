@@ -97,12 +97,60 @@ def cue_rate(t, cfg=SETTINGS) -> float:
 def believed_flow(x, v, cfg=SETTINGS) -> np.ndarray:
     """The agent's f(x, v) (4,): the arm pulled to the target T = v[:2] with strength v[2] (x: angles and
     velocities (4,), v: causes (3,), cfg: the settings)."""
-    elbow, forearm = joints(x)
-    force = cfg["pull_gain"] * v[2] * (v[:2] - elbow - forearm)
-    shoulder = float(force @ forearm) * float(forearm @ (_QUARTER_TURN @ elbow))
-    elbow_torque = float(force @ (_QUARTER_TURN @ forearm))
-    m, k = cfg["masses"], cfg["viscosities"]
-    return np.array([x[2], x[3], (shoulder - k[0] * x[2]) / m[0], (elbow_torque - k[1] * x[3]) / m[1]])
+    return _believed_flow_and_jacobians(x, v, cfg, False)[0]
+
+
+def believed_jacobians(x, v, cfg=SETTINGS) -> tuple[np.ndarray, np.ndarray]:
+    """(df/dx (4, 4), df/dv (4, 3)) of :func:`believed_flow` at (x, v) (cfg: the settings), analytic::
+
+        F = c u (T - P),  P = J1 + J2,  dP/dx1 = R J1 + R J2,  dP/dx2 = R J2,  dJ2/dx_i = R J2  (i = 1, 2)
+        shoulder = (F . J2)(J2 . R J1) = -(F . J2) sin x2,   elbow = F . R J2,   d(R J2)/dx_i = -J2
+
+    c the pull gain, u = v[2], T = v[:2], R the quarter turn."""
+    _, fx, fv = _believed_flow_and_jacobians(x, v, cfg, True)
+    return fx, fv
+
+
+def _believed_flow_and_jacobians(x, v, cfg, jacobians: bool):
+    """(f, df/dx, df/dv) of the believed arm in scalar arithmetic (the Jacobians None unless ``jacobians``)."""
+    x1, x2, x3, x4 = float(x[0]), float(x[1]), float(x[2]), float(x[3])
+    t1, t2, u = float(v[0]), float(v[1]), float(v[2])
+    c1, s1 = math.cos(x1), math.sin(x1)
+    c12, s12 = math.cos(x1 + x2), math.sin(x1 + x2)
+    gain = cfg["pull_gain"]
+    m0, m1 = cfg["masses"]
+    k0, k1 = cfg["viscosities"]
+    # J1 = (c1, s1), J2 = (-c12, -s12), R J1 = (-s1, c1), R J2 = (s12, -c12)
+    gap1, gap2 = t1 - c1 + c12, t2 - s1 + s12  # T - P
+    force1, force2 = gain * u * gap1, gain * u * gap2
+    along = -force1 * c12 - force2 * s12  # F . J2
+    lever = -math.sin(x2)  # J2 . R J1
+    across = force1 * s12 - force2 * c12  # F . R J2
+    flow = np.array([x3, x4, (along * lever - k0 * x3) / m0, (across - k1 * x4) / m1])
+    if not jacobians:
+        return flow, None, None
+    # dP/dx1 = (-s1 + s12, c1 - c12), dP/dx2 = (s12, -c12); dF/dx_i = -c u dP/dx_i
+    dF1 = (-gain * u * (-s1 + s12), -gain * u * (c1 - c12))
+    dF2 = (-gain * u * s12, gain * u * c12)
+    # d(F . J2)/dx_i = dF/dx_i . J2 + F . R J2;  d(F . R J2)/dx_i = dF/dx_i . R J2 - F . J2
+    d_along = [-dF[0] * c12 - dF[1] * s12 + across for dF in (dF1, dF2)]
+    d_across = [dF[0] * s12 - dF[1] * c12 - along for dF in (dF1, dF2)]
+    fx = np.zeros((4, 4))
+    fx[0, 2] = fx[1, 3] = 1.0
+    fx[2, 0] = d_along[0] * lever / m0
+    fx[2, 1] = (d_along[1] * lever - along * math.cos(x2)) / m0
+    fx[2, 2] = -k0 / m0
+    fx[3, 0] = d_across[0] / m1
+    fx[3, 1] = d_across[1] / m1
+    fx[3, 3] = -k1 / m1
+    fv = np.zeros((4, 3))  # dF/dT = c u I, dF/du = c (T - P)
+    fv[2, 0] = gain * u * -c12 * lever / m0
+    fv[2, 1] = gain * u * -s12 * lever / m0
+    fv[2, 2] = gain * (-gap1 * c12 - gap2 * s12) * lever / m0
+    fv[3, 0] = gain * u * s12 / m1
+    fv[3, 1] = gain * u * -c12 / m1
+    fv[3, 2] = gain * (gap1 * s12 - gap2 * c12) / m1
+    return flow, fx, fv
 
 
 def world_flow(x, a, cfg=SETTINGS) -> np.ndarray:
@@ -157,6 +205,17 @@ def build(variant: str = "vision", cued: bool = True, cfg=SETTINGS):
     def seen(x, v):
         return np.concatenate([x[:2], v, finger(x)]) if vision else np.concatenate([x[:2], finger(x)])
 
+    m_seen = 7 if vision else 4
+    seen_dv = np.zeros((m_seen, 3))
+    if vision:
+        seen_dv[2:5] = np.eye(3)
+
+    def seen_jacobians(x, v):  # d/dx: the angles and the finger's Jacobian; d/dv: the seen causes
+        dx = np.zeros((m_seen, 4))
+        dx[0, 0] = dx[1, 1] = 1.0
+        dx[-2:, :2] = finger_jacobian(x)
+        return dx, seen_dv
+
     def causes(t):  # eta~: (T1, T2, u) and their first and second motion
         out = np.zeros(3 * (cfg["cause_order"] + 1))
         if not vision:
@@ -172,7 +231,8 @@ def build(variant: str = "vision", cued: bool = True, cfg=SETTINGS):
         process_precision=np.exp(cfg["model_process_log_precision"]), cause_prior_precision=cause_precision,
         cause_prior=causes, kernel_width=cfg["kernel_width"], embedding_order=cfg["embedding_order"],
         cause_order=cfg["cause_order"], initial_states=np.concatenate([angles, [0.0, 0.0]]),
-        initial_causes=np.concatenate([target, [amplitude * cue(0.0, cfg)]]))
+        initial_causes=np.concatenate([target, [amplitude * cue(0.0, cfg)]]),
+        jacobian_f=lambda x, v: believed_jacobians(x, v, cfg), jacobian_g=seen_jacobians)
     noise = np.exp(-cfg["world_log_precision"] / 2)
     m_out = 7 if vision else 4
     world = GenerativeProcess(

@@ -47,7 +47,9 @@ a state or input whose estimate's RMS exceeds WILD x the truth's (3, the line th
 was calibrated on; and 8x), of the default and of every estimator, and whether `attend estimate`
 warned (a spread-check finding names it, the model-misfit warning of the width choice, or the
 flat-likelihood warning); the chosen widths against
-the true ones. ~4 minutes on one core (--quick: 12 bank cases and 2 flights of each model).
+the true ones. --verbose and --json also say where the default's state error is: its SSE per state
+and the share of it in the log's first tenth (a start that the log settles only later). ~4 minutes
+on one core (--quick: 12 bank cases and 2 flights of each model).
 """
 
 from __future__ import annotations
@@ -363,6 +365,10 @@ def run_case(case: Case, folder: Path, verbose: bool = False) -> dict:
     result["input_ratio"] = d["input_sse"] / min(per["dem"]["input_sse"], grid[best_input_label]["input_sse"])
     result["dem_over_best_width"] = per["dem"]["state_sse"] / k["state_sse"]
     result["process_width_ratio"] = per["process-w"]["state_sse"] / reference
+    if runs["default"][1] is not None:  # where the default's state error is: per state, and the log's first tenth
+        squared = (runs["default"][1].states[:, kept] - case.states[:, kept]) ** 2
+        result["default_state_sse_per_state"] = dict(zip(names[:len(kept)], squared.sum(axis=0).tolist()))
+        result["default_first_tenth_share"] = float(squared[:max(1, len(squared) // 10)].sum() / max(squared.sum(), 1e-300))
     if verbose:
         print(json.dumps({key: value for key, value in result.items() if key != "estimators"}, default=float))
     return result

@@ -22,7 +22,8 @@ Parts:
    the missions of the time-to-90 % ratio EFE / lawnmower (targets <= 0.8 uniform, <= 0.5
    informative; a planner that never reaches 90 % counts as twice the budget) and P(all found
    by the end) of both; with the uniform prior, beside them an ideal sweep's time to 90 %
-   (``world_ideal_sweep_t90``: how fast any sweep could be on these worlds).
+   (``world_ideal_sweep_t90``: how fast any sweep could be on these worlds); with the informative
+   prior, an ideal sweep in order of the prior's density (``world_ordered_sweep_t90``).
 4. Several UAVs (EFE; 400 m x 400 m at 1 m, 10 people, 2 buildings, 600 s): median over missions
    of the time to 90 % with 2 and 4 UAVs relative to 1 (targets <= 0.6, <= 0.35), and the images at
    which two UAVs were closer than the separation (10 m).
@@ -53,14 +54,15 @@ from attend.action.planners.salience import ExpectedFreeEnergySearchPlanner  # n
 from attend.action.search_mission import SearchSettings, fly_search  # noqa: E402
 from attend.experiments.search_scale import TruthOraclePlanner  # noqa: E402
 from attend.action.world import make_world, world_from_field  # noqa: E402
-from attend.action.planners.salience import ASSOCIATION_SIGMAS  # noqa: E402
+from attend.action.planners.salience import ASSOCIATION_SIGMAS, box_sums  # noqa: E402
+from attend.action.log_odds import logistic  # noqa: E402
 from attend.action.probability_map import ProbabilityMap  # noqa: E402
 
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ideal_sweep import detect_and_confirm_t90, ideal_sweep_t90  # noqa: E402
+from ideal_sweep import detect_and_confirm_t90, ideal_sweep_t90, ordered_sweep_t90  # noqa: E402
 
 TUNING_SEED_OFFSET = 1000
 #: Seconds per confirming detour of the detect-and-confirm reference (part 3): free, and about what
@@ -212,6 +214,28 @@ def world_ideal_sweep_t90(seed: int, prior: str) -> float:
     return t90
 
 
+def world_ordered_sweep_t90(seed: int, prior: str) -> float:
+    """:func:`ideal_sweep.ordered_sweep_t90` [s] of a part-3 world: its ideal sweep in order of the
+    prior map's density (the planner's starting map), each person at their true place, one UAV."""
+    settings, area, _, _, channels, _ = world_channels(seed, prior)
+    world = scenario(seed, prior)
+    if world.prior_map is None:
+        belief = ProbabilityMap.uniform(world.grid, world.n_people, world.searchable)
+    else:
+        belief = ProbabilityMap.from_prior_map(world.grid, world.prior_map, float(world.n_people), world.searchable)
+    p = np.where(world.searchable, logistic(np.asarray(belief.log_odds, dtype=float)), 0.0)
+    k = int(round(belief.default_target_radius_m() / world.grid.cell_size_m))
+    masses = np.minimum(box_sums(p, k), 1.0)
+    density = p[world.searchable]
+    rows, cols = world.grid.cell_of(world.people_m[:, 0], world.people_m[:, 1])
+    own = p[rows, cols]
+    denser = np.array([(density > d).sum() + 0.5 * (density == d).sum() for d in own]) / density.size
+    t90, _ = ordered_sweep_t90(area, denser, masses[rows, cols], channels, 1, settings.speed_m_s,
+                               1.0 / settings.image_rate_hz, settings.budget_s, settings.target_threshold,
+                               np.random.default_rng(seed))
+    return t90
+
+
 def world_detect_and_confirm_t90(seed: int, prior: str, confirm_s: float) -> float:
     """:func:`ideal_sweep.detect_and_confirm_t90` [s] of a part-3 world: its ideal sweep confirming
     every place with enough reports by a detour of ``confirm_s`` seconds (0: free)."""
@@ -273,6 +297,11 @@ def part3(missions: int, tuning_seeds: int, quick: bool, priors=("uniform", "inf
                 adaptive = np.array([world_detect_and_confirm_t90(seed, prior, confirm_s) for seed in range(missions)])
                 line(f"{prior}: ideal sweep confirming by detours of {confirm_s:g} s / lawnmower",
                      f"{np.median(adaptive / t_mow):.2f} (median over missions)", "-")
+        if prior == "informative":
+            ordered = np.array([world_ordered_sweep_t90(seed, prior) for seed in range(missions)])
+            line(f"{prior}: ideal sweep in order of the prior's density / lawnmower",
+                 f"{np.median(ordered / t_mow):.2f}; EFE / that sweep {np.median(t_efe / ordered):.2f} "
+                 f"(medians over missions)", "-")
         line(f"{prior}: median time to 90 % EFE / lawnmower",
              f"{np.median(t_efe):.0f} s / {np.median(t_mow):.0f} s", "-")
         line(f"{prior}: P(all found by the end) EFE / lawnmower",

@@ -3,6 +3,7 @@
     PYTHONPATH=src python benchmarks/bench_spm_control.py               # compare with the stored SPM runs
     PYTHONPATH=src python benchmarks/bench_spm_control.py --diagnose    # + attend with more sensory orders, and SPM's
                                                                         # conventions switched back one at a time
+                                                                        # (attenuation and reaching)
 
 No Octave is needed: SPM's numbers are stored in benchmarks/spm/reference/ (README there). Two demos:
 
@@ -18,7 +19,9 @@ No Octave is needed: SPM's numbers are stored in benchmarks/spm/reference/ (READ
   its path by < 1e-4) and the cue peaking at t = 31 s (SPM's bin 32).
 
 The attenuation is also run in the "SPM conventions" variant (attend.control.attenuation.SPM_CONVENTIONS: SPM's step,
-every sensory order, the world's generalised response as data, the intention embedded per bin, integration="spm").
+every sensory order, the world's generalised response as data, the intention embedded per bin, integration="spm"),
+and so is the reaching (attend.control.reaching.SPM_CONVENTIONS: the same, with the action's motion in the world's
+response, no motion error at the top order, and the world integrated jointly with the agent, as spm_ADEM does).
 
 Targets: the curves within 5 %, attend >= 100x faster (CPU time of one run of the demo against the CPU
 time of the spm_ALAP / spm_ADEM call, as the drivers record it). Conventions that differ: docs/spm.md.
@@ -179,6 +182,72 @@ def attend_reaching(cfg: dict, cued: bool = True) -> dict:
                 time_s=np.asarray(trace["time_s"]), finger_full=np.asarray(trace["finger"]), cpu=cpu)
 
 
+def reaching_spm_conventions_settings() -> dict:
+    """The matched settings (:func:`reaching_settings`) with attend.control.reaching.SPM_CONVENTIONS: one step per SPM
+    bin, every sensory order, the world's generalised response (with the action's embedded motion) as data, the seen
+    causes embedded per bin, spm_ADEM's D-step (``integration="spm"``, no motion error at the top order, the weak
+    prior on the beliefs) and the world integrated jointly with the agent; and SPM's start exactly, angles (pi/2,
+    pi/2) (SETTINGS: 1.5708, 3.7e-6 rad off, which this comparison resolves)."""
+    import math
+
+    from attend.control import reaching
+
+    return dict(reaching_settings(True), **reaching.SPM_CONVENTIONS, initial_angles=[math.pi / 2, math.pi / 2])
+
+
+def reaching_figures(run: dict, spm: dict, target) -> dict:
+    """The comparison's figures of one attend ``run`` (:func:`attend_reaching`) against SPM's ``spm``
+    (:func:`spm_reaching`), both at SPM's 128 bins, ``target`` the target (2,): RMS and largest finger gap
+    over the start-target distance ("scale"), the bin of the largest gap, the closest approach to the target and its
+    bin (1-based, as SPM's), the distance at bins 64 and 128 (the drift back) and the largest joint-angle gap [rad]."""
+    target = np.asarray(target, dtype=float)
+    scale = float(np.linalg.norm(spm["finger"][0] - target))
+    gap = path_gap(run["finger"], spm["finger"])
+    distance = np.linalg.norm(run["finger"] - target, axis=1)
+    return dict(scale=scale, rms=float(np.sqrt(np.mean(gap**2))) / scale, max=float(gap.max()) / scale,
+                max_bin=int(gap.argmax()) + 1, closest=float(distance.min()), closest_bin=int(distance.argmin()) + 1,
+                bin64=float(distance[63]), bin128=float(distance[-1]),
+                angles=float(np.abs(run["angles"] - spm["states"][:, :2]).max()))
+
+
+#: SPM's conventions of the reaching demo, each switched back to attend's (bench --diagnose; tests): label -> the
+#: settings that differ from reaching.SPM_CONVENTIONS
+REACHING_ABLATION = {
+    "motion error at the top order kept": dict(top_motion_error=True),
+    "world stepped apart (action held)": dict(joint_world=False),
+    "action held in the world's response": dict(action_motion=False),
+    "cue as a world state (not embedded)": dict(embedded_causes=False),
+    "no prior on the beliefs (SPM's Pu)": dict(belief_prior_log_precision=None),
+    "sensory orders 0..3 instead of 0..4": dict(sensory_orders=3),
+    "orders up to the relative degree": dict(sensory_orders="relative_degree"),
+    "integration='attend' (no joint world)": dict(integration="attend", joint_world=False),
+    "data sampled and embedded causally": dict(generalised_data=False),
+    "8 steps per bin (dt = 1/8 s)": dict(dt=0.125),
+}
+
+
+def reaching_ablation(spm: dict, target) -> dict:
+    """label -> :func:`reaching_figures` of the "SPM conventions" variant with one of :data:`REACHING_ABLATION`'s
+    conventions switched back, or where the loop diverged, the time [s] it did; spm: :func:`spm_reaching`'s run,
+    target: the target (2,)."""
+    import re
+    import warnings
+
+    from attend.control import ClosedLoopDivergence
+
+    out = {}
+    for label, change in REACHING_ABLATION.items():
+        try:
+            with np.errstate(all="ignore"), warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                run = attend_reaching(dict(reaching_spm_conventions_settings(), **change))
+            out[label] = reaching_figures(run, spm, target)
+        except ClosedLoopDivergence as error:
+            found = re.search(r"at t = ([0-9.e+-]+) s", str(error))
+            out[label] = float(found.group(1)) if found else float("nan")
+    return out
+
+
 def path_gap(attend_finger: np.ndarray, spm_finger: np.ndarray) -> np.ndarray:
     """|attend finger - SPM finger| per bin [arm length]."""
     return np.linalg.norm(attend_finger - spm_finger, axis=1)
@@ -290,50 +359,75 @@ def _spm_conventions_ablation(spm: dict) -> None:
               + " ".join(f"{r:.3f}" for r in p) + f" | worst {worst:.3f}")
 
 
-def _reaching_report() -> None:
-    spm, spm_noisy, spm_still = spm_reaching("reaching_noiseless"), spm_reaching("reaching"), spm_reaching("reaching_nocue_noiseless")
-    cfg = reaching_settings(True)
+def _reaching_report(diagnose: bool) -> None:
+    spm, spm_noisy = spm_reaching("reaching_noiseless"), spm_reaching("reaching")
+    spm_still = spm_reaching("reaching_nocue_noiseless")
+    cfg, conventions_cfg = reaching_settings(True), reaching_spm_conventions_settings()
     own, matched = attend_reaching(reaching_settings(False)), attend_reaching(cfg)
     still = attend_reaching(cfg, cued=False)
+    conventions = attend_reaching(conventions_cfg)
+    conventions_still = attend_reaching(conventions_cfg, cued=False)
     target = np.asarray(cfg["target"])
     scale = float(np.linalg.norm(spm["finger"][0] - target))  # the distance the finger travels
     print(f"Reaching (vision variant): finger path at SPM's 128 bins; scale = start-target distance {scale:.3f}")
     gap, gap_own = path_gap(matched["finger"], spm["finger"]), path_gap(own["finger"], spm_noisy["finger"])
+    gap_conventions = path_gap(conventions["finger"], spm["finger"])
     rows = [
-        ("max finger gap / scale", gap_own.max() / scale, gap.max() / scale),
-        ("RMS finger gap / scale", np.sqrt(np.mean(gap_own ** 2)) / scale, np.sqrt(np.mean(gap ** 2)) / scale),
+        ("max finger gap / scale", gap_own.max() / scale, gap.max() / scale, gap_conventions.max() / scale),
+        ("RMS finger gap / scale", np.sqrt(np.mean(gap_own ** 2)) / scale, np.sqrt(np.mean(gap ** 2)) / scale,
+         np.sqrt(np.mean(gap_conventions ** 2)) / scale),
         ("max joint-angle gap [rad]", np.abs(own["angles"] - spm_noisy["states"][:, :2]).max(),
-         np.abs(matched["angles"] - spm["states"][:, :2]).max()),
+         np.abs(matched["angles"] - spm["states"][:, :2]).max(),
+         np.abs(conventions["angles"] - spm["states"][:, :2]).max()),
     ]
-    print(f"{'figure':34s} | {'attend SETTINGS':>15} | {'attend matched':>14}")
-    for name, a, b in rows:
-        print(f"{name:34s} | {a:15.4f} | {b:14.4f}")
-    print(f"{'figure':34s} | {'SPM':>8} | {'attend matched':>14} | ratio")
-    d_spm, d_att = np.linalg.norm(spm["finger"] - target, axis=1), np.linalg.norm(matched["finger"] - target, axis=1)
-    for name, s, a in [("closest finger-target distance", d_spm.min(), d_att.min()),
-                       ("bin of the closest approach", d_spm.argmin() + 1, d_att.argmin() + 1),
-                       ("distance at bin 32 (cue peak)", d_spm[31], d_att[31]),
-                       ("distance at bin 64", d_spm[63], d_att[63]),
-                       ("final distance (bin 128)", d_spm[-1], d_att[-1]),
-                       ("no cue: largest excursion", np.linalg.norm(spm_still["finger"] - spm_still["finger"][0], axis=1).max(),
-                        np.linalg.norm(still["finger"] - still["finger"][0], axis=1).max())]:
-        print(f"{name:34s} | {s:8.4f} | {a:14.4f} | {a / s:.3f}")
+    print(f"{'figure':34s} | {'attend SETTINGS':>15} | {'attend matched':>14} | {'SPM conventions':>15}")
+    for name, a, b, c in rows:
+        print(f"{name:34s} | {a:15.4f} | {b:14.4f} | {c:15.2e}")
+    print(f"{'figure':34s} | {'SPM':>8} | {'attend matched':>14} | ratio | {'SPM conventions':>15} | ratio")
+    distances = [np.linalg.norm(run["finger"] - target, axis=1) for run in (spm, matched, conventions)]
+
+    def excursion(run):
+        return np.linalg.norm(run["finger"] - run["finger"][0], axis=1).max()
+
+    for name, pick in [("closest finger-target distance", lambda d: d.min()),
+                       ("distance at bin 32 (cue peak)", lambda d: d[31]),
+                       ("distance at bin 64", lambda d: d[63]),
+                       ("final distance (bin 128)", lambda d: d[-1])]:
+        s, a, c = (float(pick(d)) for d in distances)
+        print(f"{name:34s} | {s:8.4f} | {a:14.4f} | {a / s:.3f} | {c:15.6f} | {c / s:.4f}")
+    s, a, c = (int(d.argmin()) + 1 for d in distances)
+    print(f"{'bin of the closest approach':34s} | {s:8d} | {a:14d} |       | {c:15d} |")
+    s, a, c = excursion(spm_still), excursion(still), excursion(conventions_still)
+    print(f"{'no cue: largest excursion':34s} | {s:8.1e} | {a:14.1e} |       | {c:15.1e} |")
     shift, rms = best_time_shift(matched, spm["finger"])
-    print(f"attend's path closest to SPM's when shifted by {shift:+.3f} s (RMS gap / scale {rms / scale:.4f})")
-    print(f"speed: spm_ADEM {spm_noisy['record']['cpu_seconds']:.2f} s CPU (128 bins, Octave "
-          f"{spm_noisy['record']['octave']}), attend {own['cpu']:.3f} s (1024 samples): "
-          f"{spm_noisy['record']['cpu_seconds'] / own['cpu']:.1f}x (target >= 100x)")
+    print(f"attend's matched path closest to SPM's when shifted by {shift:+.3f} s (RMS gap / scale {rms / scale:.4f})")
+    if diagnose:
+        print("diagnostic: reaching with SPM's conventions, each switched back to attend's (figures against SPM's run)")
+        print(f"  {'switched back':40s} | RMS gap | max gap (bin)  | closest (bin) | bin 64 | bin 128")
+        for label, fig in reaching_ablation(spm, target).items():
+            if not isinstance(fig, dict):
+                print(f"  {label:40s} | diverged at t = {fig:g} s")
+                continue
+            print(f"  {label:40s} | {fig['rms']:7.1e} | {fig['max']:6.1e} ({fig['max_bin']:3d}) | {fig['closest']:.4f} "
+                  f"({fig['closest_bin']:3d}) | {fig['bin64']:.4f} | {fig['bin128']:.4f}")
+    cpu_conventions = [conventions["cpu"], conventions_still["cpu"]]
+    cpu_conventions += [attend_reaching(conventions_cfg)["cpu"] for _ in range(3)]
+    per_run = float(np.median(cpu_conventions))
+    spm_cpu = spm_noisy["record"]["cpu_seconds"]
+    print(f"speed: spm_ADEM {spm_cpu:.2f} s CPU (128 bins, Octave {spm_noisy['record']['octave']}), attend "
+          f"{own['cpu']:.3f} s (1024 samples): {spm_cpu / own['cpu']:.1f}x (target >= 100x); with SPM's conventions "
+          f"(128 steps) {per_run:.3f} s (median of {len(cpu_conventions)} runs): {spm_cpu / per_run:.0f}x")
 
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--diagnose", action="store_true",
                         help="also run attend's attenuation with sensory_orders=3 and 'all' (SPM weights every order), and the "
-                             "SPM-conventions variant with each convention switched back to attend's")
+                             "SPM-conventions variants (attenuation, reaching) with each convention switched back to attend's")
     args = parser.parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     _attenuation_report(args.diagnose)
-    _reaching_report()
+    _reaching_report(args.diagnose)
 
 
 if __name__ == "__main__":

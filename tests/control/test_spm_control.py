@@ -6,7 +6,12 @@ same way. No Octave is needed.
 
 What agrees and what does not (docs/spm.md, "Active inference"):
 - reaching: attend's finger path follows SPM's (RMS gap 2.3 % of the 0.57 arm-length reach, closest
-  approach 0.0205 against 0.0208 at the same bin), so the test asserts agreement within 5 %;
+  approach 0.0205 against 0.0208 at the same bin), so the test asserts agreement within 5 %.
+  With SPM's conventions (attend.control.reaching.SPM_CONVENTIONS: the attenuation's, plus the action's motion in
+  the world's response, no motion error at the top order, SPM's weak prior on the beliefs and the world integrated
+  jointly with the agent) the path is SPM's to 5.6e-6 RMS of the reach, the closest approach 0.0207584 against
+  0.0207590 at the same bin; two of those conventions (the joint world, the top order) each move the closest
+  approach outside 5 %;
 - attenuation: with its own conventions attend's force is 63-86 % of SPM's. The difference is the orders of
   sensory motion the agent attends to (attend's default: up to the relative degree, orders 0..1; SPM: all of
   0..4). Stepping once per SPM bin and attending orders 0..3 brings attend within 5.1 % of SPM at every h
@@ -112,3 +117,49 @@ def test_reaching_without_cue_stays_like_spm():
     own = bench.attend_reaching(bench.reaching_settings(matched=True), cued=False)
     for path in (spm["finger"], own["finger"]):
         assert np.linalg.norm(path - path[0], axis=1).max() < 0.01
+
+
+@pytest.fixture(scope="module")
+def spm_reach():
+    return bench.spm_reaching("reaching_noiseless")
+
+
+def test_reaching_with_spm_conventions_matches_spm(spm_reach):
+    """attend with SPM's conventions (attend.control.reaching.SPM_CONVENTIONS) reproduces spm_ADEM's reach.
+
+    Observed: RMS finger gap 5.6e-6 of the reach, largest 2.3e-5 (bin 29, during the fast part), joint angles within
+    1.6e-5 rad, closest approach 0.0207584 against 0.0207590 at the same bin 46; the uncued run agrees to 3e-13. The
+    smallest effect of one convention is SPM's weak prior on the beliefs (RMS gap 6.1e-5, largest 1.2e-4, angles
+    6.7e-5 rad, distance at bin 128 -1.4e-3 relative without it), so the bounds sit between: RMS 2e-5, largest 6e-5,
+    angles 4e-5 rad, the distances to the target 3e-4 relative (observed <= 6e-5)."""
+    cfg = bench.reaching_spm_conventions_settings()
+    fig = bench.reaching_figures(bench.attend_reaching(cfg), spm_reach, cfg["target"])
+    spm = bench.reaching_figures(dict(finger=spm_reach["finger"], angles=spm_reach["states"][:, :2]), spm_reach,
+                                 cfg["target"])
+    assert fig["rms"] < 2e-5 and fig["max"] < 6e-5, fig
+    assert fig["angles"] < 4e-5, fig
+    assert fig["closest_bin"] == spm["closest_bin"] == 46
+    for key in ("closest", "bin64", "bin128"):
+        assert fig[key] == pytest.approx(spm[key], rel=3e-4), key
+    # the issue's target, on top: path and closest approach within 5 %
+    assert fig["rms"] < 0.05 and abs(fig["closest"] / spm["closest"] - 1) < 0.05
+
+
+def test_reaching_with_spm_conventions_drifts_like_spm_without_cue():
+    """No cue: SPM's arm drifts 1.3e-4 arm lengths over the 128 bins, pulled by its weak prior on the beliefs (centred
+    at 0); attend's with SPM's conventions follows it to 3e-13 (bounded at 1e-9, far below the drift)."""
+    spm = bench.spm_reaching("reaching_nocue_noiseless")
+    own = bench.attend_reaching(bench.reaching_spm_conventions_settings(), cued=False)
+    assert np.linalg.norm(spm["finger"] - spm["finger"][0], axis=1).max() > 1e-4
+    assert np.abs(own["finger"] - spm["finger"]).max() < 1e-9
+
+
+@pytest.mark.parametrize("label", ["motion error at the top order kept", "world stepped apart (action held)"])
+def test_reaching_spm_conventions_matter(spm_reach, label):
+    """Switching back one convention of spm_ADEM's D-step moves the closest approach outside the 5 % target
+    (observed: 0.0166 at bin 48 with the top order's motion error; 0.0073 at bin 101 with the world stepped apart
+    from the agent, against SPM's 0.0208 at bin 46)."""
+    cfg = dict(bench.reaching_spm_conventions_settings(), **bench.REACHING_ABLATION[label])
+    fig = bench.reaching_figures(bench.attend_reaching(cfg), spm_reach, cfg["target"])
+    spm_closest = np.linalg.norm(spm_reach["finger"] - np.asarray(cfg["target"]), axis=1).min()
+    assert abs(fig["closest"] / spm_closest - 1) > 0.05, fig

@@ -240,6 +240,9 @@ class JointFlow:
         self._moving = None  # (block, shift, exponential) of :meth:`moving_data_increment`, made at first use
 
     _VIEWS = ("_F_X", "_gx", "_gv", "_fx", "_fv")
+    top_motion_error = True  # False: e_x at the top order p is 0 in :meth:`flow` (spm_DEM_eval)
+    world_increment = None  # the world's increment of the last :meth:`_world_increment`
+    _world = None  # (block, exponential) of :meth:`_world_increment`, made at first use
 
     def _make_views(self) -> None:
         """The views into F written and read every sample: its columns of X and the diagonal blocks of the Jacobians
@@ -302,7 +305,8 @@ class JointFlow:
 
     def flow(self, Z: np.ndarray, y_t: np.ndarray, eta_t: np.ndarray, f0: np.ndarray, g0: np.ndarray) -> np.ndarray:
         """flow(Z) = L Z - H' e at the last linearisation, e the prediction errors of :func:`generalised_errors` (from F
-        and f(x, v), g(x, v) at order 0; kept as ``errors``)."""
+        and f(x, v), g(x, v) at order 0; kept as ``errors``); with ``top_motion_error`` False the motion error at the
+        top order p is 0, as spm_DEM_eval computes it (the Jacobian F keeps that row)."""
         n, r, m, k, P, Q = self.sizes
         ry, rx = P * m, P * m + P * n
         e = self._F_X @ Z[: Z.shape[0] - k]  # the linear part: orders >= 1 of -g~, D x~ - f~, and v~
@@ -312,6 +316,8 @@ class JointFlow:
             np.subtract(Z[n: 2 * n], f0, out=e[ry: ry + n])
         else:
             np.negative(f0, out=e[ry: ry + n])
+        if not self.top_motion_error:  # spm_DEM_eval: no motion error at the top order (its Jacobian kept)
+            e[rx - n: rx] = 0.0
         e[rx:] -= eta_t
         self.errors = e
         return dgemv(-1.0, self.H.T, e, 1.0, self.L @ Z, overwrite_y=1)
@@ -326,7 +332,8 @@ class JointFlow:
         column = self._exponential.last_column(block)
         return None if column is None else column[:N]
 
-    def moving_data_increment(self, flow: np.ndarray, y_t: np.ndarray, eta_t: np.ndarray) -> np.ndarray | None:
+    def moving_data_increment(self, flow: np.ndarray, y_t: np.ndarray, eta_t: np.ndarray,
+                              world=None) -> np.ndarray | None:
         """dZ over one sample when the data y~ and the prior eta~ move with their own generalised motion within it
         (spm_DEM and spm_ALAP integrate [Z; y~; eta~] jointly): the first N entries of the last column of
         expm(A dt) for the local linearisation of the joint flow of [Z; y~; eta~],
@@ -336,7 +343,11 @@ class JointFlow:
 
         (H'_y, H'_v: the columns of H' on e_y and e_v; D_y, D_v the shifts of P orders of m outputs and of Q orders
         of r causes) at the last linearisation; flow: flow(Z) of :meth:`flow`, y_t: y~, eta_t: eta~ of this sample.
+        world: None, or the world's linearised motion (attend.control.process.WorldMotion) integrated jointly with
+        the agent, as spm_ADEM does (:meth:`_world_increment`; its increment is kept in ``world_increment``).
         None when a value is not finite."""
+        if world is not None:
+            return self._world_increment(flow, y_t, eta_t, world)
         n, r, m, k, P, Q = self.sizes
         N, ny, nv = flow.shape[0], P * m, Q * r
         size = N + ny + nv + 1
@@ -355,3 +366,62 @@ class JointFlow:
         np.multiply(shift @ data, dt, out=block[N: N + ny + nv, -1])
         column = exponential.last_column(block)
         return None if column is None else column[:N]
+
+    def _world_increment(self, flow: np.ndarray, y_t: np.ndarray, eta_t: np.ndarray, world) -> np.ndarray | None:
+        """:meth:`moving_data_increment` with the world integrated jointly (spm_ADEM's D-step), for the increments of
+        Z, the data y~ and prior eta~ and the world's w (``world``, attend.control.process.WorldMotion)::
+
+            dZ/dt = flow + J dZ + K_y dy~ + K_eta deta~      dw/dt = c + A w + B da      (da: the action's rows of dZ)
+            dy^(i)/dt = y^(i+1) + (C w)^(i)   on the rows the world drives (``world.driven``), orders i <= p - 2
+            dy^(i)/dt = y^(i+1) + dy^(i+1),   deta^(i)/dt = eta^(i+1) + deta^(i+1)   on the others (their own motion)
+
+        (K_y = -H'_y, K_eta = H'_v as in :meth:`moving_data_increment`; the action moves the world within the sample).
+        The rows that move with their own motion are polynomials in time, dy^(i)(t) = sum_j t^j / j! y^(i+j) (and so
+        the driven rows at order p - 1, whose C w is 0), so they enter through p "clock" states tau_j = t^j / j!
+        (tau_1' = 1, tau_j' = tau_(j-1)) with the coefficients K_y u_j + K_eta v_j, u_j, v_j the data's orders j
+        above each row. Integrated by the last column of expm(A dt) of [Z; driven rows of y~; w; tau; 1]. Keeps the
+        world's increment w(dt) in ``world_increment``; returns that of Z (None when a value is not finite)."""
+        n, r, m, k, P, Q = self.sizes
+        p = P - 1
+        N, nw = flow.shape[0], world.A.shape[0]
+        ny = P * m
+        rows = np.flatnonzero(world.driven[: (p - 1) * m]) if p > 1 else np.zeros(0, dtype=int)
+        nd, nc = rows.size, max(p, Q - 1, 1)
+        Y, E = y_t.reshape(P, m), eta_t.reshape(Q, r)
+        U = np.zeros((nc, ny))  # U[j - 1]: the coefficient of t^j / j! in the data's increments (orders 0..p-1)
+        for i in range(p):
+            for j in range(1, p - i + 1):
+                U[j - 1, i * m: (i + 1) * m] = Y[i + j]
+        U[:, rows] = 0.0  # those move with the world
+        V = np.zeros((nc, Q * r))
+        for i in range(Q - 1):
+            for j in range(1, Q - i):
+                V[j - 1, i * r: (i + 1) * r] = E[i + j]
+        H = self.H
+        size = N + nd + nw + nc + 1
+        cached = self._world
+        if cached is None or cached[0].shape[0] != size:
+            cached = (np.zeros((size, size)), AugmentedExponential(size))
+            self._world = cached
+        block, exponential = cached
+        dt = self.dt
+        d0, w0, c0 = N, N + nd, N + nd + nw
+        np.multiply(self.J, dt, out=block[:N, :N])
+        np.multiply(H[rows].T, -dt, out=block[:N, d0:w0])
+        clocks = H[ny + P * n:].T @ V.T - H[:ny].T @ U.T  # (N, nc): K_y u_j + K_eta v_j
+        np.multiply(clocks, dt, out=block[:N, c0:-1])
+        np.multiply(flow, dt, out=block[:N, -1])
+        np.multiply(world.C[rows], dt, out=block[d0:w0, w0:c0])
+        np.multiply(y_t[rows + m], dt, out=block[d0:w0, -1])
+        np.multiply(world.B, dt, out=block[w0:c0, N - k:N])
+        np.multiply(world.A, dt, out=block[w0:c0, w0:c0])
+        np.multiply(world.c, dt, out=block[w0:c0, -1])
+        index = np.arange(c0 + 1, size - 1)
+        block[index, index - 1] = dt  # tau_j' = tau_(j-1)
+        block[c0, -1] = dt  # tau_1' = 1
+        column = exponential.last_column(block)
+        if column is None:
+            self.world_increment = None
+            return None
+        self.world_increment = column[w0:c0].copy()
+        return column[:N]

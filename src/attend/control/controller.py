@@ -174,7 +174,13 @@ class ActiveInferenceController:
     spm_ADEM / spm_ALAP's D-step: the data and the prior move with their generalised motion within the sample (as
     data_motion="generalised", for any model: the general step then integrates [Z; y~; eta~] jointly), and the cause
     prior's precision on its d + 1 orders is the top-left block of S(s) at p + 1 orders (SPM weighs the prior errors
-    at p + 1 orders, those above d pinned at 0), not S(s) at d + 1 orders.
+    at p + 1 orders, those above d pinned at 0), not S(s) at d + 1 orders. top_motion_error: True (default) or
+    False: the motion error of the states at the top order p, D x~ - f~ there, is taken as 0 (its Jacobian kept), as
+    spm_DEM_eval computes it for spm_ADEM (then every step is the general one). belief_prior_precision: P_u >= 0, a
+    weak Gaussian prior on the beliefs centred at 0, with precision blkdiag(kron(S, P_u I_n), kron(S_dd, P_u I_r)) on
+    [x~; v~] (S = S(s) at p + 1 orders, S_dd its top-left d + 1 block), as spm_ADEM's Pu (P_u = exp(-8) there; 0,
+    the default: none; > 0: every step is the general one). With ``integration="spm"``,
+    :meth:`step_generalised` can also integrate the world jointly with the agent (``world_motion``), as spm_ADEM does.
     """
 
     def __init__(self, model: GenerativeModel, dt: float, *, action_gain: float = 1.0, action_jacobian="process",
@@ -183,7 +189,8 @@ class ActiveInferenceController:
                  precision_learning: SensorPrecisionLearning | None = None, embedding_window: int | None = None,
                  precision_gradient: bool = True, divergence_limit: float = 1e8,
                  sensory_orders="relative_degree", jacobian_tolerance: float | None = None,
-                 data_motion: str = "held", integration: str = "attend"):
+                 data_motion: str = "held", integration: str = "attend", top_motion_error: bool = True,
+                 belief_prior_precision: float = 0.0):
         if not isinstance(model, GenerativeModel):
             raise AttendInputError(f"model: expected an attend.control.GenerativeModel, got {type(model).__name__}")
         self.model = model
@@ -299,6 +306,24 @@ class ActiveInferenceController:
         self._joint_orders = None
         self._joint_Pi_a = None  # Pi~ of the action precision last written into the joint flow
         self._moving_data = integration == "spm"  # the data and the prior move within the sample (general step)
+        self.top_motion_error = bool(top_motion_error)
+        self._joint.top_motion_error = self.top_motion_error
+        if not self.top_motion_error:
+            self._fast = False  # the exact linear step has the top order's motion error in it
+        pu = number(belief_prior_precision, "belief_prior_precision")
+        if not math.isfinite(pu) or pu < 0:
+            raise AttendInputError("belief_prior_precision: expected a finite number >= 0, got "
+                                   f"{belief_prior_precision!r}")
+        self.belief_prior_precision = pu
+        self._Pi_u = None
+        if pu > 0:  # in the joint flow's linear part L: flow = L Z - H' e and J = L - H' F both take -Pi_u
+            self._Pi_u = np.zeros((P * n + Q * r, P * n + Q * r))
+            self._Pi_u[: P * n, : P * n] = np.kron(S_P, pu * np.eye(n))
+            self._Pi_u[P * n:, P * n:] = np.kron(S_P[:Q, :Q] if Q <= P else S_Q, pu * np.eye(r))
+            self._joint.L[: P * n + Q * r, : P * n + Q * r] -= self._Pi_u
+            self._fast = False  # the exact linear step has no such prior
+        self._world_motion = None  # the world's motion of this step (:meth:`step_generalised`)
+        self._world_increment = None
         self._G_fixed = None if self._G_source is not None else self._check_G(action_jacobian)
         self.reset()
 
@@ -397,17 +422,38 @@ class ActiveInferenceController:
         self._y_t = self._embed_full @ buffer.reshape(-1)
         return self._advance(self._y_t, G)
 
-    def step_generalised(self, y_tilde, action_jacobian=None) -> np.ndarray:
+    def step_generalised(self, y_tilde, action_jacobian=None, world_motion=None) -> np.ndarray:
         """As :meth:`step`, with the generalised outputs given: y_tilde = y~ ((p + 1) m,), order-major (e.g.
-        measured rates); action_jacobian: dy~/da for this sample, as in :meth:`step`."""
+        measured rates); action_jacobian: dy~/da for this sample, as in :meth:`step`. world_motion: None, or the
+        world's motion over this sample linearised (:meth:`GenerativeProcess.generalised_motion`; needs
+        ``integration="spm"``): the world, the data it drives and the agent are then integrated jointly, as
+        spm_ADEM does, and the world's increment is :attr:`world_increment`."""
         _, _, m, P, _ = self._sizes
         y_t = np.asarray(y_tilde, dtype=float).reshape(-1)
         if y_t.shape[0] != P * m:
             raise AttendInputError(f"y_tilde: expected (p + 1) m = {P * m} values, got {y_t.shape[0]}")
         if not np.isfinite(y_t).all():
             raise AttendInputError("y_tilde: expected finite values")
+        if world_motion is not None:
+            if self.integration != "spm":
+                raise AttendInputError("world_motion: integrating the world jointly needs integration='spm'")
+            if world_motion.C.shape != (P * m, world_motion.A.shape[0]) or world_motion.B.shape[1] != self.n_actions:
+                raise AttendInputError(f"world_motion: expected C of shape ({P * m}, {world_motion.A.shape[0]}) and B "
+                                       f"with {self.n_actions} columns, got {world_motion.C.shape} and "
+                                       f"{world_motion.B.shape}")
         self._y_t = y_t
-        return self._advance(y_t, self._resolve_G(action_jacobian))
+        self._world_motion = world_motion
+        try:
+            return self._advance(y_t, self._resolve_G(action_jacobian))
+        finally:
+            self._world_motion = None
+
+    @property
+    def world_increment(self) -> np.ndarray | None:
+        """The world's increment over the last step taken with ``world_motion`` (:meth:`step_generalised`): the
+        change of the chosen states and their orders 0..p-1 (order-major; the first block is the states' own change);
+        None after a step without it."""
+        return None if self._world_increment is None else self._world_increment.copy()
 
     def _check_G(self, G, dead_columns: bool = True) -> np.ndarray:
         """dy~/da checked: shape, finite and (``dead_columns``) no all-zero column."""
@@ -485,7 +531,8 @@ class ActiveInferenceController:
         t = self._k * self.dt
         eta = self.model.prior(t)
         self._last_prior = (t, eta)  # for :meth:`info`
-        if self._fast:
+        self._world_increment = None
+        if self._fast and self._world_motion is None:
             Z = self._fast_step(G, y_t, eta)
         else:
             Z = self._general_step(G, y_t, eta, t)
@@ -640,8 +687,10 @@ class ActiveInferenceController:
                 cached["integral"] = discrete_transition(cached["J"], self.dt)[1]
             Z = Z + cached["integral"] @ flow
         else:
-            increment = (joint.moving_data_increment(flow, y_t, eta) if self._moving_data
+            increment = (joint.moving_data_increment(flow, y_t, eta, self._world_motion) if self._moving_data
                          else joint.increment(flow))
+            if self._world_motion is not None:
+                self._world_increment = joint.world_increment
             if increment is None:  # J or the flow is not finite: name a non-finite Jacobian, else diverge
                 model.jacobians(x0, v0)
                 increment = np.full(Z.shape, np.nan)
@@ -790,6 +839,8 @@ class ActiveInferenceController:
             model.jacobians(x0, v0)  # names the non-finite Jacobian
         eta = self._last_prior[1] if self._last_prior is not None and self._last_prior[0] == t else model.prior(t)
         e_y, e_x, e_v = generalised_errors(x_t, v_t, self._y_t, eta, f0, g0, fx, fv, gx, gv, P, Q)
+        if not self.top_motion_error:
+            e_x[(P - 1) * n:] = 0.0
         precision = self._last_precision if self._last_precision is not None else self._precision(x0, v0, t)
         joint_precision = self._joint_precision
         if (not self._fast and joint_precision is not None and self._joint_action_precision is self.action_precision
@@ -798,6 +849,8 @@ class ActiveInferenceController:
         else:
             Pi_y = sensory_precision(self._S_by_order, self._attended(), precision)
         quadratic = e_y @ Pi_y @ e_y + e_x @ self._Pi_x @ e_x + e_v @ self._Pi_v @ e_v
+        if self._Pi_u is not None:
+            quadratic += Z[:nX] @ self._Pi_u @ Z[:nX]
         free_energy = -0.5 * quadratic + 0.5 * (self._sensory_logdet(precision) + self._logdet_fixed)
         return StepInfo(t, Z[nX:].copy(), x0.copy(), v0.copy(), e_y[:m].copy(), np.diag(precision).copy(),
                         float(free_energy))

@@ -20,7 +20,7 @@ i.e. how each order of motion of y responds at once to a step in a (:meth:`actio
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 
@@ -137,22 +137,101 @@ class GenerativeProcess:
         fx, fa, gx, ga = self.jacobians(x, a)
         return markov_parameters(fx, fa, gx, ga, p + 1)
 
-    def generalised_output(self, x, a, embedding_order: int) -> np.ndarray:
+    def generalised_output(self, x, a, embedding_order: int, action_motion=None) -> np.ndarray:
         """y~ ((p + 1) m,), order-major: the noiseless response of the world at (x, a) and its motion with the action
         held, [g(x, a); g_x f(x, a); g_x f_x f(x, a); ...] (f_x, g_x at (x, a): exact for f and g linear in x, else
         the local linearisation, as spm_ADEM_diff generates the world's generalised response; p = embedding_order).
-        What an agent sees in SPM's conventions, where the data are generalised coordinates, not samples."""
+        What an agent sees in SPM's conventions, where the data are generalised coordinates, not samples.
+        action_motion: None (the action held) or its orders 1..p ((p, k)): then y^(i) = g_x x^(i) with x~ from
+        :meth:`generalised_states` (the action's motion moves the states' higher orders, as in spm_ADEM_diff)."""
         p = order(embedding_order, "embedding_order", 12)
         x, a = np.asarray(x, dtype=float).reshape(-1), np.asarray(a, dtype=float).reshape(-1)
         fx, _, gx, _ = self.jacobians(x, a)
         m = self.n_outputs
         out = np.empty((p + 1) * m)
         out[:m] = np.asarray(self.g(x, a), dtype=float).reshape(-1)
+        if action_motion is not None:
+            fa = self.jacobians(x, a)[1]
+            out[m:] = (self._states_tilde(x, a, p, action_motion, fx, fa, None)[1:] @ gx.T).reshape(-1)
+            return out
         motion = np.asarray(self.f(x, a), dtype=float).reshape(-1)
         for i in range(1, p + 1):
             out[i * m: (i + 1) * m] = gx @ motion
             motion = fx @ motion
         return out
+
+    def generalised_states(self, x, a, embedding_order: int, action_motion=None) -> np.ndarray:
+        """x~ ((p + 1) n,), order-major: the world's state and its motion at (x, a), [x; f(x, a); f_x x' + f_a a';
+        ...] (f_x, f_a at (x, a); p = embedding_order). action_motion: None (the action held: a' = a'' = ... = 0) or
+        the action's orders 1..p ((p, k), e.g. embedded from its history, as spm_ADEM does)."""
+        p = order(embedding_order, "embedding_order", 12)
+        x, a = np.asarray(x, dtype=float).reshape(-1), np.asarray(a, dtype=float).reshape(-1)
+        fx, fa, _, _ = self.jacobians(x, a)
+        return self._states_tilde(x, a, p, action_motion, fx, fa, None).reshape(-1)
+
+    def _states_tilde(self, x, a, p: int, action_motion, fx, fa, drive) -> np.ndarray:
+        """(p + 1, n): x~ of :meth:`generalised_states` at the Jacobians (fx, fa), with ``drive`` (or None) added to x'
+        (and carried into the higher orders)."""
+        n = self.n_states
+        motion = None if action_motion is None else np.asarray(action_motion, dtype=float).reshape(p, self.n_actions)
+        out = np.empty((p + 1, n))
+        out[0] = x
+        if p:
+            out[1] = np.asarray(self.f(x, a), dtype=float).reshape(-1)
+            if drive is not None:
+                out[1] += np.asarray(drive, dtype=float).reshape(-1)
+        for i in range(2, p + 1):
+            out[i] = fx @ out[i - 1]
+            if motion is not None:
+                out[i] += fa @ motion[i - 2]
+        return out
+
+    def generalised_motion(self, x, a, embedding_order: int, *, action_motion=None, drive=None, states=None,
+                           outputs=None) -> "WorldMotion":
+        """The world's generalised motion over one sample, linearised at (x, a), for an agent that integrates it
+        jointly with its own beliefs and action (spm_ADEM's convention;
+        :meth:`ActiveInferenceController.step_generalised` with ``world_motion``; p = embedding_order). The moving quantities are increments from the start of the
+        sample: w = [dx; dx'; ...; dx^(p-1)] of the ``states`` (indices, default all; the top order p does not move)
+        and the action's a - a_k::
+
+            dw/dt = c + A w + B (a - a_k),   c = [x'; x''; ...; x^(p)],  A = kron(I_p, f_x),  B = [f_a; 0; ...]
+            d(y^(i))/dt = y^(i+1) + g_x dx^(i+1)   (i < p - 1; the top two orders: y^(i+1) only)
+
+        for the ``outputs`` (indices, default all) the world drives; the other outputs move with their own motion
+        (dy~/dt = D y~). x~ as :meth:`generalised_states` (action_motion as there) with drive, a known rate added to
+        x' (e.g. the noise and disturbance of this sample, :meth:`ProcessRun.drive`). f_x, f_a, g_x at (x, a), taken
+        once: the result also holds the world's generalised response y~ = [g; g_x x'; ...] (noiseless; ``y_tilde``)
+        and dy~/da (``action_jacobian``, as :meth:`action_jacobian`)."""
+        p = embedding_order if type(embedding_order) is int and 0 <= embedding_order <= 12 else order(
+            embedding_order, "embedding_order", 12)
+        n, m, k = self.n_states, self.n_outputs, self.n_actions
+        chosen = np.arange(n) if states is None else np.asarray(states, dtype=int).reshape(-1)
+        driven = np.arange(m) if outputs is None else np.asarray(outputs, dtype=int).reshape(-1)
+        x, a = np.asarray(x, dtype=float).reshape(-1), np.asarray(a, dtype=float).reshape(-1)
+        fx, fa, gx, ga = self.jacobians(x, a)
+        x_tilde = self._states_tilde(x, a, p, action_motion, fx, fa, drive)
+        y_tilde = np.empty((p + 1, m))
+        y_tilde[0] = np.asarray(self.g(x, a), dtype=float).reshape(-1)
+        np.dot(x_tilde[1:], gx.T, out=y_tilde[1:])
+        q = chosen.size
+        fx_q = fx[chosen][:, chosen]
+        A = np.zeros((p * q, p * q))
+        view = A.reshape(p, q, p, q)
+        index = np.arange(p)
+        view[index, :, index, :] = fx_q  # kron(I_p, f_x)
+        B = np.zeros((p * q, k))
+        B[:q] = fa[chosen]
+        c = x_tilde[1:, chosen].reshape(-1)
+        C = np.zeros(((p + 1) * m, p * q))
+        if p > 1:  # y^(i) moves with dx^(i+1), i + 1 <= p - 1
+            rows = (np.arange(p - 1)[:, None] * m + driven[None, :]).reshape(-1)
+            blocks = C[rows].reshape(p - 1, driven.size, p, q)
+            blocks[index[:-1], :, index[1:], :] = gx[driven][:, chosen]
+            C[rows] = blocks.reshape(-1, p * q)
+        mask = np.zeros((p + 1, m), dtype=bool)
+        mask[:, driven] = True
+        return WorldMotion(A, B, c, C, mask.reshape(-1), chosen, y_tilde.reshape(-1),
+                           markov_parameters(fx, fa, gx, ga, p + 1))
 
     def saturate(self, action: np.ndarray) -> np.ndarray:
         """The action the actuator delivers: ``action`` clipped to ``action_limits``."""
@@ -163,6 +242,23 @@ class GenerativeProcess:
     def start(self, n_samples: int, dt: float, seed: int | None = 0) -> "ProcessRun":
         """A simulation of ``n_samples`` samples of spacing ``dt`` [s] with noise drawn from ``seed``."""
         return ProcessRun(self, count(n_samples, "n_samples", 1), positive_scalar(dt, "dt", "s"), seed)
+
+
+class WorldMotion(NamedTuple):
+    """The world's motion over one sample, linearised (:meth:`GenerativeProcess.generalised_motion`): increments
+    w of the chosen states and their orders 0..p-1, dw/dt = c + A w + B (a - a_k); the data rows ``driven`` (bool,
+    (p + 1) m) move with C w (plus their own motion y^(i+1)), the others with the shift of y~. ``states``: the
+    indices of the world's states in w (order 0 first). y_tilde: the world's noiseless generalised response at the
+    start of the sample ((p + 1) m,); action_jacobian: dy~/da there ((p + 1) m, k)."""
+
+    A: np.ndarray
+    B: np.ndarray
+    c: np.ndarray
+    C: np.ndarray
+    driven: np.ndarray
+    states: np.ndarray
+    y_tilde: np.ndarray
+    action_jacobian: np.ndarray
 
 
 def markov_parameters(fx, fa, gx, ga, n_orders: int, hold: float = 0.0) -> np.ndarray:
@@ -261,6 +357,22 @@ class ProcessRun:
     def time(self) -> float:
         """t = k dt [s] of the current sample."""
         return self.k * self.dt
+
+    def drive(self) -> np.ndarray:
+        """The known rate added to dx/dt over the current sample (n,): the process noise w[k] plus the disturbance
+        d(t) (zeros for a noiseless world without disturbance)."""
+        p = self.process
+        drive = self._w[self.k].copy()
+        if p.disturbance is not None:
+            drive += np.asarray(p.disturbance(self.time), dtype=float)
+        return drive
+
+    def advance_to(self, x, action) -> None:
+        """Move to the next sample at the state ``x`` (n,), integrated elsewhere (e.g. jointly with the agent, as
+        spm_ADEM does: :meth:`GenerativeProcess.generalised_motion`), with ``action`` (saturated) held from now."""
+        self.x = vector(x, self.process.n_states, "x")
+        self.applied = self.process.saturate(np.asarray(action, dtype=float).reshape(-1))
+        self.k += 1
 
     def output(self) -> np.ndarray:
         """y[k] = g(x[k], a) + sigma_z(t) z[k], a the action held since the last sample."""

@@ -37,6 +37,12 @@ world (spm_ADEM's dg/da + dg/dx Df/dx df/da). Departures: attend's sampled loop 
 output up to the order at which action moves it (``sensory_orders="relative_degree"``), where SPM
 uses every order of its generalised coordinates; the world's causes are states of the process
 fed by a known derivative (attend's process has no causes).
+
+:data:`SPM_CONVENTIONS` applied over the settings follows spm_ADEM's own conventions instead (one step per
+bin, every sensory order, the world's generalised response as data, the causes embedded per bin, SPM's D-step
+with no motion error at the top order and its weak prior on the beliefs, and the world integrated jointly with the
+agent; run by
+:func:`simulate`): then the finger's path is SPM's to 2.3e-5 of the reach (docs/spm.md).
 """
 
 from __future__ import annotations
@@ -59,6 +65,24 @@ SETTINGS = dict(
 
 #: variant -> where the agent learns the target: "vision" (SPM's ADEM_reaching) or "prior" (an intention)
 VARIANTS = ("vision", "prior")
+
+#: SPM's conventions (spm_ADEM on ADEM_reaching), to be applied over SETTINGS; run by :func:`simulate`:
+#: - dt = 1 s: one step per SPM bin;
+#: - sensory_orders="all": sensory precision on every order 0..p (kron(S, Pi_z), and kron(S, G.U) in the reflex);
+#: - generalised_data: the data are the world's generalised response [g; g_x x'; ...] (spm_ADEM_diff), not embedded
+#:   samples; action_motion: with the action's motion in it, a' .. a^(p) embedded from the actions so far by
+#:   spm_DEM_embed's centred window (x'' = f_x x' + f_a a', ...);
+#: - embedded_causes: the causes (target and cue) sampled once per bin and embedded by the centred window of
+#:   spm_DEM_embed: what the world shows in "vision", the agent's prior in "prior";
+#: - integration="spm" and top_motion_error=False: spm_ADEM's D-step (the data and the prior move within the bin,
+#:   the causes' prior precision from S at p + 1 orders, no motion error at the top order p, as spm_DEM_eval);
+#: - joint_world: the world is integrated jointly with the agent over the bin (the arm's state and motion, the data
+#:   it drives, the beliefs and the action in one local-linearisation step, so that the action moves the arm within
+#:   the bin), as spm_ADEM integrates [world; agent]; not the world stepped apart with the action held.
+#: - belief_prior_log_precision=-8: spm_ADEM's weak prior on the beliefs x~, v~ (Pu, centred at 0, precision
+#:   exp(-8) S(s)); it moves SPM's uncued arm by 1.3e-4 arm lengths over the 128 bins.
+SPM_CONVENTIONS = dict(dt=1.0, sensory_orders="all", integration="spm", generalised_data=True, embedded_causes=True,
+                       top_motion_error=False, action_motion=True, joint_world=True, belief_prior_log_precision=-8.0)
 
 _QUARTER_TURN = np.array([[0.0, -1.0], [1.0, 0.0]])
 
@@ -92,6 +116,43 @@ def cue(t, cfg=SETTINGS) -> float:
 def cue_rate(t, cfg=SETTINGS) -> float:
     """du/dt at time t [s] (cfg: the settings)."""
     return -2.0 * (t - cfg["cue_peak_s"]) / cfg["cue_width_s"] ** 2 * cue(t, cfg)
+
+
+def embedded_causes(cued: bool = True, cfg=SETTINGS) -> np.ndarray:
+    """The causes (T1, T2, u) sampled once per bin (t_k = k dt) and embedded in p + 1 orders by the centred window of
+    spm_DEM_embed (the end samples repeated): (n_bins, p + 1, 3), [bin, order, cause]. cued: the cue is on (False:
+    u = 0); cfg: the settings."""
+    from attend.models.generalized import embed
+
+    P, dt = cfg["embedding_order"] + 1, cfg["dt"]
+    n_bins = int(round(cfg["duration"] / dt))
+    samples = np.zeros((n_bins, 3))
+    samples[:, :2] = cfg["target"]
+    if cued:
+        samples[:, 2] = [cue(k * dt, cfg) for k in range(n_bins)]
+    return embed(samples, P, dt).reshape(n_bins, P, 3)
+
+
+def _centred_window(history: list, n_orders: int) -> np.ndarray:
+    """The window of spm_DEM_embed at the newest of the actions in ``history``: n_orders samples centred on it
+    (n_orders // 2 before), the newest repeated where the window reaches past it and the first before the start
+    ((n_orders, k))."""
+    before = n_orders // 2
+    last = len(history) - 1
+    return np.array([history[min(max(last - before + i, 0), last)] for i in range(n_orders)])
+
+
+def _folded_prior(table: np.ndarray, cfg) -> np.ndarray:
+    """eta~ on the d + 1 orders the agent estimates from causes embedded in p + 1 orders ``table`` (n_bins, p + 1, r):
+    SPM's prior errors at orders d + 1..p (where v~ is 0) are -eta^(d+1..p), and with S = S(s) at p + 1 orders their
+    gradient on orders 0..d is that of a prior mean eta^(0..d) + inv(S_00) S_01 eta^(d+1..p) (S_00, S_01 the blocks
+    of S on orders 0..d and d + 1..p). Returns (n_bins, (d + 1) r), order-major."""
+    from attend.models.generalized import smoothness_precision
+
+    P, Q = cfg["embedding_order"] + 1, cfg["cause_order"] + 1
+    S = smoothness_precision(P, cfg["kernel_width"])
+    folded = table[:, :Q] + np.einsum("ij,kjr->kir", np.linalg.solve(S[:Q, :Q], S[:Q, Q:]), table[:, Q:])
+    return folded.reshape(table.shape[0], -1)
 
 
 def believed_flow(x, v, cfg=SETTINGS) -> np.ndarray:
@@ -224,17 +285,29 @@ def build(variant: str = "vision", cued: bool = True, cfg=SETTINGS):
             out[5] = amplitude * cue_rate(t, cfg)
         return out
 
+    def embedded_prior(t):  # eta~ with SPM's conventions: the intention embedded per bin
+        return table[min(max(int(round(t / cfg["dt"])), 0), table.shape[0] - 1)]
+
+    embedded = not vision and cfg.get("embedded_causes", False)
+    table = _folded_prior(embedded_causes(cued, cfg), cfg) if embedded else None
     cause_precision = np.exp(cfg["intention_log_precision"] if not vision else cfg["cause_prior_log_precision"])
     model = GenerativeModel(
         f=lambda x, v: believed_flow(x, v, cfg), g=seen, n_states=4, n_causes=3, n_outputs=7 if vision else 4,
         sensor_precision=np.exp(cfg["sensor_log_precision"]),
         process_precision=np.exp(cfg["model_process_log_precision"]), cause_prior_precision=cause_precision,
-        cause_prior=causes, kernel_width=cfg["kernel_width"], embedding_order=cfg["embedding_order"],
+        cause_prior=embedded_prior if embedded else causes, kernel_width=cfg["kernel_width"],
+        embedding_order=cfg["embedding_order"],
         cause_order=cfg["cause_order"], initial_states=np.concatenate([angles, [0.0, 0.0]]),
         initial_causes=np.concatenate([target, [amplitude * cue(0.0, cfg)]]),
         jacobian_f=lambda x, v: believed_jacobians(x, v, cfg), jacobian_g=seen_jacobians)
     noise = np.exp(-cfg["world_log_precision"] / 2)
     m_out = 7 if vision else 4
+    (world_fx, world_fa), (world_gx, world_ga) = world_jacobians(np.zeros(7), np.zeros(2), variant, cfg)
+
+    def world_output_jacobians(x, a):  # :func:`world_jacobians`' dg/dx, dg/da: only the finger's rows change
+        gx = world_gx.copy()
+        gx[-2:, :2] = finger_jacobian(x[:2])
+        return gx, world_ga.copy()
     world = GenerativeProcess(
         f=lambda x, a: world_flow(x, a, cfg),
         g=(lambda x, a: np.concatenate([x[:2], x[4:7], finger(x[:2])])) if vision
@@ -244,27 +317,92 @@ def build(variant: str = "vision", cued: bool = True, cfg=SETTINGS):
         process_noise_std=[noise] * 4 + [0.0] * 3, sensor_noise_std=noise,
         process_kernel_width=cfg["world_kernel_width"], sensor_kernel_width=cfg["world_kernel_width"],
         disturbance=lambda t: np.array([0.0] * 6 + [amplitude * cue_rate(t + cfg["dt"] / 2, cfg)]),
-        jacobian_f=lambda x, a: world_jacobians(x, a, variant, cfg)[0],
-        jacobian_g=lambda x, a: world_jacobians(x, a, variant, cfg)[1])
+        jacobian_f=lambda x, a: (world_fx.copy(), world_fa.copy()), jacobian_g=world_output_jacobians)
     controller = ActiveInferenceController(
         model, cfg["dt"], action_gain=cfg["action_gain"], n_actions=2, action_jacobian="process",
         action_precision=np.exp(cfg["reflex_log_precision"]),
-        action_prior_precision=np.exp(cfg["action_prior_log_precision"]))
+        action_prior_precision=np.exp(cfg["action_prior_log_precision"]),
+        sensory_orders=cfg.get("sensory_orders", "relative_degree"), integration=cfg.get("integration", "attend"),
+        top_motion_error=cfg.get("top_motion_error", True),
+        belief_prior_precision=(0.0 if cfg.get("belief_prior_log_precision") is None
+                                else np.exp(cfg["belief_prior_log_precision"])))
     return world, controller
 
 
 def simulate(variant: str = "vision", cued: bool = True, cfg=SETTINGS) -> dict:
     """One closed-loop run of :func:`build` (variant, cued, cfg as there): time, the true and believed finger
-    paths, the joint angles, the action and the distances to the target, as lists (JSON-able)."""
+    paths, the joint angles, the action and the distances to the target, per sample (arrays). With
+    :data:`SPM_CONVENTIONS` in cfg, the loop of spm_ADEM (:func:`_simulate_built`)."""
+    world, controller = build(variant, cued, cfg)
+    return _simulate_built(world, controller, variant, cued, cfg)
+
+
+def _simulate_built(world, controller, variant: str, cued: bool, cfg) -> dict:
+    """:func:`simulate` for a (world, controller) pair already built. With ``cfg["generalised_data"]``
+    (:data:`SPM_CONVENTIONS`) the agent is given the world's generalised response (the sampled output at order 0)
+    instead of embedding its samples; with ``cfg["action_motion"]`` that response carries the action's motion, embedded
+    from the actions so far; with ``cfg["embedded_causes"]`` the seen target and cue are their per-bin embedding
+    (:func:`embedded_causes`) at every order, as spm_ADEM shows the world's causes; with ``cfg["joint_world"]`` the
+    arm is integrated with the agent in its step (:meth:`GenerativeProcess.generalised_motion`, ``world_motion`` of
+    :meth:`ActiveInferenceController.step_generalised`), not stepped apart with the action held. The states are
+    recorded before each step (SPM's bin k is the state at t = (k - 1) dt), the beliefs after it."""
     from attend.control import run as closed_loop
 
-    world, controller = build(variant, cued, cfg)
-    loop = closed_loop(world, controller, cfg["duration"], seed=cfg["seed"])
-    true = np.array([finger(x[:2]) for x in loop.states])
-    believed = np.array([finger(x[:2]) for x in loop.belief_states])
+    if not cfg.get("generalised_data", False):
+        loop = closed_loop(world, controller, cfg["duration"], seed=cfg["seed"])
+        states, beliefs, actions, cues = loop.states, loop.belief_states, loop.actions, loop.belief_causes[:, 2]
+        time_s = loop.time
+    else:
+        from attend._threads import single_blas_thread
+        from attend.models.generalized import embedding_weights
+
+        dt = cfg["dt"]
+        n_samples = int(round(cfg["duration"] / dt))
+        p = controller.model.embedding_order
+        m = world.n_outputs
+        vision = variant == "vision"
+        seen = embedded_causes(cued, cfg) if vision and cfg.get("embedded_causes", False) else None
+        weights = embedding_weights(p + 1, dt)[1:] if cfg.get("action_motion", False) else None
+        joint = cfg.get("joint_world", False)
+        arm, arm_outputs = np.arange(4), np.array([0, 1, 5, 6] if vision else [0, 1, 2, 3])  # the arm's states and
+        # the outputs it drives (angles, finger)
+        run = world.start(n_samples, dt, cfg["seed"])
+        controller.reset()
+        states = np.empty((n_samples, world.n_states))
+        beliefs, actions, cues = np.empty((n_samples, 4)), np.empty((n_samples, 2)), np.empty(n_samples)
+        history = [run.applied.copy()]  # the action at the start of each sample so far
+        with single_blas_thread():
+            for k in range(n_samples):
+                motion = None if weights is None else weights @ _centred_window(history, p + 1)
+                if joint:  # the world's motion over the bin, its generalised response and dy~/da
+                    world_motion = world.generalised_motion(run.x, run.applied, p, action_motion=motion,
+                                                            drive=run.drive(), states=arm, outputs=arm_outputs)
+                    y_tilde, G = world_motion.y_tilde, world_motion.action_jacobian
+                else:
+                    world_motion = None
+                    y_tilde = world.generalised_output(run.x, run.applied, p, action_motion=motion)
+                    G = world.action_jacobian(run.x, run.applied, p)
+                y_tilde[:m] = run.output()
+                if seen is not None:  # outputs 2..4 are the causes, at every order
+                    y_tilde.reshape(p + 1, m)[:, 2:5] = seen[k]
+                states[k] = run.x
+                action = controller.step_generalised(y_tilde, action_jacobian=G, world_motion=world_motion)
+                beliefs[k], cues[k] = controller.states, controller.causes[2]
+                if joint:  # the arm moved with the agent; the world's causes are the target and the cue
+                    x_next = run.x.copy()
+                    x_next[:4] += controller.world_increment[:4]
+                    x_next[6] = cue((k + 1) * dt, cfg) if cued else 0.0
+                    run.advance_to(x_next, action)
+                else:
+                    run.advance(action)
+                actions[k] = run.applied
+                history.append(run.applied.copy())
+        time_s = np.arange(n_samples) * dt
+    true = np.array([finger(x[:2]) for x in states])
+    believed = np.array([finger(x[:2]) for x in beliefs])
     distance = np.linalg.norm(true - np.asarray(cfg["target"]), axis=1)
-    return dict(time_s=loop.time, finger=true, believed_finger=believed, angles=loop.states[:, :2],
-                action=loop.actions, distance=distance, believed_cue=loop.belief_causes[:, 2])
+    return dict(time_s=time_s, finger=true, believed_finger=believed, angles=states[:, :2], action=actions,
+                distance=distance, believed_cue=cues)
 
 
 def run(quick: bool = True, progress: bool = True) -> ExperimentResult:
@@ -300,7 +438,8 @@ def run(quick: bool = True, progress: bool = True) -> ExperimentResult:
     result.notes.append("SPM12's own run of ADEM_reaching (spm_ADEM, Octave 7.3) is stored in benchmarks/spm/reference; "
                         "benchmarks/bench_spm_control.py compares it with this demo under SPM's timing (noiseless, "
                         "cue one second earlier): finger path within 2.3 % RMS of the reach, closest approach "
-                        "0.0205 against SPM's 0.0208 at the same bin (docs/spm.md).")
+                        "0.0205 against SPM's 0.0208 at the same bin; with SPM_CONVENTIONS the path is SPM's to "
+                        "5.6e-6 RMS of the reach (docs/spm.md).")
     return result
 
 

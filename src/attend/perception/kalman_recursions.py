@@ -26,8 +26,13 @@ from attend.perception.recurrence import linear_recurrence
 # Smoother in the Bryson-Frazier form (no inverse of the predicted covariance, which the nearly
 # deterministic noise states make ill-conditioned):
 #     lam[k] = H' inv(S[k]) nu[k] + (I - K[k] H)' T' lam[k+1],      lam[N] = 0
-#     a_s[k] = a_p[k] + P_p[k] lam[k]
+#     a_s[k] = a_p[k] + P_p[k] lam[k]  = a_f[k] + P_f[k] T' lam[k+1]
 #     Lam[k] = H' inv(S[k]) H + (I - K[k] H)' T' Lam[k+1] T (I - K[k] H),   P_s[k] = P_p[k] - P_p[k] Lam[k] P_p[k]
+#                                                                          = P_f[k] - P_f[k] T' Lam[k+1] T P_f[k]
+# Until the gain is steady the smoother reads out the second forms (filtered mean and covariance,
+# P_f[k] = (I - K[k] H) P_p[k] (I - K[k] H)'): a broad prior at sample 0 (P_p[0] 1e8 or more times
+# the posterior) multiplies the rounding of lam[0] and Lam[0], which nearly cancel its own inverse,
+# by P_p[0]; the filtered covariance has already collapsed, and carries no such factor.
 
 STEADY_TOLERANCE = 1e-6
 """Relative change of the gain (and of the smoother's Lam) below which the recursion is steady.
@@ -292,9 +297,18 @@ def _smoothed_means(schedule: _GainSchedule, T, H, predicted, innovations, outpu
         lam[k] = scaled[k] + (np.eye(dim) - schedule.gains[k] @ H).T @ (T.T @ lam[k + 1])
     out = np.empty((N, output_map.shape[0]))
     out[s:] = predicted[s:] @ output_map.T + lam[s:] @ (output_map @ schedule.predicted[-1]).T
-    for k in range(s):
-        out[k] = output_map @ (predicted[k] + schedule.predicted[k] @ lam[k])
+    for k in range(s):  # a_f[k] + P_f[k] T' lam[k+1] (the module's note: a broad prior at sample 0)
+        K = schedule.gains[k]
+        filtered = output_map @ (predicted[k] + K @ innovations[k])
+        out[k] = filtered + _filtered_readout(output_map, schedule.predicted[k], K, H) @ (T.T @ lam[k + 1])
     return out
+
+
+def _filtered_readout(output_map, P, K, Ho) -> np.ndarray:
+    """O P_f with P_f = (I - K H_o) P (I - K H_o)' (the Joseph form, as the filter propagates it), in
+    O(dim^2 (q + m)) without forming P_f."""
+    OX = output_map @ P - (output_map @ K) @ (Ho @ P)
+    return OX - (OX @ Ho.T) @ K.T
 
 
 def _filter_variances(schedule: _GainSchedule, H, output_map, N: int) -> np.ndarray:
@@ -344,10 +358,12 @@ def _smoother_variances(schedule: _GainSchedule, T, H, output_map, N: int) -> np
             out[s: k + 1] = out[k + 1]
             k = s - 1
             break
-    for j in range(k, -1, -1):
-        Lam = schedule.innovation_weights[j] @ H + carried(j, Lam)
+    for j in range(k, -1, -1):  # diag(O (P_f - P_f T' Lam[j+1] T P_f) O') (the module's note)
+        forward = back(Lam)  # T' Lam[j+1] T
+        OP = _filtered_readout(output_map, _at(schedule.predicted, j), _at(schedule.gains, j), H)
+        out[j] = _diag(OP, output_map) - _diag(OP @ forward, OP)
+        Lam = _at(schedule.innovation_weights, j) @ H + _sandwich_transposed(forward, _at(schedule.gains, j), H)
         Lam = 0.5 * (Lam + Lam.T)
-        out[j] = variance(j, Lam)
     return out
 
 
@@ -487,7 +503,7 @@ def varying_pass(step_model, H, y, observed, mean0, P0, output_map, smooth: bool
     O = output_map
     predicted = np.empty((N, dim))
     scaled = np.zeros((N, dim))  # H_o' inv(S) nu
-    records: list = [None] * N   # (observed rows, K, H_o' inv(S), O P_p) of the time-varying samples
+    records: list = [None] * N   # (observed rows, K, H_o' inv(S), O a_f, O P_f) of the time-varying samples
     is_steady = np.zeros(N, dtype=bool)
     means, variances = np.empty((N, O.shape[0])), np.empty((N, O.shape[0]))
     if steady is not None:
@@ -499,7 +515,8 @@ def varying_pass(step_model, H, y, observed, mean0, P0, output_map, smooth: bool
         is_steady[k] = sample.steady
         if smooth:
             if not sample.steady:
-                records[k] = (sample.rows, sample.gain, sample.weight, O @ sample.covariance)
+                records[k] = (sample.rows, sample.gain, sample.weight, O @ sample.filtered,
+                              O @ sample.filtered_covariance)
         else:
             means[k] = O @ sample.filtered
             variances[k] = steady_filter_variance if sample.steady else _diag(O @ sample.filtered_covariance, O)
@@ -525,28 +542,29 @@ def _varying_smoother(step_model, H, O, predicted, scaled, records, is_steady, s
             carry_Lam = None if settled and is_steady[k] else T.T @ Lam @ T
         else:
             carry, carry_Lam = np.zeros(dim), np.zeros((dim, dim))
-        if is_steady[k]:
-            rows, K, W, OP = None, steady.gain, steady.weight, steady_OP
-            Ho = H
-        else:
+        if not is_steady[k]:  # a_f + P_f T' lam[k+1], P_f - P_f T' Lam[k+1] T P_f (the module's note)
             settled, calm, previous = False, 0, None
-            rows, K, W, OP = records[k]
+            rows, K, W, filtered, OP = records[k]
             Ho = H[rows]
-        lam = scaled[k] + carry - Ho.T @ (K.T @ carry)
-        if carry_Lam is not None:
+            means[k] = filtered + OP @ carry
+            variances[k] = _diag(OP, O) - _diag(OP @ carry_Lam, OP)
+            lam = scaled[k] + carry - Ho.T @ (K.T @ carry)
             Lam = W @ Ho + _sandwich_transposed(carry_Lam, K, Ho)
+            continue
+        K, W, OP = steady.gain, steady.weight, steady_OP
+        lam = scaled[k] + carry - H.T @ (K.T @ carry)
+        if carry_Lam is not None:
+            Lam = W @ H + _sandwich_transposed(carry_Lam, K, H)
         means[k] = O @ predicted[k] + OP @ lam
-        if is_steady[k] and settled:
+        if settled:
             variances[k] = variances[k + 1]
             continue
-        prior_variance = steady_prior_variance if is_steady[k] else _diag(OP, O)
-        variances[k] = prior_variance - _diag(OP @ Lam, OP)
-        if is_steady[k]:
-            if previous is not None:
-                change = np.max(np.abs(variances[k] - previous) / np.maximum(np.abs(variances[k]), 1e-300))
-                calm = calm + 1 if change <= STEADY_TOLERANCE else 0
-                settled = calm >= 3
-            previous = variances[k]
+        variances[k] = steady_prior_variance - _diag(OP @ Lam, OP)
+        if previous is not None:
+            change = np.max(np.abs(variances[k] - previous) / np.maximum(np.abs(variances[k]), 1e-300))
+            calm = calm + 1 if change <= STEADY_TOLERANCE else 0
+            settled = calm >= 3
+        previous = variances[k]
     return means, variances
 
 

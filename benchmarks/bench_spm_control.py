@@ -18,10 +18,12 @@ No Octave is needed: SPM's numbers are stored in benchmarks/spm/reference/ (READ
   path and the joint angles per bin. Matched settings: a noiseless world (SPM's exp(16) world noise changes
   its path by < 1e-4) and the cue peaking at t = 31 s (SPM's bin 32).
 
-The attenuation is also run in the "SPM conventions" variant (attend.control.attenuation.SPM_CONVENTIONS: SPM's step,
-every sensory order, the world's generalised response as data, the intention embedded per bin, integration="spm"),
-and so is the reaching (attend.control.reaching.SPM_CONVENTIONS: the same, with the action's motion in the world's
-response, no motion error at the top order, and the world integrated jointly with the agent, as spm_ADEM does).
+Both demos are also run in their "SPM conventions" variants (attend.control.attenuation.SPM_CONVENTIONS and
+attend.control.reaching.SPM_CONVENTIONS: SPM's step, every sensory order, the world's generalised response with the
+action's motion as data, the intention or causes embedded per bin, integration="spm" with no motion error at the top
+order, and the world integrated jointly with the agent, as spm_ALAP and spm_ADEM do; the attenuation's prior also
+moves within the bin as spm_ALAP's does, and its beliefs are recorded before each step; the reaching adds spm_ADEM's
+weak prior on the beliefs).
 
 Targets: the curves within 5 %, attend >= 100x faster (CPU time of one run of the demo against the CPU
 time of the spm_ALAP / spm_ADEM call, as the drivers record it). Conventions that differ: docs/spm.md.
@@ -132,29 +134,149 @@ def attend_attenuation(cfg: dict, sensory_orders="relative_degree") -> dict:
 
 
 def spm_conventions_settings() -> dict:
-    """The matched settings (:func:`attenuation_settings`) with attend.control.attenuation.SPM_CONVENTIONS: one sample
-    per SPM bin, every sensory order, the world's generalised response as data, the intention embedded per bin and
-    spm_ALAP's D-step (``integration="spm"``)."""
+    """The matched settings (:func:`attenuation_settings`) with attend.control.attenuation.SPM_CONVENTIONS: one step
+    per SPM bin, every sensory order, the world's generalised response (with the action's embedded motion) as data, the
+    intention embedded per bin and moving within it as spm_ALAP's, spm_ALAP's D-step (``integration="spm"``, no motion
+    error at the top order), the world integrated jointly with the agent, and the beliefs recorded before each step."""
     from attend.control import attenuation
 
     return dict(attenuation_settings(True), **attenuation.SPM_CONVENTIONS)
 
 
-def attend_attenuation_spm_conventions(cfg: dict | None = None) -> dict:
-    """As :func:`attend_attenuation` for the "SPM conventions" variant (attend.control.attenuation.simulate)."""
+def attend_attenuation_spm_conventions(cfg: dict | None = None, alter=None) -> dict:
+    """As :func:`attend_attenuation` for the "SPM conventions" variant (attend.control.attenuation.simulate); the traces
+    per bin hold the true force, the perceived self-generated and external forces. alter: None, or a function
+    (world, controller) -> (world, controller) applied to each run before it starts (a diagnostic)."""
     from attend.control import attenuation
 
     cfg = spm_conventions_settings() if cfg is None else cfg
     true, perceived, cpu, traces = [], [], [], {}
     for h in cfg["attenuations"]:
         start = time.process_time()
-        run = attenuation.simulate(h, "fixed reflex precision", cfg)
+        world, controller = attenuation.build(h, "fixed reflex precision", cfg)
+        if alter is not None:
+            world, controller = alter(world, controller)
+            controller.reset()
+        run = attenuation._simulate_built(world, controller, cfg)
         cpu.append(time.process_time() - start)
         true.append(float(run["true_force"].max()))
         perceived.append(float(run["perceived_self"].max()))
         traces[int(h)] = np.column_stack([run["true_force"], run["perceived_self"], run["perceived_external"]])
     return dict(h=np.asarray(cfg["attenuations"], dtype=float), true=np.array(true), perceived=np.array(perceived),
                 cpu=np.array(cpu), traces=traces)
+
+
+def attenuation_figures(run: dict, spm: dict) -> dict:
+    """The comparison's figures of one attend ``run`` (:func:`attend_attenuation_spm_conventions`) against SPM's ``spm``
+    (:func:`spm_attenuation`): per h the ratios attend / SPM of the peak true and perceived force ("true",
+    "perceived"), the worst |ratio - 1| of each and its h, and the trace gaps: the largest |attend - SPM| over the 32
+    bins and all h of the true and the perceived force, each over SPM's peak at that h ("trace_true",
+    "trace_perceived")."""
+    true, perceived = run["true"] / spm["true"], run["perceived"] / spm["perceived"]
+    hs = [int(h) for h in spm["h"]]
+    trace_true = max(np.abs(run["traces"][h][:, 0] - spm["traces"][h][:, 1]).max() / spm["true"][i]
+                     for i, h in enumerate(hs))
+    trace_perceived = max(np.abs(run["traces"][h][:, 1] - spm["traces"][h][:, 2]).max() / spm["perceived"][i]
+                          for i, h in enumerate(hs))
+    return dict(true=true, perceived=perceived, worst_true=float(np.max(np.abs(true - 1))),
+                worst_true_h=hs[int(np.argmax(np.abs(true - 1)))], worst_perceived=float(np.max(np.abs(perceived - 1))),
+                worst_perceived_h=hs[int(np.argmax(np.abs(perceived - 1)))], trace_true=float(trace_true),
+                trace_perceived=float(trace_perceived))
+
+
+def _cause_prior_precision_by_size(world, controller):
+    """integration="spm" without SPM's cause-prior precision: S(s) at d + 1 orders (attend's), not the top-left block
+    of S(s) at p + 1 orders."""
+    from attend.control._core import JointFlow
+    from attend.models.generalized import smoothness_precision
+
+    n, r, m, P, Q = controller._sizes
+    controller._Pi_v = np.kron(smoothness_precision(Q, controller.model.kernel_width),
+                               controller.model.cause_prior_precision)
+    controller._joint = JointFlow(n, r, m, controller.n_actions, P, Q, controller._D, controller._Pi_x,
+                                  controller._Pi_v, controller.action_gain, controller.action_prior_precision,
+                                  controller.dt)
+    controller._joint.top_motion_error = controller.top_motion_error
+    return world, controller
+
+
+def _data_held(world, controller):
+    """integration="spm" without the data's and the prior's motion within the bin."""
+    controller._moving_data = False
+    return world, controller
+
+
+#: spm_diff's step (one-sided differences): spm_ALAP takes the world's df/da and the precision's d log pi / d(x, v)
+#: from it
+SPM_DIFFERENCE_STEP = float(np.exp(-8))
+
+
+def _one_sided_differences(world, controller):
+    """The world's df/da = d tanh(a) / da and the precision's d pi / d(x1, v1) = pi d log pi / d(x1, v1) as spm_diff
+    takes them in spm_ALAP, one-sided with step exp(-8), in place of attend's analytic ones (a diagnostic of the
+    numerics, not a convention)."""
+    import dataclasses
+    import math
+
+    step = SPM_DIFFERENCE_STEP
+    model = controller.model
+
+    def world_jacobians(x, a):
+        return np.array([[-0.25]]), np.array([[(math.tanh(a[0] + step) - math.tanh(a[0])) / step]])
+
+    def precision_gradient(x, v):  # pi depends on x1 + v1 only
+        log_pi = math.log(float(model.sensor_precision(x, v)[0]))
+        moved = np.array([float(x[0] + v[0]) + step, 0.0])
+        slope = (math.log(float(model.sensor_precision(moved, np.zeros(2))[0])) - log_pi) / step
+        out = np.zeros((2, 2))
+        out[:, 0] = math.exp(log_pi) * slope
+        return out, out.copy()
+
+    controller.model = dataclasses.replace(model, sensor_precision_gradient=precision_gradient)
+    return dataclasses.replace(world, jacobian_f=world_jacobians), controller
+
+
+#: SPM's conventions of the attenuation demo, each switched back to attend's (bench --diagnose; tests): label ->
+#: (the settings that differ from attenuation.SPM_CONVENTIONS, an alteration of each (world, controller) or None)
+ATTENUATION_ABLATION = {
+    "world stepped apart (action held)": (dict(joint_world=False), None),
+    "action held in the world's response": (dict(action_motion=False), None),
+    "prior moving with its folded motion": (dict(prior_own_motion=False), None),
+    "motion error at the top order kept": (dict(top_motion_error=True), None),
+    "beliefs recorded after the step": (dict(record_before_step=False), None),
+    "spm_ADEM's weak prior on the beliefs added": (dict(belief_prior_log_precision=-8.0), None),
+    "sensory orders 0..3 instead of 0..4": (dict(sensory_orders=3), None),
+    "intention without its motion": (dict(embedded_intention=False), None),
+    "cause prior precision S(s) at d + 1 orders": ({}, _cause_prior_precision_by_size),
+    "data and prior held within the bin (world apart)": (dict(joint_world=False, prior_own_motion=False), _data_held),
+    "integration='attend' (world apart)": (dict(integration="attend", joint_world=False, prior_own_motion=False), None),
+    "data sampled and embedded causally": (dict(generalised_data=False), None),
+    "data sampled and embedded causally, orders 0..3": (dict(generalised_data=False, sensory_orders=3), None),
+    "SPM's one-sided differences (numerics)": ({}, _one_sided_differences),
+}
+
+
+def attenuation_ablation(spm: dict, labels=None) -> dict:
+    """label -> :func:`attenuation_figures` of the "SPM conventions" variant with one of :data:`ATTENUATION_ABLATION`'s
+    conventions switched back (labels: those, default all), or where a run diverged, the time [s] it did; spm:
+    :func:`spm_attenuation`'s run."""
+    import re
+    import warnings
+
+    from attend.control import ClosedLoopDivergence
+
+    out = {}
+    for label in ATTENUATION_ABLATION if labels is None else labels:
+        change, alter = ATTENUATION_ABLATION[label]
+        try:
+            with np.errstate(all="ignore"), warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                run = attend_attenuation_spm_conventions(dict(spm_conventions_settings(), **change), alter)
+            out[label] = attenuation_figures(run, spm)
+        except ClosedLoopDivergence as error:
+            found = re.search(r"at t = ([0-9.e+-]+) s", str(error))
+            out[label] = float(found.group(1)) if found else float("nan")
+    return out
 
 
 def reaching_settings(matched: bool = True) -> dict:
@@ -289,12 +411,16 @@ def _attenuation_report(diagnose: bool) -> None:
           + " ".join(f"{r:.3f}" for r in ratio) + f"; worst |ratio - 1| {np.max(np.abs(ratio - 1)):.3f}; perceived / SPM "
           + " ".join(f"{r:.3f}" for r in spm_like["perceived"] / spm["perceived"]))
     conventions = attend_attenuation_spm_conventions()
-    true_ratio, perceived_ratio = conventions["true"] / spm["true"], conventions["perceived"] / spm["perceived"]
-    worst_conventions = max(np.max(np.abs(true_ratio - 1)), np.max(np.abs(perceived_ratio - 1)))
-    print("attend with SPM's conventions (attenuation.SPM_CONVENTIONS: dt = 1 s, orders 0..4, generalised data, "
-          "embedded intention, integration='spm'): true / SPM per h " + " ".join(f"{r:.3f}" for r in true_ratio)
-          + "; perceived / SPM " + " ".join(f"{r:.3f}" for r in perceived_ratio)
-          + f"; worst |ratio - 1| {worst_conventions:.3f} (target <= 0.05: {'met' if worst_conventions <= 0.05 else 'NOT met'})")
+    fig = attenuation_figures(conventions, spm)
+    worst_conventions = max(fig["worst_true"], fig["worst_perceived"])
+    print("attend with SPM's conventions (attenuation.SPM_CONVENTIONS: dt = 1 s, orders 0..4, generalised data with the "
+          "action's motion, embedded intention moving as SPM's, integration='spm' without the top order's motion "
+          "error, world integrated jointly, beliefs recorded before the step): attend / SPM - 1 per h, true force "
+          + " ".join(f"{r - 1:+.1e}" for r in fig["true"]) + "; perceived " + " ".join(f"{r - 1:+.1e}" for r in fig["perceived"]))
+    print(f"  worst |attend / SPM - 1|: true {fig['worst_true']:.1e} (h = {fig['worst_true_h']}), perceived "
+          f"{fig['worst_perceived']:.1e} (h = {fig['worst_perceived_h']}) (target <= 0.05: "
+          f"{'met' if worst_conventions <= 0.05 else 'NOT met'}); trace gap (max over bins and h / SPM's peak): true "
+          f"{fig['trace_true']:.1e}, perceived {fig['trace_perceived']:.1e}")
     if diagnose:
         _spm_conventions_ablation(spm)
         for dt, orders in ((attenuation_settings(True)["dt"], 3), (attenuation_settings(True)["dt"], "all"), (1.0, "all")):
@@ -315,48 +441,21 @@ def _attenuation_report(diagnose: bool) -> None:
 
 def _spm_conventions_ablation(spm: dict) -> None:
     """Each of SPM's conventions switched back to attend's, one at a time, in the "SPM conventions" variant: which
-    source carries which part of the difference (worst |attend / SPM - 1| of the true and perceived force)."""
-    from attend.control import ClosedLoopDivergence, attenuation
-    from attend.control._core import JointFlow
-    from attend.models.generalized import smoothness_precision
+    source carries which part of the difference (:func:`attenuation_ablation`)."""
+    print("diagnostic: attenuation with SPM's conventions, each switched back to attend's (figures against SPM's runs)")
+    print(f"  {'switched back':50s} | worst true (h)  | worst perc. (h) | trace gap true, perceived")
+    print(f"  {'none (SPM conventions)':50s} | " + _ablation_row(attenuation_figures(attend_attenuation_spm_conventions(),
+                                                                                      spm)))
+    for label, fig in attenuation_ablation(spm).items():
+        if not isinstance(fig, dict):
+            print(f"  {label:50s} | diverged at t = {fig:g} s")
+            continue
+        print(f"  {label:50s} | " + _ablation_row(fig))
 
-    def prior_precision_by_size(controller):  # integration="spm" without SPM's cause-prior precision
-        n, r, m, P, Q = controller._sizes
-        controller._Pi_v = np.kron(smoothness_precision(Q, controller.model.kernel_width),
-                                   controller.model.cause_prior_precision)
-        controller._joint = JointFlow(n, r, m, controller.n_actions, P, Q, controller._D, controller._Pi_x,
-                                      controller._Pi_v, controller.action_gain, controller.action_prior_precision,
-                                      controller.dt)
 
-    def data_held(controller):  # integration="spm" without the data's motion within the bin
-        controller._moving_data = False
-
-    base = spm_conventions_settings()
-    cases = [("SPM conventions (all of them)", base, None),
-             ("  sampled data, causal embedding", dict(base, generalised_data=False), None),
-             ("  sampled data, orders 0..3", dict(base, generalised_data=False, sensory_orders=3), None),
-             ("  orders 0..3 instead of 0..4", dict(base, sensory_orders=3), None),
-             ("  intention without motion", dict(base, embedded_intention=False), None),
-             ("  integration='attend' (both below)", dict(base, integration="attend"), None),
-             ("  data held within the bin", base, data_held),
-             ("  cause prior precision S(d + 1)", base, prior_precision_by_size)]
-    print("diagnostic: SPM's conventions, each switched back to attend's (true / SPM, perceived / SPM per h)")
-    for label, cfg, alter in cases:
-        true, perceived = [], []
-        for h in cfg["attenuations"]:
-            world, controller = attenuation.build(h, "fixed reflex precision", cfg)
-            if alter is not None:
-                alter(controller)
-                controller.reset()
-            try:
-                run = attenuation._simulate_built(world, controller, cfg)
-                true.append(run["true_force"].max()), perceived.append(run["perceived_self"].max())
-            except ClosedLoopDivergence:
-                true.append(np.nan), perceived.append(np.nan)
-        t, p = np.array(true) / spm["true"], np.array(perceived) / spm["perceived"]
-        worst = np.nanmax(np.abs(np.concatenate([t, p]) - 1)) if np.isfinite(np.concatenate([t, p])).any() else np.nan
-        print(f"  {label:38s} true " + " ".join(f"{r:.3f}" for r in t) + " | perceived "
-              + " ".join(f"{r:.3f}" for r in p) + f" | worst {worst:.3f}")
+def _ablation_row(fig: dict) -> str:
+    return (f"{fig['worst_true']:7.1e} ({fig['worst_true_h']:2d}) | {fig['worst_perceived']:7.1e} "
+            f"({fig['worst_perceived_h']:2d}) | {fig['trace_true']:7.1e}, {fig['trace_perceived']:7.1e}")
 
 
 def _reaching_report(diagnose: bool) -> None:

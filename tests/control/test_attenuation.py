@@ -1,7 +1,7 @@
 """The attenuation reproduction (attend.control.attenuation): the analytic gradient of its state-dependent sensory
 precision against central differences, the controller's precision gradient from it against the finite-difference one,
-the folding of SPM's embedded intention into the orders the agent estimates, and the "SPM conventions" variant leaving
-the default settings alone."""
+the folding of SPM's embedded intention into the orders the agent estimates, the prior's own motion within the bin
+(``prior_motion`` of step_generalised), and the "SPM conventions" variant leaving the default settings alone."""
 
 from __future__ import annotations
 
@@ -73,6 +73,71 @@ def test_spm_conventions_leave_the_default_settings_alone():
     _, spm = attenuation.build(0.0, cfg=dict(attenuation.SETTINGS, **attenuation.SPM_CONVENTIONS))
     assert spm.integration == "spm" and spm.sensory_orders == "all" and spm.dt == 1.0
     assert "integration" not in attenuation.SETTINGS and "sensory_orders" not in attenuation.SETTINGS
+
+
+def test_unfolded_intention_is_the_embedded_orders_up_to_d():
+    """embedded_intention(folded=False): the intention's embedded orders 0..d alone, whose motion spm_ALAP moves its
+    prior with; the folded prior differs from it only by the part folded in from the orders above d."""
+    cfg = dict(attenuation.SETTINGS, **attenuation.SPM_CONVENTIONS, intention_peak_s=15.0)
+    P, Q = cfg["embedding_order"] + 1, cfg["cause_order"] + 1
+    from attend.models.generalized import embed
+
+    full = embed(np.array([attenuation.intention(k * cfg["dt"], cfg) for k in range(32)])[:, None], P, cfg["dt"])
+    own, folded = attenuation.embedded_intention(cfg, folded=False), attenuation.embedded_intention(cfg)
+    S = smoothness_precision(P, cfg["kernel_width"])
+    for k in (0, 14, 15, 31):
+        np.testing.assert_array_equal(own(k * cfg["dt"]).reshape(Q, 2)[:, 0], full[k, :Q])
+        np.testing.assert_allclose(folded(k * cfg["dt"]) - own(k * cfg["dt"]),
+                                   np.column_stack([np.linalg.solve(S[:Q, :Q], S[:Q, Q:]) @ full[k, Q:], np.zeros(Q)])
+                                   .reshape(-1), rtol=1e-12, atol=1e-15)
+
+
+def test_prior_motion_of_the_prior_itself_changes_nothing():
+    """step_generalised(prior_motion=eta~(t)): the prior moves with its own motion, as without prior_motion; and the
+    variant's prior_own_motion moves the run."""
+    cfg = dict(attenuation.SETTINGS, **attenuation.SPM_CONVENTIONS, intention_peak_s=15.0, world_log_precision=64.0)
+    world, controller = attenuation.build(3.0, "fixed reflex precision", cfg)
+    p = controller.model.embedding_order
+    runs = []
+    for given in (False, True):
+        controller.reset()
+        state, action, beliefs = world.initial_states.copy(), np.zeros(1), []
+        for k in range(20):
+            motion = world.generalised_motion(state, action, p)
+            y_tilde = motion.y_tilde.copy()
+            prior = controller.model.prior(k * cfg["dt"]) if given else None
+            action = controller.step_generalised(y_tilde, action_jacobian=motion.action_jacobian, world_motion=motion,
+                                                 prior_motion=prior)
+            state = state + controller.world_increment[:1]
+            beliefs.append(controller.generalised_states.copy())
+        runs.append(np.array(beliefs))
+    np.testing.assert_array_equal(runs[0], runs[1])
+    own = attenuation.simulate(3.0, "fixed reflex precision", cfg)
+    folded = attenuation.simulate(3.0, "fixed reflex precision", dict(cfg, prior_own_motion=False))
+    assert np.abs(own["perceived_self"] - folded["perceived_self"]).max() > 1e-4
+
+
+def test_prior_motion_is_checked():
+    cfg = dict(attenuation.SETTINGS, **attenuation.SPM_CONVENTIONS)
+    world, controller = attenuation.build(0.0, "fixed reflex precision", cfg)
+    p = controller.model.embedding_order
+    y_tilde = world.generalised_output(world.initial_states, np.zeros(1), p)
+    G = world.action_jacobian(world.initial_states, np.zeros(1), p)
+    with pytest.raises(AttendInputError, match="prior_motion"):
+        controller.step_generalised(y_tilde, action_jacobian=G, prior_motion=np.zeros(5))
+    _, held = attenuation.build(0.0, "fixed reflex precision", dict(cfg, integration="attend"))
+    with pytest.raises(AttendInputError, match="prior_motion: moving the prior within the sample needs"):
+        held.step_generalised(y_tilde, action_jacobian=G, prior_motion=np.zeros(6))
+
+
+def test_spm_conventions_are_spm_alap_s():
+    """spm_ALAP's conventions only: no prior on the beliefs (its M.xP and M.vP are empty, so Pu = 0; spm_ADEM's
+    exp(-8) is reaching's), and every part of the joint step is on."""
+    conventions = attenuation.SPM_CONVENTIONS
+    assert "belief_prior_log_precision" not in conventions
+    _, controller = attenuation.build(0.0, cfg=dict(attenuation.SETTINGS, **conventions))
+    assert controller.belief_prior_precision == 0.0 and controller.top_motion_error is False
+    assert all(conventions[key] for key in ("joint_world", "action_motion", "prior_own_motion", "record_before_step"))
 
 
 def test_sensor_precision_gradient_is_checked():

@@ -333,7 +333,7 @@ class JointFlow:
         return None if column is None else column[:N]
 
     def moving_data_increment(self, flow: np.ndarray, y_t: np.ndarray, eta_t: np.ndarray,
-                              world=None) -> np.ndarray | None:
+                              world=None, prior_motion=None) -> np.ndarray | None:
         """dZ over one sample when the data y~ and the prior eta~ move with their own generalised motion within it
         (spm_DEM and spm_ALAP integrate [Z; y~; eta~] jointly): the first N entries of the last column of
         expm(A dt) for the local linearisation of the joint flow of [Z; y~; eta~],
@@ -345,7 +345,10 @@ class JointFlow:
         of r causes) at the last linearisation; flow: flow(Z) of :meth:`flow`, y_t: y~, eta_t: eta~ of this sample.
         world: None, or the world's linearised motion (attend.control.process.WorldMotion) integrated jointly with
         the agent, as spm_ADEM does (:meth:`_world_increment`; its increment is kept in ``world_increment``).
-        None when a value is not finite."""
+        prior_motion: None (the prior moves with its own motion, D_v eta~) or the eta~ ((Q r,)) whose motion D_v
+        moves it instead (the rest of eta~ held over the sample). None when a value is not finite."""
+        if prior_motion is not None:
+            eta_t = prior_motion  # from here on eta_t only gives the prior's motion; its value is in the flow
         if world is not None:
             return self._world_increment(flow, y_t, eta_t, world)
         n, r, m, k, P, Q = self.sizes

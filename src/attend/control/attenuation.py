@@ -19,8 +19,9 @@ Two reflex arcs are compared (attend.control's action law da/dt = -kappa (dy~/da
 reflex precision" by a fixed diag(1, 0) on proprioception (SPM's G.U), so attention acts only on
 perception. Settings are SPM's where it states them (precisions, orders, s = 1/2, P_a = exp(-2));
 time unit 1 s per SPM bin, sampled at dt = 1/8 s. :data:`SPM_CONVENTIONS` applied over the settings follows spm_ALAP's
-own conventions instead (one sample per bin, every sensory order, generalised data, the embedded intention and SPM's
-D-step; run by :func:`simulate`): then the forces are within 4 % of SPM's (docs/spm.md).
+own conventions instead (one step per bin, every sensory order, generalised data with the action's motion, the embedded
+intention, SPM's D-step, the world integrated jointly with the agent, the states recorded before each step; run by
+:func:`simulate`): then the peak forces are SPM's to 4e-5 (docs/spm.md).
 """
 
 from __future__ import annotations
@@ -43,13 +44,27 @@ SETTINGS = dict(
 #: reflex variant -> action_precision (None: the model's Pi_z(x, v))
 VARIANTS = {"model precision": None, "fixed reflex precision": "reflex_precision"}
 
-#: SPM's conventions (spm_ALAP), to be applied over SETTINGS: one sample per SPM bin (dt = 1 s); sensory precision
-#: on every order 0..p (kron(S, Pi_z)); the data are the world's generalised response, not embedded samples; the
-#: intention is sampled once per bin and embedded in generalised coordinates (centred window, as spm_DEM_embed), its
-#: errors counted at p + 1 orders with the causes' orders above d pinned at 0; the agent's D-step moves the data and
-#: the prior with their generalised motion within the bin (``integration="spm"``). The world itself is still attend's:
-#: integrated over the bin with the action held (SPM integrates it jointly with the agent).
-SPM_CONVENTIONS = dict(dt=1.0, sensory_orders="all", integration="spm", generalised_data=True, embedded_intention=True)
+#: SPM's conventions (spm_ALAP), to be applied over SETTINGS; run by :func:`simulate`:
+#: - dt = 1 s: one step per SPM bin; sensory_orders="all": sensory precision on every order 0..p (kron(S, Pi_z), and
+#:   kron(S, G.U) in the reflex);
+#: - generalised_data: the data are the world's generalised response (spm_ADEM_diff), not embedded samples;
+#:   action_motion: with the action's motion in it, a' .. a^(p) embedded from the actions so far by spm_DEM_embed's
+#:   centred window (spm_ALAP's pu.a), so that x'' = f_x x' + f_a a', ...;
+#: - embedded_intention: the intention sampled once per bin and embedded in generalised coordinates (centred window, as
+#:   spm_DEM_embed), its errors counted at p + 1 orders with the causes' orders above d pinned at 0
+#:   (:func:`embedded_intention`); prior_own_motion: within the bin the prior moves with its own orders 0..d (order d
+#:   held) and the part folded in from the orders above d is held, as spm_ALAP moves qu.u(1:d) only;
+#: - integration="spm" and top_motion_error=False: spm_ALAP's D-step (the data and the prior move within the bin, the
+#:   causes' prior precision from S at p + 1 orders, no motion error at the top order p, as spm_DEM_eval);
+#: - joint_world: the world is integrated jointly with the agent over the bin (its state and motion, the data it
+#:   drives, the beliefs and the action in one local-linearisation step, so that the action moves the force within
+#:   the bin), as spm_ALAP integrates [world; agent]; not the world stepped apart with the action held;
+#: - record_before_step: the beliefs and the action are recorded at the start of each bin, before its step, as
+#:   spm_ALAP saves Q(is) before the update (the world's force always is); this moves the traces, not the peaks.
+#: spm_ALAP puts no prior on the beliefs (its M.xP, M.vP are empty: Pu = 0), so belief_prior_log_precision is unset.
+SPM_CONVENTIONS = dict(dt=1.0, sensory_orders="all", integration="spm", generalised_data=True, embedded_intention=True,
+                       action_motion=True, prior_own_motion=True, top_motion_error=False, joint_world=True,
+                       record_before_step=True)
 
 
 def intention(t, cfg=SETTINGS) -> float:
@@ -68,12 +83,14 @@ def intended_force(cfg=SETTINGS) -> float:
     return peak
 
 
-def embedded_intention(cfg=SETTINGS):
+def embedded_intention(cfg=SETTINGS, folded: bool = True):
     """eta~(t) of SPM's prior on the causes: the intention sampled at t_k = k dt, embedded in p + 1 orders by the
     centred window of spm_DEM_embed (the end samples repeated), and folded into the d + 1 orders the agent estimates.
     SPM's prior errors at orders d + 1..p (where v~ is 0) are e = -eta^(d+1..p); with S = S(s) at p + 1 orders,
     the gradient on the orders 0..d is that of a prior mean eta^(0..d) + inv(S_00) S_01 eta^(d+1..p) (S_00, S_01: the
-    blocks of S on orders 0..d and d + 1..p). Returns a function t [s] -> ((d + 1) r,) order-major (cfg: the settings)."""
+    blocks of S on orders 0..d and d + 1..p). folded=False: the embedded orders 0..d alone, eta^(0..d), whose motion
+    moves spm_ALAP's prior within a bin (the folded part is held). Returns a function t [s] -> ((d + 1) r,)
+    order-major (cfg: the settings)."""
     from attend.models.generalized import embed, smoothness_precision
 
     P, Q, dt = cfg["embedding_order"] + 1, cfg["cause_order"] + 1, cfg["dt"]
@@ -81,9 +98,9 @@ def embedded_intention(cfg=SETTINGS):
     samples = np.array([intention(k * dt, cfg) for k in range(n_bins)])
     generalised = embed(samples[:, None], P, dt)  # (n_bins, P)
     S = smoothness_precision(P, cfg["kernel_width"])
-    folded = generalised[:, :Q] + generalised[:, Q:] @ np.linalg.solve(S[:Q, :Q], S[:Q, Q:]).T
+    own = generalised[:, :Q]
     table = np.zeros((n_bins, Q, 2))
-    table[:, :, 0] = folded
+    table[:, :, 0] = own + generalised[:, Q:] @ np.linalg.solve(S[:Q, :Q], S[:Q, Q:]).T if folded else own
 
     def prior(t):
         return table[min(max(int(round(t / dt)), 0), n_bins - 1)].reshape(-1)
@@ -130,7 +147,10 @@ def build(attenuation: float, variant: str = "model precision", cfg=SETTINGS):
         model, cfg["dt"], action_gain=cfg["action_gain"], n_actions=1, action_jacobian="process",
         action_precision=None if key is None else cfg[key],
         action_prior_precision=np.exp(cfg["action_prior_log_precision"]),
-        sensory_orders=cfg.get("sensory_orders", "relative_degree"), integration=cfg.get("integration", "attend"))
+        sensory_orders=cfg.get("sensory_orders", "relative_degree"), integration=cfg.get("integration", "attend"),
+        top_motion_error=cfg.get("top_motion_error", True),
+        belief_prior_precision=(0.0 if cfg.get("belief_prior_log_precision") is None
+                                else np.exp(cfg["belief_prior_log_precision"])))
     return world, controller
 
 
@@ -138,7 +158,14 @@ def simulate(attenuation: float, variant: str = "fixed reflex precision", cfg=SE
     """One run of :func:`build` (attenuation h, variant, cfg as there): time [s], the world's force x, the perceived
     self-generated and external forces (beliefs x1, x2), the believed causes and the action, per sample. With
     ``cfg["generalised_data"]`` (:data:`SPM_CONVENTIONS`) the agent is given the world's generalised response
-    (:meth:`GenerativeProcess.generalised_output`, the sampled output at order 0) instead of embedding its samples."""
+    (:meth:`GenerativeProcess.generalised_output`, the sampled output at order 0) instead of embedding its samples;
+    with ``cfg["action_motion"]`` that response carries the action's motion, embedded from the actions so far; with
+    ``cfg["prior_own_motion"]`` the embedded intention moves within the bin with its own orders 0..d (the folded part
+    held; ``prior_motion`` of :meth:`ActiveInferenceController.step_generalised`); with ``cfg["joint_world"]`` the
+    world is integrated with the agent in its step (:meth:`GenerativeProcess.generalised_motion`, ``world_motion`` of
+    :meth:`ActiveInferenceController.step_generalised`), not stepped apart with the action held. The world's force is
+    recorded before each step; the beliefs and the action after it, or with ``cfg["record_before_step"]`` before it
+    (SPM's bin k is then the state of all of them at t = (k - 1) dt)."""
     world, controller = build(attenuation, variant, cfg)
     return _simulate_built(world, controller, cfg)
 
@@ -152,22 +179,51 @@ def _simulate_built(world, controller, cfg) -> dict:
         loop = closed_loop(world, controller, cfg["duration"], seed=cfg["seed"])
         return dict(time_s=loop.time, true_force=loop.states[:, 0], perceived_self=loop.belief_states[:, 0],
                     perceived_external=loop.belief_states[:, 1], causes=loop.belief_causes, action=loop.actions[:, 0])
-    n_samples = int(round(cfg["duration"] / cfg["dt"]))
+    from attend.models.generalized import embedding_weights
+
+    dt = cfg["dt"]
+    n_samples = int(round(cfg["duration"] / dt))
     p = controller.model.embedding_order
-    run = world.start(n_samples, cfg["dt"], cfg["seed"])
+    weights = embedding_weights(p + 1, dt)[1:] if cfg.get("action_motion", False) else None
+    joint, before = cfg.get("joint_world", False), cfg.get("record_before_step", False)
+    own_motion = (embedded_intention(cfg, folded=False)
+                  if cfg.get("embedded_intention", False) and cfg.get("prior_own_motion", False) else None)
+    run = world.start(n_samples, dt, cfg["seed"])
     controller.reset()
     out = np.empty((n_samples, 6))
+    history = [run.applied.copy()]  # the action at the start of each sample so far
     with single_blas_thread():
         for k in range(n_samples):
-            y_tilde = world.generalised_output(run.x, run.applied, p)
+            motion = None if weights is None else weights @ _centred_window(history, p + 1)
+            if joint:  # the world's motion over the bin, its generalised response and dy~/da
+                world_motion = world.generalised_motion(run.x, run.applied, p, action_motion=motion, drive=run.drive())
+                y_tilde, G = world_motion.y_tilde, world_motion.action_jacobian
+            else:
+                world_motion = None
+                y_tilde = world.generalised_output(run.x, run.applied, p, action_motion=motion)
+                G = world.action_jacobian(run.x, run.applied, p)
             y_tilde[: world.n_outputs] = run.output()
             out[k, 0] = run.x[0]
-            action = controller.step_generalised(y_tilde, action_jacobian=world.action_jacobian(run.x, run.applied, p))
-            out[k, 1:3], out[k, 3:5] = controller.states, controller.causes
-            run.advance(action)
-            out[k, 5] = run.applied[0]
-    return dict(time_s=np.arange(n_samples) * cfg["dt"], true_force=out[:, 0], perceived_self=out[:, 1],
+            if before:  # SPM's record: everything at the start of the bin
+                out[k, 1:3], out[k, 3:5], out[k, 5] = controller.states, controller.causes, run.applied[0]
+            action = controller.step_generalised(y_tilde, action_jacobian=G, world_motion=world_motion,
+                                                 prior_motion=None if own_motion is None else own_motion(k * dt))
+            if joint:  # the force moved with the agent over the bin
+                run.advance_to(run.x + controller.world_increment[: world.n_states], action)
+            else:
+                run.advance(action)
+            if not before:
+                out[k, 1:3], out[k, 3:5], out[k, 5] = controller.states, controller.causes, run.applied[0]
+            history.append(run.applied.copy())
+    return dict(time_s=np.arange(n_samples) * dt, true_force=out[:, 0], perceived_self=out[:, 1],
                 perceived_external=out[:, 2], causes=out[:, 3:5], action=out[:, 5])
+
+
+def _centred_window(history: list, n_orders: int) -> np.ndarray:
+    """n_orders of the actions in ``history`` centred on the newest (n_orders // 2 before it), as spm_DEM_embed takes
+    them: the newest repeated past the end, the first before the start ((n_orders, k))."""
+    last = len(history) - 1
+    return np.array([history[min(max(last - n_orders // 2 + i, 0), last)] for i in range(n_orders)])
 
 
 def run(quick: bool = True, progress: bool = True) -> ExperimentResult:

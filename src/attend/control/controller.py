@@ -323,6 +323,7 @@ class ActiveInferenceController:
             self._joint.L[: P * n + Q * r, : P * n + Q * r] -= self._Pi_u
             self._fast = False  # the exact linear step has no such prior
         self._world_motion = None  # the world's motion of this step (:meth:`step_generalised`)
+        self._prior_motion = None  # the prior's motion of this step (:meth:`step_generalised`)
         self._world_increment = None
         self._G_fixed = None if self._G_source is not None else self._check_G(action_jacobian)
         self.reset()
@@ -422,13 +423,17 @@ class ActiveInferenceController:
         self._y_t = self._embed_full @ buffer.reshape(-1)
         return self._advance(self._y_t, G)
 
-    def step_generalised(self, y_tilde, action_jacobian=None, world_motion=None) -> np.ndarray:
+    def step_generalised(self, y_tilde, action_jacobian=None, world_motion=None, prior_motion=None) -> np.ndarray:
         """As :meth:`step`, with the generalised outputs given: y_tilde = y~ ((p + 1) m,), order-major (e.g.
         measured rates); action_jacobian: dy~/da for this sample, as in :meth:`step`. world_motion: None, or the
         world's motion over this sample linearised (:meth:`GenerativeProcess.generalised_motion`; needs
         ``integration="spm"``): the world, the data it drives and the agent are then integrated jointly, as
-        spm_ADEM does, and the world's increment is :attr:`world_increment`."""
-        _, _, m, P, _ = self._sizes
+        spm_ADEM does, and the world's increment is :attr:`world_increment`. prior_motion: None (the prior eta~(t)
+        moves with its own motion within the sample) or eta~_m ((d + 1) r,), order-major (needs
+        ``integration="spm"``): the prior moves with the motion of eta~_m instead, the rest of eta~ - eta~_m held
+        over the sample; e.g. a prior embedded at p + 1 orders and folded onto d + 1, whose folded part spm_ALAP
+        holds while the prior's own orders 0..d move (:func:`attend.control.attenuation.embedded_intention`)."""
+        _, _, m, P, Q = self._sizes
         y_t = np.asarray(y_tilde, dtype=float).reshape(-1)
         if y_t.shape[0] != P * m:
             raise AttendInputError(f"y_tilde: expected (p + 1) m = {P * m} values, got {y_t.shape[0]}")
@@ -441,12 +446,18 @@ class ActiveInferenceController:
                 raise AttendInputError(f"world_motion: expected C of shape ({P * m}, {world_motion.A.shape[0]}) and B "
                                        f"with {self.n_actions} columns, got {world_motion.C.shape} and "
                                        f"{world_motion.B.shape}")
+        if prior_motion is not None:
+            if self.integration != "spm":
+                raise AttendInputError("prior_motion: moving the prior within the sample needs integration='spm'")
+            prior_motion = vector(prior_motion, Q * self.model.n_causes, "prior_motion")
         self._y_t = y_t
         self._world_motion = world_motion
+        self._prior_motion = prior_motion
         try:
             return self._advance(y_t, self._resolve_G(action_jacobian))
         finally:
             self._world_motion = None
+            self._prior_motion = None
 
     @property
     def world_increment(self) -> np.ndarray | None:
@@ -532,7 +543,7 @@ class ActiveInferenceController:
         eta = self.model.prior(t)
         self._last_prior = (t, eta)  # for :meth:`info`
         self._world_increment = None
-        if self._fast and self._world_motion is None:
+        if self._fast and self._world_motion is None and self._prior_motion is None:
             Z = self._fast_step(G, y_t, eta)
         else:
             Z = self._general_step(G, y_t, eta, t)
@@ -687,8 +698,8 @@ class ActiveInferenceController:
                 cached["integral"] = discrete_transition(cached["J"], self.dt)[1]
             Z = Z + cached["integral"] @ flow
         else:
-            increment = (joint.moving_data_increment(flow, y_t, eta, self._world_motion) if self._moving_data
-                         else joint.increment(flow))
+            increment = (joint.moving_data_increment(flow, y_t, eta, self._world_motion, self._prior_motion)
+                         if self._moving_data else joint.increment(flow))
             if self._world_motion is not None:
                 self._world_increment = joint.world_increment
             if increment is None:  # J or the flow is not finite: name a non-finite Jacobian, else diverge

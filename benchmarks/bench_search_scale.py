@@ -15,7 +15,7 @@ Parts:
    (<= 10 ms), peak memory of the process (<= 2 GB; ru_maxrss of a fresh worker).
 3. Against the best lawnmower: worlds of side 200 m .. 1 km (cells of max(1 m, side / 400)),
    1-20 people, 0-6 buildings, uniform or informative prior; budget 1.2 x the time to cover the
-   area once at 45 m (at least 600 s); the lawnmower's altitude (45-70 m, above every roof:
+   area once at 45 m (at least 600 s); the lawnmower's altitude (45-90 m, above every roof:
    its detours around buildings can fail lower down) and track spacing tuned (``tune_lawnmower``:
    least median time to 90 %, under the evaluation's own budget rule) on seeds 1000+, the
    comparison on seeds 0+. Median over
@@ -266,7 +266,7 @@ def tune_lawnmower(prior: str, seeds, altitudes, factors):
 
 def part3(missions: int, tuning_seeds: int, quick: bool, priors=("uniform", "informative")) -> None:
     # above the tallest building (40 m): FieldLawnmowerPlanner's detours can fail below roof height
-    altitudes = (45.0, 60.0) if quick else (45.0, 52.0, 60.0, 70.0)
+    altitudes = (45.0, 60.0) if quick else (45.0, 52.0, 60.0, 70.0, 80.0, 90.0)
     factors = (1.0,) if quick else (0.8, 1.0, 1.2)
     last = TUNING_SEED_OFFSET + tuning_seeds - 1
     print(f"3. EFE against the best lawnmower (tuned on seeds {TUNING_SEED_OFFSET}..{last} "

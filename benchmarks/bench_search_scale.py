@@ -227,7 +227,7 @@ def world_ordered_sweep_t90(seed: int, prior: str) -> float:
     k = int(round(belief.default_target_radius_m() / world.grid.cell_size_m))
     masses = np.minimum(box_sums(p, k), 1.0)
     density = p[world.searchable]
-    rows, cols = world.grid.cell_of(world.people_m[:, 0], world.people_m[:, 1])
+    cols, rows = world.grid.cell_of(world.people_m[:, 0], world.people_m[:, 1])  # (ix, iy): x is the column
     own = p[rows, cols]
     denser = np.array([(density > d).sum() + 0.5 * (density == d).sum() for d in own]) / density.size
     t90, _ = ordered_sweep_t90(area, denser, masses[rows, cols], channels, 1, settings.speed_m_s,

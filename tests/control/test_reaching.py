@@ -149,12 +149,6 @@ def test_embedded_causes_are_the_centred_window_of_the_samples():
     assert np.all(reaching.embedded_causes(False, cfg)[:, :, 2] == 0.0)
 
 
-def test_centred_window_repeats_the_ends():
-    history = [np.array([float(i)]) for i in range(4)]
-    assert reaching._centred_window(history, 5)[:, 0].tolist() == [1.0, 2.0, 3.0, 3.0, 3.0]
-    assert reaching._centred_window(history[:1], 5)[:, 0].tolist() == [0.0] * 5
-
-
 def test_world_motion_holds_the_worlds_generalised_response():
     cfg = dict(reaching.SETTINGS, **reaching.SPM_CONVENTIONS)
     world, _ = reaching.build("vision", True, cfg)

@@ -8,7 +8,9 @@ from attend._validation import AttendInputError
 from attend.models.generalized import (
     block_precisions,
     embed,
+    embed_newest,
     embedding_weights,
+    fold_orders,
     shift_operator,
     smoothness_precision,
     temporal_covariance,
@@ -106,3 +108,33 @@ def test_bad_orders_and_widths():
         smoothness_precision(3, float("nan"))
     with pytest.raises(AttendInputError, match="embedding_order"):
         block_precisions(-1, 2, 0.5)
+
+
+def test_embed_newest_is_the_last_row_of_embed_for_every_prefix():
+    """The window at the newest sample, the ends repeated (5 orders: 2 samples before it): for the
+    history 0, 1, 2, 3 the window is [1, 2, 3, 3, 3]; for one sample, that sample five times."""
+    rng = np.random.default_rng(3)
+    history = [rng.normal(size=2) for _ in range(9)]
+    for n_orders in (3, 4, 5, 7):
+        for length in range(1, len(history) + 1):
+            expected = embed(np.array(history[:length]), n_orders, 0.1)[-1].reshape(n_orders, 2)
+            np.testing.assert_allclose(embed_newest(history[:length], n_orders, 0.1), expected, rtol=0, atol=1e-12)
+    ramp = [np.array([float(i)]) for i in range(4)]
+    np.testing.assert_allclose(embed_newest(ramp, 5, 1.0)[:, 0], embedding_weights(5, 1.0) @ [1.0, 2.0, 3.0, 3.0, 3.0])
+    np.testing.assert_allclose(embed_newest(ramp[:1], 5, 1.0)[:, 0], [0.0] * 5, atol=0)
+
+
+def test_fold_orders_has_the_gradient_of_the_prior_at_all_orders():
+    """With v~ = [v; 0] (the orders above d not estimated), the gradient on v of
+    1/2 (v~ - eta~)' S (v~ - eta~) is S_00 (v - folded), folded the prior mean fold_orders gives."""
+    rng = np.random.default_rng(4)
+    P, Q, r, s = 6, 2, 3, 0.7
+    table = rng.normal(size=(5, P, r))
+    folded = fold_orders(table, Q, s)
+    assert folded.shape == (5, Q, r)
+    S = smoothness_precision(P, s)
+    for k in range(5):
+        v = rng.normal(size=(Q, r))
+        padded = np.vstack([v, np.zeros((P - Q, r))])
+        gradient = (S @ (padded - table[k]))[:Q]
+        np.testing.assert_allclose(gradient, S[:Q, :Q] @ (v - folded[k]), rtol=1e-12, atol=1e-12)

@@ -91,16 +91,15 @@ def embedded_intention(cfg=SETTINGS, folded: bool = True):
     blocks of S on orders 0..d and d + 1..p). folded=False: the embedded orders 0..d alone, eta^(0..d), whose motion
     moves spm_ALAP's prior within a bin (the folded part is held). Returns a function t [s] -> ((d + 1) r,)
     order-major (cfg: the settings)."""
-    from attend.models.generalized import embed, smoothness_precision
+    from attend.models.generalized import embed, fold_orders
 
     P, Q, dt = cfg["embedding_order"] + 1, cfg["cause_order"] + 1, cfg["dt"]
     n_bins = int(round(cfg["duration"] / dt))
     samples = np.array([intention(k * dt, cfg) for k in range(n_bins)])
     generalised = embed(samples[:, None], P, dt)  # (n_bins, P)
-    S = smoothness_precision(P, cfg["kernel_width"])
-    own = generalised[:, :Q]
     table = np.zeros((n_bins, Q, 2))
-    table[:, :, 0] = own + generalised[:, Q:] @ np.linalg.solve(S[:Q, :Q], S[:Q, Q:]).T if folded else own
+    own = generalised[:, :Q] if not folded else fold_orders(generalised[:, :, None], Q, cfg["kernel_width"])[:, :, 0]
+    table[:, :, 0] = own
 
     def prior(t):
         return table[min(max(int(round(t / dt)), 0), n_bins - 1)].reshape(-1)
@@ -179,12 +178,12 @@ def _simulate_built(world, controller, cfg) -> dict:
         loop = closed_loop(world, controller, cfg["duration"], seed=cfg["seed"])
         return dict(time_s=loop.time, true_force=loop.states[:, 0], perceived_self=loop.belief_states[:, 0],
                     perceived_external=loop.belief_states[:, 1], causes=loop.belief_causes, action=loop.actions[:, 0])
-    from attend.models.generalized import embedding_weights
+    from attend.models.generalized import embed_newest
 
     dt = cfg["dt"]
     n_samples = int(round(cfg["duration"] / dt))
     p = controller.model.embedding_order
-    weights = embedding_weights(p + 1, dt)[1:] if cfg.get("action_motion", False) else None
+    action_motion = cfg.get("action_motion", False)
     joint, before = cfg.get("joint_world", False), cfg.get("record_before_step", False)
     own_motion = (embedded_intention(cfg, folded=False)
                   if cfg.get("embedded_intention", False) and cfg.get("prior_own_motion", False) else None)
@@ -194,7 +193,7 @@ def _simulate_built(world, controller, cfg) -> dict:
     history = [run.applied.copy()]  # the action at the start of each sample so far
     with single_blas_thread():
         for k in range(n_samples):
-            motion = None if weights is None else weights @ _centred_window(history, p + 1)
+            motion = embed_newest(history, p + 1, dt)[1:] if action_motion else None
             if joint:  # the world's motion over the bin, its generalised response and dy~/da
                 world_motion = world.generalised_motion(run.x, run.applied, p, action_motion=motion, drive=run.drive())
                 y_tilde, G = world_motion.y_tilde, world_motion.action_jacobian
@@ -217,13 +216,6 @@ def _simulate_built(world, controller, cfg) -> dict:
             history.append(run.applied.copy())
     return dict(time_s=np.arange(n_samples) * dt, true_force=out[:, 0], perceived_self=out[:, 1],
                 perceived_external=out[:, 2], causes=out[:, 3:5], action=out[:, 5])
-
-
-def _centred_window(history: list, n_orders: int) -> np.ndarray:
-    """n_orders of the actions in ``history`` centred on the newest (n_orders // 2 before it), as spm_DEM_embed takes
-    them: the newest repeated past the end, the first before the start ((n_orders, k))."""
-    last = len(history) - 1
-    return np.array([history[min(max(last - n_orders // 2 + i, 0), last)] for i in range(n_orders)])
 
 
 def run(quick: bool = True, progress: bool = True) -> ExperimentResult:

@@ -133,28 +133,6 @@ def embedded_causes(cued: bool = True, cfg=SETTINGS) -> np.ndarray:
     return embed(samples, P, dt).reshape(n_bins, P, 3)
 
 
-def _centred_window(history: list, n_orders: int) -> np.ndarray:
-    """The window of spm_DEM_embed at the newest of the actions in ``history``: n_orders samples centred on it
-    (n_orders // 2 before), the newest repeated where the window reaches past it and the first before the start
-    ((n_orders, k))."""
-    before = n_orders // 2
-    last = len(history) - 1
-    return np.array([history[min(max(last - before + i, 0), last)] for i in range(n_orders)])
-
-
-def _folded_prior(table: np.ndarray, cfg) -> np.ndarray:
-    """eta~ on the d + 1 orders the agent estimates from causes embedded in p + 1 orders ``table`` (n_bins, p + 1, r):
-    SPM's prior errors at orders d + 1..p (where v~ is 0) are -eta^(d+1..p), and with S = S(s) at p + 1 orders their
-    gradient on orders 0..d is that of a prior mean eta^(0..d) + inv(S_00) S_01 eta^(d+1..p) (S_00, S_01 the blocks
-    of S on orders 0..d and d + 1..p). Returns (n_bins, (d + 1) r), order-major."""
-    from attend.models.generalized import smoothness_precision
-
-    P, Q = cfg["embedding_order"] + 1, cfg["cause_order"] + 1
-    S = smoothness_precision(P, cfg["kernel_width"])
-    folded = table[:, :Q] + np.einsum("ij,kjr->kir", np.linalg.solve(S[:Q, :Q], S[:Q, Q:]), table[:, Q:])
-    return folded.reshape(table.shape[0], -1)
-
-
 def believed_flow(x, v, cfg=SETTINGS) -> np.ndarray:
     """The agent's f(x, v) (4,): the arm pulled to the target T = v[:2] with strength v[2] (x: angles and
     velocities (4,), v: causes (3,), cfg: the settings)."""
@@ -289,7 +267,12 @@ def build(variant: str = "vision", cued: bool = True, cfg=SETTINGS):
         return table[min(max(int(round(t / cfg["dt"])), 0), table.shape[0] - 1)]
 
     embedded = not vision and cfg.get("embedded_causes", False)
-    table = _folded_prior(embedded_causes(cued, cfg), cfg) if embedded else None
+    table = None
+    if embedded:
+        from attend.models.generalized import fold_orders
+
+        folded = fold_orders(embedded_causes(cued, cfg), cfg["cause_order"] + 1, cfg["kernel_width"])
+        table = folded.reshape(folded.shape[0], -1)
     cause_precision = np.exp(cfg["intention_log_precision"] if not vision else cfg["cause_prior_log_precision"])
     model = GenerativeModel(
         f=lambda x, v: believed_flow(x, v, cfg), g=seen, n_states=4, n_causes=3, n_outputs=7 if vision else 4,
@@ -354,7 +337,7 @@ def _simulate_built(world, controller, variant: str, cued: bool, cfg) -> dict:
         time_s = loop.time
     else:
         from attend._threads import single_blas_thread
-        from attend.models.generalized import embedding_weights
+        from attend.models.generalized import embed_newest
 
         dt = cfg["dt"]
         n_samples = int(round(cfg["duration"] / dt))
@@ -362,7 +345,7 @@ def _simulate_built(world, controller, variant: str, cued: bool, cfg) -> dict:
         m = world.n_outputs
         vision = variant == "vision"
         seen = embedded_causes(cued, cfg) if vision and cfg.get("embedded_causes", False) else None
-        weights = embedding_weights(p + 1, dt)[1:] if cfg.get("action_motion", False) else None
+        action_motion = cfg.get("action_motion", False)
         joint = cfg.get("joint_world", False)
         arm, arm_outputs = np.arange(4), np.array([0, 1, 5, 6] if vision else [0, 1, 2, 3])  # the arm's states and
         # the outputs it drives (angles, finger)
@@ -373,7 +356,7 @@ def _simulate_built(world, controller, variant: str, cued: bool, cfg) -> dict:
         history = [run.applied.copy()]  # the action at the start of each sample so far
         with single_blas_thread():
             for k in range(n_samples):
-                motion = None if weights is None else weights @ _centred_window(history, p + 1)
+                motion = embed_newest(history, p + 1, dt)[1:] if action_motion else None
                 if joint:  # the world's motion over the bin, its generalised response and dy~/da
                     world_motion = world.generalised_motion(run.x, run.applied, p, action_motion=motion,
                                                             drive=run.drive(), states=arm, outputs=arm_outputs)

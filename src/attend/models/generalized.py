@@ -177,6 +177,32 @@ def embed(series, n_orders: int, dt: float, *, edges: str = "clamp", shift: int 
     return derivatives.reshape(n_samples, n_orders * width)
 
 
+def embed_newest(samples, n_orders: int, dt: float) -> np.ndarray:
+    """[y; y'; ...; y^(n_orders - 1)] ((n_orders, k)) at the newest of ``samples`` ((N, k) or a list of
+    N vectors of k, N >= 1, spacing dt [s]): the last row of :func:`embed` with edges "clamp" (the window
+    of n_orders samples with n_orders // 2 before the newest, the newest repeated past it and the first
+    before the start), from the window's own samples, for a loop that embeds as it goes."""
+    before = n_orders // 2
+    y = np.asarray(samples[-(before + 1):], dtype=float)
+    if y.ndim == 1:
+        y = y[:, None]
+    last = y.shape[0] - 1
+    window = y[np.clip(np.arange(n_orders) + last - before, 0, last)]
+    return embedding_weights(n_orders, dt) @ window
+
+
+def fold_orders(generalised, n_kept: int, kernel_width: float) -> np.ndarray:
+    """A prior given at p + 1 orders ``generalised`` ((N, p + 1, r)) folded onto its first d + 1 =
+    ``n_kept`` orders ((N, d + 1, r)): with the errors at orders d + 1..p taken where the estimate is 0
+    (-eta^(d+1..p)) and S = S(s) at p + 1 orders (s = ``kernel_width`` [s]), their gradient on orders 0..d is that of a prior mean
+    eta^(0..d) + inv(S_00) S_01 eta^(d+1..p) (S_00, S_01 the blocks of S on orders 0..d and d + 1..p),
+    as SPM weighs a cause prior embedded at more orders than the causes it estimates."""
+    table = np.asarray(generalised, dtype=float)
+    S = smoothness_precision(table.shape[1], kernel_width)
+    gain = np.linalg.solve(S[:n_kept, :n_kept], S[:n_kept, n_kept:])
+    return table[:, :n_kept] + np.einsum("ij,kjr->kir", gain, table[:, n_kept:])
+
+
 def smoothness_condition(n_orders: int, kernel_width: float, dt: float) -> float:
     """cond(S) of the temporal precision in sample units (kernel width s / dt samples).
 

@@ -94,3 +94,52 @@ def test_generalised_output_of_a_linear_world_is_its_markov_chain():
         expected.append(C @ motion)
         motion = A @ motion
     np.testing.assert_allclose(world.generalised_output(x, a, 3), np.concatenate(expected), rtol=1e-14)
+
+
+def _noiseless_loop_pair(gain, growth=-0.5):
+    """A noiseless linear world (the model's own with growth = -0.5; > 0 an unstable world) and an agent with
+    integration="spm" driving it."""
+    A, B, C = np.array([[growth, 1.0], [0.0, -1.0]]), np.array([[1.0], [0.5]]), np.eye(2)
+    world = GenerativeProcess.linear(A, B, C)
+    agent = ActiveInferenceController(_model(np.array([1.0, 2.0])), DT, action_gain=gain,
+                                      action_jacobian=markov_parameters(A, B, C, np.zeros((2, 1)), 4),
+                                      action_prior_precision=0.1, sensory_orders="all", integration="spm")
+    return world, agent
+
+
+def test_generalised_loop_records_each_bin_start_and_end():
+    """Row 0 of the beliefs and actions is the start, row k + 1 the end of bin k; the world's state of bin k + 1
+    follows from bin k's state under the action delivered in bin k (the world stepped apart, action held)."""
+    from attend.control import run_generalised
+    from attend.models.linear import zero_order_hold
+
+    world, agent = _noiseless_loop_pair(gain=1.0)
+    loop = run_generalised(world, agent, 1.0, seed=0)
+    n = int(round(1.0 / DT))
+    assert loop.states.shape == (n, 2) and loop.belief_states.shape == (n + 1, 2) and loop.actions.shape == (n + 1, 1)
+    agent.reset()
+    np.testing.assert_array_equal(loop.belief_states[0], agent.states)
+    np.testing.assert_array_equal(loop.actions[0], np.zeros(1))
+    A, B, _, _ = world.matrices
+    Ad, Bd = zero_order_hold(A, B, DT)
+    predicted = loop.states[:-1] @ Ad.T + loop.actions[1:-1] @ Bd.T
+    np.testing.assert_allclose(loop.states[1:], predicted, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(loop.time, np.arange(n) * DT)
+
+
+def test_generalised_loop_stops_a_diverging_world_and_names_the_gain():
+    from attend.control import ClosedLoopDivergence
+    from attend.control import run_generalised
+
+    world, agent = _noiseless_loop_pair(gain=0.01, growth=2.0)
+    with pytest.raises(ClosedLoopDivergence, match="the world diverged at t = .*action_gain kappa = 0.01"):
+        run_generalised(world, agent, 20.0, seed=0, divergence_limit=1e3)
+
+
+def test_generalised_loop_needs_an_active_inference_controller():
+    from attend.control import PIDController
+    from attend.control import run_generalised
+
+    world, _ = _noiseless_loop_pair(gain=1.0)
+    with pytest.raises(AttendInputError, match="controller: expected an attend.control.ActiveInferenceController"):
+        run_generalised(world, PIDController(1.0, 0.0, 0.0, DT), 1.0)

@@ -15,7 +15,8 @@ sensory attenuation), modulated by a rhythm (attend.rhythm) or learned online.
   :func:`markov_parameters` (dy~/da of a linear plant)
 - :class:`ActiveInferenceController` (``step(y) -> a``), :class:`SensorPrecisionLearning`,
   :class:`StepInfo`
-- :func:`run` (the closed loop) -> :class:`ClosedLoop`; :func:`closed_loop_spectral_radius`;
+- :func:`run` (the closed loop) -> :class:`ClosedLoop`; :func:`run_generalised` (spm_ADEM's loop: the world's
+  generalised response per bin) -> :class:`GeneralisedLoop`; :func:`closed_loop_spectral_radius`;
   :func:`linear_controller` (a linear agent as an LTI map y -> a, for loop analysis)
 - baselines (:mod:`attend.control.baselines`): :class:`PIDController`, :class:`LQGController`;
   metrics (:mod:`attend.control.metrics`): :func:`step_metrics`, :class:`StepMetrics`
@@ -30,13 +31,14 @@ sensory attenuation), modulated by a rhythm (attend.rhythm) or learned online.
 from attend.control._checks import ClosedLoopDivergence
 from attend.control.baselines import LQGController, PIDController
 from attend.control.controller import ActiveInferenceController, SensorPrecisionLearning, StepInfo
-from attend.control.loop import ClosedLoop, closed_loop_spectral_radius, linear_controller, run
+from attend.control.loop import (ClosedLoop, GeneralisedLoop, closed_loop_spectral_radius, linear_controller, run,
+                                 run_generalised)
 from attend.control.metrics import StepMetrics, step_metrics
 from attend.control.model import GenerativeModel
 from attend.control.process import GenerativeProcess, markov_parameters
 
 __all__ = [
-    "ActiveInferenceController", "ClosedLoop", "ClosedLoopDivergence", "GenerativeModel", "GenerativeProcess",
-    "LQGController", "PIDController", "SensorPrecisionLearning", "StepInfo", "StepMetrics",
-    "closed_loop_spectral_radius", "linear_controller", "markov_parameters", "run", "step_metrics",
+    "ActiveInferenceController", "ClosedLoop", "ClosedLoopDivergence", "GeneralisedLoop", "GenerativeModel",
+    "GenerativeProcess", "LQGController", "PIDController", "SensorPrecisionLearning", "StepInfo", "StepMetrics",
+    "closed_loop_spectral_radius", "linear_controller", "markov_parameters", "run", "run_generalised", "step_metrics",
 ]

@@ -171,52 +171,22 @@ def simulate(attenuation: float, variant: str = "fixed reflex precision", cfg=SE
 
 def _simulate_built(world, controller, cfg) -> dict:
     """:func:`simulate` for a (world, controller) pair already built (the benchmark's diagnostics alter it)."""
-    from attend._threads import single_blas_thread
-    from attend.control import run as closed_loop
+    from attend.control import run as closed_loop, run_generalised
 
     if not cfg.get("generalised_data", False):
         loop = closed_loop(world, controller, cfg["duration"], seed=cfg["seed"])
         return dict(time_s=loop.time, true_force=loop.states[:, 0], perceived_self=loop.belief_states[:, 0],
                     perceived_external=loop.belief_states[:, 1], causes=loop.belief_causes, action=loop.actions[:, 0])
-    from attend.models.generalized import embed_newest
-
-    dt = cfg["dt"]
-    n_samples = int(round(cfg["duration"] / dt))
-    p = controller.model.embedding_order
-    action_motion = cfg.get("action_motion", False)
-    joint, before = cfg.get("joint_world", False), cfg.get("record_before_step", False)
     own_motion = (embedded_intention(cfg, folded=False)
                   if cfg.get("embedded_intention", False) and cfg.get("prior_own_motion", False) else None)
-    run = world.start(n_samples, dt, cfg["seed"])
-    controller.reset()
-    out = np.empty((n_samples, 6))
-    history = [run.applied.copy()]  # the action at the start of each sample so far
-    with single_blas_thread():
-        for k in range(n_samples):
-            motion = embed_newest(history, p + 1, dt)[1:] if action_motion else None
-            if joint:  # the world's motion over the bin, its generalised response and dy~/da
-                world_motion = world.generalised_motion(run.x, run.applied, p, action_motion=motion, drive=run.drive())
-                y_tilde, G = world_motion.y_tilde, world_motion.action_jacobian
-            else:
-                world_motion = None
-                y_tilde = world.generalised_output(run.x, run.applied, p, action_motion=motion)
-                G = world.action_jacobian(run.x, run.applied, p)
-            y_tilde[: world.n_outputs] = run.output()
-            out[k, 0] = run.x[0]
-            if before:  # SPM's record: everything at the start of the bin
-                out[k, 1:3], out[k, 3:5], out[k, 5] = controller.states, controller.causes, run.applied[0]
-            action = controller.step_generalised(y_tilde, action_jacobian=G, world_motion=world_motion,
-                                                 prior_motion=None if own_motion is None else own_motion(k * dt))
-            if joint:  # the force moved with the agent over the bin
-                run.advance_to(run.x + controller.world_increment[: world.n_states], action)
-            else:
-                run.advance(action)
-            if not before:
-                out[k, 1:3], out[k, 3:5], out[k, 5] = controller.states, controller.causes, run.applied[0]
-            history.append(run.applied.copy())
-    return dict(time_s=np.arange(n_samples) * dt, true_force=out[:, 0], perceived_self=out[:, 1],
-                perceived_external=out[:, 2], causes=out[:, 3:5], action=out[:, 5])
-
+    loop = run_generalised(world, controller, cfg["duration"], seed=cfg["seed"],
+                           action_motion=cfg.get("action_motion", False), joint_world=cfg.get("joint_world", False),
+                           prior_motion=own_motion)
+    # SPM's record (record_before_step): everything at the start of the bin; else the beliefs after the step
+    rows = slice(0, -1) if cfg.get("record_before_step", False) else slice(1, None)
+    beliefs, causes = loop.belief_states[rows], loop.belief_causes[rows]
+    return dict(time_s=loop.time, true_force=loop.states[:, 0], perceived_self=beliefs[:, 0],
+                perceived_external=beliefs[:, 1], causes=causes, action=loop.actions[rows, 0])
 
 def run(quick: bool = True, progress: bool = True) -> ExperimentResult:
     """True and perceived force per attenuation h, for both reflex variants.

@@ -123,6 +123,92 @@ def run(process: GenerativeProcess, controller, duration: float, *, seed: int | 
     return ClosedLoop(**out)
 
 
+class GeneralisedLoop(NamedTuple):
+    """One run of :func:`run_generalised`, N bins at time[k] = k dt [s]: states x[k] of the world at the start of
+    bin k (N, n_world); belief_states (N + 1, n), belief_causes (N + 1, r) and actions (N + 1, k) as delivered:
+    row 0 at the start, row k + 1 after the step of bin k (so row k is everything at the start of bin k)."""
+
+    time: np.ndarray
+    states: np.ndarray
+    belief_states: np.ndarray
+    belief_causes: np.ndarray
+    actions: np.ndarray
+
+
+@with_single_blas_thread
+def run_generalised(process: GenerativeProcess, controller: ActiveInferenceController, duration: float, *,
+                    seed: int | None = 0, action_motion: bool = False, joint_world: bool = False,
+                    world_states=None, world_outputs=None, adjust_data=None, prior_motion=None, world_causes=None,
+                    divergence_limit: float = 1e8) -> GeneralisedLoop:
+    """The loop of spm_ADEM: per bin the agent is given the world's generalised response y~ (the sampled output
+    at order 0, :meth:`GenerativeProcess.generalised_output`) instead of an embedding of its samples, and steps
+    with :meth:`ActiveInferenceController.step_generalised`.
+
+    process, controller: the world and the agent (``integration="spm"`` for joint_world or prior_motion); duration
+    [s] at the controller's dt; seed: the world's noise; action_motion: y~ carries the action's motion,
+    embedded from the actions delivered so far; joint_world: the world is integrated with the agent over the bin
+    (:meth:`GenerativeProcess.generalised_motion`), not stepped apart with the action held; world_states,
+    world_outputs: the world's states and outputs that the joint integration moves (None: all); adjust_data:
+    None or a function (k, y~ as (p + 1, m)) -> None that overwrites parts of y~ in place (e.g. causes the
+    world shows at every order); prior_motion: None or a function t [s] -> eta~_m (``prior_motion`` of
+    :meth:`ActiveInferenceController.step_generalised`); world_causes: None or a function (t [s], x) -> None that
+    sets the world's exogenous states of the next bin in place (joint_world only); divergence_limit: |x| of
+    the world beyond which the run stops with :class:`ClosedLoopDivergence`."""
+    from attend.models.generalized import embed_newest
+
+    if not isinstance(process, GenerativeProcess):
+        raise AttendInputError(f"process: expected an attend.control.GenerativeProcess, got {type(process).__name__}")
+    if not isinstance(controller, ActiveInferenceController):
+        raise AttendInputError(f"controller: expected an attend.control.ActiveInferenceController, got "
+                               f"{type(controller).__name__}")
+    dt = positive_scalar(controller.dt, "controller.dt", "s")
+    duration = positive_scalar(duration, "duration", "s")
+    limit = positive_scalar(divergence_limit, "divergence_limit")
+    n_samples = int(round(duration / dt))
+    p, m = controller.model.embedding_order, process.n_outputs
+    moved = np.arange(process.n_states) if world_states is None else np.asarray(world_states)
+    run = process.start(n_samples, dt, seed)
+    controller.reset()
+    states = np.empty((n_samples, process.n_states))
+    beliefs = np.empty((n_samples + 1, controller.model.n_states))
+    causes = np.empty((n_samples + 1, controller.model.n_causes))
+    actions = np.empty((n_samples + 1, process.n_actions))
+    beliefs[0], causes[0], actions[0] = controller.states, controller.causes, run.applied
+    history = [run.applied.copy()]  # the action at the start of each bin so far
+    for k in range(n_samples):
+        motion = embed_newest(history, p + 1, dt)[1:] if action_motion else None
+        if joint_world:  # the world's motion over the bin, its generalised response and dy~/da
+            world_motion = process.generalised_motion(run.x, run.applied, p, action_motion=motion, drive=run.drive(),
+                                                      states=world_states, outputs=world_outputs)
+            y_tilde, G = world_motion.y_tilde, world_motion.action_jacobian
+        else:
+            world_motion = None
+            y_tilde = process.generalised_output(run.x, run.applied, p, action_motion=motion)
+            G = process.action_jacobian(run.x, run.applied, p)
+        y_tilde[:m] = run.output()
+        if adjust_data is not None:
+            adjust_data(k, y_tilde.reshape(p + 1, m))
+        states[k] = run.x
+        action = controller.step_generalised(y_tilde, action_jacobian=G, world_motion=world_motion,
+                                             prior_motion=None if prior_motion is None else prior_motion(k * dt))
+        if joint_world:  # the world moved with the agent over the bin
+            x_next = run.x.copy()
+            x_next[moved] += controller.world_increment[: moved.size]
+            if world_causes is not None:
+                world_causes((k + 1) * dt, x_next)
+            run.advance_to(x_next, action)
+        else:
+            run.advance(action)
+        beliefs[k + 1], causes[k + 1], actions[k + 1] = controller.states, controller.causes, run.applied
+        history.append(run.applied.copy())
+        if not (np.isfinite(run.x).all() and np.abs(run.x).max() <= limit):
+            raise ClosedLoopDivergence(
+                f"the world diverged at t = {(k + 1) * dt:g} s (|x| = {np.nanmax(np.abs(run.x)):.3g} > divergence_limit "
+                f"{limit:.3g}) (action_gain kappa = {controller.action_gain:g}, dt = {dt:g} s): lower action_gain or "
+                "check dy~/da")
+    return GeneralisedLoop(np.arange(n_samples) * dt, states, beliefs, causes, actions)
+
+
 def closed_loop_spectral_radius(process: GenerativeProcess, controller: ActiveInferenceController) -> float | None:
     """Spectral radius of the sampled closed loop of a linear world (``process``) and a linear agent
     (``controller``) with constant precision (not learned) and constant dy~/da (None otherwise, or with

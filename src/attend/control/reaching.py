@@ -329,58 +329,29 @@ def _simulate_built(world, controller, variant: str, cued: bool, cfg) -> dict:
     arm is integrated with the agent in its step (:meth:`GenerativeProcess.generalised_motion`, ``world_motion`` of
     :meth:`ActiveInferenceController.step_generalised`), not stepped apart with the action held. The states are
     recorded before each step (SPM's bin k is the state at t = (k - 1) dt), the beliefs after it."""
-    from attend.control import run as closed_loop
+    from attend.control import run as closed_loop, run_generalised
 
     if not cfg.get("generalised_data", False):
         loop = closed_loop(world, controller, cfg["duration"], seed=cfg["seed"])
         states, beliefs, actions, cues = loop.states, loop.belief_states, loop.actions, loop.belief_causes[:, 2]
         time_s = loop.time
     else:
-        from attend._threads import single_blas_thread
-        from attend.models.generalized import embed_newest
-
-        dt = cfg["dt"]
-        n_samples = int(round(cfg["duration"] / dt))
-        p = controller.model.embedding_order
-        m = world.n_outputs
         vision = variant == "vision"
         seen = embedded_causes(cued, cfg) if vision and cfg.get("embedded_causes", False) else None
-        action_motion = cfg.get("action_motion", False)
-        joint = cfg.get("joint_world", False)
-        arm, arm_outputs = np.arange(4), np.array([0, 1, 5, 6] if vision else [0, 1, 2, 3])  # the arm's states and
-        # the outputs it drives (angles, finger)
-        run = world.start(n_samples, dt, cfg["seed"])
-        controller.reset()
-        states = np.empty((n_samples, world.n_states))
-        beliefs, actions, cues = np.empty((n_samples, 4)), np.empty((n_samples, 2)), np.empty(n_samples)
-        history = [run.applied.copy()]  # the action at the start of each sample so far
-        with single_blas_thread():
-            for k in range(n_samples):
-                motion = embed_newest(history, p + 1, dt)[1:] if action_motion else None
-                if joint:  # the world's motion over the bin, its generalised response and dy~/da
-                    world_motion = world.generalised_motion(run.x, run.applied, p, action_motion=motion,
-                                                            drive=run.drive(), states=arm, outputs=arm_outputs)
-                    y_tilde, G = world_motion.y_tilde, world_motion.action_jacobian
-                else:
-                    world_motion = None
-                    y_tilde = world.generalised_output(run.x, run.applied, p, action_motion=motion)
-                    G = world.action_jacobian(run.x, run.applied, p)
-                y_tilde[:m] = run.output()
-                if seen is not None:  # outputs 2..4 are the causes, at every order
-                    y_tilde.reshape(p + 1, m)[:, 2:5] = seen[k]
-                states[k] = run.x
-                action = controller.step_generalised(y_tilde, action_jacobian=G, world_motion=world_motion)
-                beliefs[k], cues[k] = controller.states, controller.causes[2]
-                if joint:  # the arm moved with the agent; the world's causes are the target and the cue
-                    x_next = run.x.copy()
-                    x_next[:4] += controller.world_increment[:4]
-                    x_next[6] = cue((k + 1) * dt, cfg) if cued else 0.0
-                    run.advance_to(x_next, action)
-                else:
-                    run.advance(action)
-                actions[k] = run.applied
-                history.append(run.applied.copy())
-        time_s = np.arange(n_samples) * dt
+
+        def show_causes(k, y_tilde):  # outputs 2..4 are the causes, at every order
+            y_tilde[:, 2:5] = seen[k]
+
+        def set_cue(t, x):  # the world's causes are the target and the cue
+            x[6] = cue(t, cfg) if cued else 0.0
+
+        loop = run_generalised(world, controller, cfg["duration"], seed=cfg["seed"],
+                               action_motion=cfg.get("action_motion", False), joint_world=cfg.get("joint_world", False),
+                               world_states=np.arange(4), world_outputs=np.array([0, 1, 5, 6] if vision else [0, 1, 2, 3]),
+                               adjust_data=None if seen is None else show_causes, world_causes=set_cue)
+        # the arm's states (angles, rates) and the outputs it drives (angles, finger) move jointly
+        states, beliefs, actions = loop.states, loop.belief_states[1:], loop.actions[1:]
+        cues, time_s = loop.belief_causes[1:, 2], loop.time
     true = np.array([finger(x[:2]) for x in states])
     believed = np.array([finger(x[:2]) for x in beliefs])
     distance = np.linalg.norm(true - np.asarray(cfg["target"]), axis=1)

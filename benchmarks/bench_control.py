@@ -7,6 +7,7 @@
     python benchmarks/bench_control.py --quick          # 3 tuning seeds, 50 runs, 8 evaluation seeds
     python benchmarks/bench_control.py --plots DIR      # where the arm's response plots go (default results/control)
     python benchmarks/bench_control.py --loop-shape     # the loop analyses at the documented tuned points (--plant)
+    python benchmarks/bench_control.py --restarts 3     # tune 3 times (random-search seeds 7, 8, 9), keep the best
 
 Plant "msd": the paper's mass-spring-damper (m = 1.4 kg, k = 0.8 N/m, b = 0.4 N s/m) pushed by a force
 a (saturating at +-20 N) and a coloured force disturbance (std 0.3 N, kernel width 0.3 s), its
@@ -35,8 +36,9 @@ causes. Figures are medians over seeds; model error: masses and inertias x 0.7 /
 degrading sensor is sensor 2 of both joints, and precision learning shares each joint's total between its sensors.
 
 Controllers, each with 4 parameters tuned by the same protocol and budget (log-uniform random search
-in a box, then Nelder-Mead from the best point) to minimise mean(ITAE step + ITAE tracking) + w_e
-effort on tuning seeds 1000.. (never evaluated):
+in a box, seeded 7, then Nelder-Mead from the best point) to minimise mean(ITAE step + ITAE tracking) + w_e
+effort on tuning seeds 1000.. (never evaluated); --restarts K runs the protocol K times (random-search seeds
+7..7+K-1, the budget each) and keeps the point of least objective on the tuning seeds, for every controller:
 - PID on the mean of the two sensors (kp, ki, kd, derivative filter tau_d);
 - LQG with integral action (python-control dlqr/dlqe): LQR weights q_pos, q_vel, q_int (R = 1) and the
   scale of the Kalman filter's process covariance; both sensors fused by the filter; when tracking, the
@@ -313,23 +315,48 @@ def objective(name, theta, cfg, seeds, effort_caps=None):
     return total / (2 * len(seeds)) + excess
 
 
-def tune(name, cfg, seeds, evaluations, effort_caps=None):
-    """The same protocol for every controller: 40 % of the budget on log-uniform random points in BOUNDS (seeded),
-    the rest on Nelder-Mead from the best of them (``effort_caps``: see :func:`objective`). Returns (theta,
-    objective, runs)."""
+def tune(name, cfg, seeds, evaluations, effort_caps=None, restarts=1):
+    """The same protocol for every controller: 40 % of the ``evaluations`` budget on log-uniform random points in
+    BOUNDS (seeded), the rest on Nelder-Mead from the best of them, minimising :func:`objective` on ``seeds`` (the
+    tuning seeds; ``effort_caps``: see :func:`objective`). ``restarts`` K runs both phases K times, the random search
+    seeded 7, 8, ..., 7 + K - 1 and each restart with the whole budget ``evaluations``, and keeps the point of least
+    objective on ``seeds`` (the earliest restart on a tie; K = 1 is the protocol with seed 7 alone). Returns (theta,
+    objective, runs, restart_objectives): runs summed over the restarts, restart_objectives the objective each
+    restart reached."""
     box = np.log(np.array(BOUNDS[cfg["plant"]][name]))
-    rng = np.random.default_rng(7)
     search = int(0.4 * evaluations)
-    points = box[:, 0] + (box[:, 1] - box[:, 0]) * rng.random((search, box.shape[0]))
-    values = [objective(name, theta, cfg, seeds, effort_caps) for theta in points]
-    start = points[int(np.argmin(values))]
-    result = minimize(lambda th: objective(name, th, cfg, seeds, effort_caps), start, method="Nelder-Mead",
-                      options=dict(maxfev=evaluations - search, xatol=1e-3, fatol=1e-5))
-    best = (result.x, result.fun) if result.fun <= min(values) else (start, min(values))
-    return best[0], best[1], search + result.nfev
+    best, runs, restart_objectives = None, 0, []
+    for search_seed in range(7, 7 + restarts):
+        rng = np.random.default_rng(search_seed)
+        points = box[:, 0] + (box[:, 1] - box[:, 0]) * rng.random((search, box.shape[0]))
+        values = [objective(name, theta, cfg, seeds, effort_caps) for theta in points]
+        start = points[int(np.argmin(values))]
+        result = minimize(lambda th: objective(name, th, cfg, seeds, effort_caps), start, method="Nelder-Mead",
+                          options=dict(maxfev=evaluations - search, xatol=1e-3, fatol=1e-5))
+        found = (result.x, result.fun) if result.fun <= min(values) else (start, min(values))
+        runs += search + result.nfev
+        restart_objectives.append(found[1])
+        if best is None or found[1] < best[1]:
+            best = found
+    return best[0], best[1], runs, restart_objectives
 
 
 THREE = ("active inference", "PID", "LQG")  # the agent first, then the baselines it is compared with
+
+
+def restart_note(restart_objectives):
+    """The objective each restart of :func:`tune` reached, as a line to print ("" for a single restart)."""
+    if len(restart_objectives) == 1:
+        return ""
+    return "\n    restarts (random-search seed: objective) " + ", ".join(
+        f"{7 + i}: {value:.4f}" for i, value in enumerate(restart_objectives))
+
+
+def restart_label(restarts):
+    """How the tuning was restarted, for the header ("" for a single restart, the protocol with seed 7)."""
+    if restarts == 1:
+        return ""
+    return f" x {restarts} restarts (random-search seeds 7..{6 + restarts}, the least tuning objective kept)"
 
 
 def matched(name):
@@ -343,7 +370,8 @@ def tune_effort_matched(cfg, seeds, evaluations, tuned, average=np.mean):
     (the protocol's second phase, 60 % of the budget) from its tuned point, keeping that point if it is better. The
     objective ITAE + w_e effort makes each baseline the least-ITAE design at its own effort (w_e is the Lagrange
     multiplier of that effort); the agent on it settles at less effort (docs/control.md), so its ITAE alone is
-    compared here at a common effort. Returns ({name: theta}, {name: objective}, caps)."""
+    compared here at a common effort. It has no random phase: with restarts (:func:`tune`) it starts from the point
+    the restarts kept. Returns ({name: theta}, {name: objective}, caps)."""
     caps = {}
     for task in ("step", "track"):
         caps[task] = min(average([evaluate(makers(cfg)[name](tuned[name], task, cfg), task, cfg, seed)[3]
@@ -423,8 +451,9 @@ def step_time(cfg, repeats=3000):
     return out
 
 
-def compare(cfg, tune_seeds, eval_seeds, evaluations):
-    """Tune the three controllers on ``cfg``'s plant and print every figure beside its target."""
+def compare(cfg, tune_seeds, eval_seeds, evaluations, restarts=1):
+    """Tune the three controllers on ``cfg``'s plant (on ``tune_seeds``, ``evaluations`` runs per restart, ``restarts``
+    restarts: see :func:`tune`) and print every figure beside its target over ``eval_seeds``."""
     if cfg["plant"] == "roll":
         wind = identify_roll_disturbance()
         cfg["disturbance_std"], cfg["disturbance_kernel_width"] = wind.std, wind.kernel_width
@@ -436,14 +465,15 @@ def compare(cfg, tune_seeds, eval_seeds, evaluations):
     else:
         print("mass-spring-damper")
     print(f"dt = {cfg['dt']:.5g} s, {cfg['duration']} s per task; tuning seeds {list(tune_seeds)}, "
-          f"{evaluations} evaluations each; evaluation seeds 0..{len(eval_seeds) - 1}")
+          f"{evaluations} evaluations each{restart_label(restarts)}; evaluation seeds 0..{len(eval_seeds) - 1}")
     tuned = {}
     for name in MAKERS:
         t0 = time.perf_counter()
-        theta, value, nfev = tune(name, cfg, tune_seeds, evaluations)
+        theta, value, nfev, restart_objectives = tune(name, cfg, tune_seeds, evaluations, restarts=restarts)
         tuned[name] = theta
         print(f"  tuned {name:17s} objective {value:.4f} ({nfev} runs of {2 * len(tune_seeds)} loops, "
-              f"{time.perf_counter() - t0:.0f} s): exp(theta) = {np.round(np.exp(theta), 4).tolist()}")
+              f"{time.perf_counter() - t0:.0f} s): exp(theta) = {np.round(np.exp(theta), 4).tolist()}"
+              + restart_note(restart_objectives))
     every = {**MAKERS, **{matched(name): MAKERS[name] for name in MAKERS}}
     t0 = time.perf_counter()
     thetas, values, caps = tune_effort_matched(cfg, tune_seeds, evaluations, tuned)
@@ -780,8 +810,10 @@ def plot_arm(cfg, tuned, out_dir, learning):
     return path
 
 
-def compare_arm(cfg, tune_seeds, eval_seeds, evaluations, out_dir):
-    """Tune the three controllers on the arm and print every figure beside its target (medians over seeds)."""
+def compare_arm(cfg, tune_seeds, eval_seeds, evaluations, out_dir, restarts=1):
+    """Tune the three controllers on the arm (on ``tune_seeds``, ``evaluations`` runs per restart, ``restarts``
+    restarts: see :func:`tune`) and print every figure beside its target (medians over ``eval_seeds``; response
+    plots in ``out_dir`` unless None)."""
     params = arm.ArmParameters()
     print(f"two-link arm in the vertical plane: masses {params.link_masses} kg, lengths {params.link_lengths} m, "
           f"centres of mass {params.com_distances} m, inertias {tuple(round(i, 4) for i in params.link_inertias)} "
@@ -791,14 +823,16 @@ def compare_arm(cfg, tune_seeds, eval_seeds, evaluations, out_dir):
     print(f"step {np.round(cfg['start'], 3).tolist()} -> {list(cfg['target'])} rad; tracking "
           f"{list(cfg['track_centre'])} + {list(cfg['track_amplitude'])} sin({list(cfg['track_rate'])} t) rad; "
           f"dt = {cfg['dt']:g} s, {cfg['duration']} s per task; tuning seeds {list(tune_seeds)}, {evaluations} "
-          f"evaluations each; evaluation seeds 0..{len(eval_seeds) - 1}; figures are medians over the evaluation seeds")
+          f"evaluations each{restart_label(restarts)}; evaluation seeds 0..{len(eval_seeds) - 1}; figures are medians "
+          f"over the evaluation seeds")
     tuned = {}
     for name in ARM_MAKERS:
         t0 = time.perf_counter()
-        theta, value, nfev = tune(name, cfg, tune_seeds, evaluations)
+        theta, value, nfev, restart_objectives = tune(name, cfg, tune_seeds, evaluations, restarts=restarts)
         tuned[name] = theta
         print(f"  tuned {name:17s} objective {value:.4f} ({nfev} runs of {2 * len(tune_seeds)} loops, "
-              f"{time.perf_counter() - t0:.0f} s): exp(theta) = {np.round(np.exp(theta), 4).tolist()}")
+              f"{time.perf_counter() - t0:.0f} s): exp(theta) = {np.round(np.exp(theta), 4).tolist()}"
+              + restart_note(restart_objectives))
     every = {**ARM_MAKERS, **{matched(name): ARM_MAKERS[name] for name in ARM_MAKERS}}
     t0 = time.perf_counter()
     thetas, values, caps = tune_effort_matched(cfg, tune_seeds, evaluations, tuned, np.median)
@@ -1164,7 +1198,13 @@ def main():
                              "--plant (roll, msd, arm; a few seconds each)")
     parser.add_argument("--plots", default="results/control", metavar="DIR",
                         help="folder for the response plots (default: %(default)s); 'none': no plots")
+    parser.add_argument("--restarts", type=int, default=1, metavar="K",
+                        help="run the tuning (random search, then Nelder-Mead; the budget each) K times with "
+                             "random-search seeds 7..7+K-1 and keep the least tuning objective, for every controller "
+                             "(default: %(default)s, seed 7 alone)")
     args = parser.parse_args()
+    if args.restarts < 1:
+        parser.error("--restarts must be at least 1")
     out_dir = None if args.plots == "none" else args.plots
     warnings.simplefilter("ignore")
     if args.loop_shape:
@@ -1190,9 +1230,9 @@ def main():
     for name in {"both": ("msd", "roll"), "all": ("msd", "roll", "arm"), "none": ()}.get(args.plant, (args.plant,)):
         print(f"\n=== plant {name} ===")
         if name == "arm":
-            compare_arm(dict(ARM_SETTINGS), tune_seeds, eval_seeds, evaluations, out_dir)
+            compare_arm(dict(ARM_SETTINGS), tune_seeds, eval_seeds, evaluations, out_dir, args.restarts)
         else:
-            compare(dict(plants[name]), tune_seeds, eval_seeds, evaluations)
+            compare(dict(plants[name]), tune_seeds, eval_seeds, evaluations, args.restarts)
 
     # step time ----------------------------------------------------------------------------------
     times = step_time(dict(SETTINGS))

@@ -143,3 +143,14 @@ def test_generalised_loop_needs_an_active_inference_controller():
     world, _ = _noiseless_loop_pair(gain=1.0)
     with pytest.raises(AttendInputError, match="controller: expected an attend.control.ActiveInferenceController"):
         run_generalised(world, PIDController(1.0, 0.0, 0.0, DT), 1.0)
+
+
+def test_generalised_loop_refuses_a_world_with_other_outputs():
+    from attend.control import run_generalised
+
+    _, agent = _noiseless_loop_pair(gain=1.0)
+    world = GenerativeProcess.linear(np.array([[-0.5, 1.0], [0.0, -1.0]]), np.array([[1.0], [0.5]]),
+                                     np.array([[1.0, 0.0]]))
+    with pytest.raises(AttendInputError, match="model.n_outputs: the model predicts 2 outputs, the process gives "
+                                               "n_outputs = 1"):
+        run_generalised(world, agent, 1.0)

@@ -164,6 +164,12 @@ def run_generalised(process: GenerativeProcess, controller: ActiveInferenceContr
     dt = positive_scalar(controller.dt, "controller.dt", "s")
     duration = positive_scalar(duration, "duration", "s")
     limit = positive_scalar(divergence_limit, "divergence_limit")
+    if controller.model.n_outputs != process.n_outputs:
+        raise AttendInputError(f"model.n_outputs: the model predicts {controller.model.n_outputs} outputs, the process "
+                               f"gives n_outputs = {process.n_outputs}")
+    if controller.n_actions != process.n_actions:
+        raise AttendInputError(f"controller.n_actions: the controller gives {controller.n_actions} actions, the process "
+                               f"takes n_actions = {process.n_actions}")
     n_samples = int(round(duration / dt))
     p, m = controller.model.embedding_order, process.n_outputs
     moved = np.arange(process.n_states) if world_states is None else np.asarray(world_states)

@@ -188,6 +188,7 @@ def _simulate_built(world, controller, cfg) -> dict:
     return dict(time_s=loop.time, true_force=loop.states[:, 0], perceived_self=beliefs[:, 0],
                 perceived_external=beliefs[:, 1], causes=causes, action=loop.actions[rows, 0])
 
+
 def run(quick: bool = True, progress: bool = True) -> ExperimentResult:
     """True and perceived force per attenuation h, for both reflex variants.
 

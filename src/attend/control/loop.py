@@ -61,13 +61,8 @@ def run(process: GenerativeProcess, controller, duration: float, *, seed: int | 
     dt = positive_scalar(controller.dt, "controller.dt", "s")
     duration = positive_scalar(duration, "duration", "s")
     limit = positive_scalar(divergence_limit, "divergence_limit")
-    if controller.n_actions != process.n_actions:
-        raise AttendInputError(f"controller.n_actions: the controller gives {controller.n_actions} actions, the process "
-                               f"takes n_actions = {process.n_actions}")
     active = isinstance(controller, ActiveInferenceController)
-    if active and controller.model.n_outputs != process.n_outputs:
-        raise AttendInputError(f"model.n_outputs: the model predicts {controller.model.n_outputs} outputs, the process "
-                               f"gives n_outputs = {process.n_outputs}")
+    _check_sizes(process, controller, active)
     if hasattr(controller, "reset"):
         controller.reset()
     if active and check_stability:
@@ -114,13 +109,28 @@ def run(process: GenerativeProcess, controller, duration: float, *, seed: int | 
                                        f"{k} finite numbers")
         world.advance(action)
         out["actions"][i] = world.applied
-        if not (np.isfinite(world.x).all() and np.abs(world.x).max() <= limit):
-            raise ClosedLoopDivergence(
-                f"the world diverged at t = {(i + 1) * dt:g} s (|x| = {np.nanmax(np.abs(world.x)):.3g} > "
-                f"divergence_limit {limit:.3g}) under {type(controller).__name__}"
-                + (f" (action_gain kappa = {controller.action_gain:g}, dt = {dt:g} s): lower action_gain or check "
-                   "dy~/da" if active else ": check its gains"))
+        _check_bounded(world.x, limit, (i + 1) * dt, controller)
     return ClosedLoop(**out)
+
+
+def _check_sizes(process: GenerativeProcess, controller, active: bool) -> None:
+    """The controller's actions (and, for an active inference agent, its model's outputs) match the world's."""
+    if controller.n_actions != process.n_actions:
+        raise AttendInputError(f"controller.n_actions: the controller gives {controller.n_actions} actions, the process "
+                               f"takes n_actions = {process.n_actions}")
+    if active and controller.model.n_outputs != process.n_outputs:
+        raise AttendInputError(f"model.n_outputs: the model predicts {controller.model.n_outputs} outputs, the process "
+                               f"gives n_outputs = {process.n_outputs}")
+
+
+def _check_bounded(x: np.ndarray, limit: float, t: float, controller) -> None:
+    """Stop with :class:`ClosedLoopDivergence` when the world's state x is not finite or |x| > limit at time t [s]."""
+    if np.isfinite(x).all() and np.abs(x).max() <= limit:
+        return
+    advice = (f" (action_gain kappa = {controller.action_gain:g}, dt = {controller.dt:g} s): lower action_gain or check "
+              "dy~/da" if isinstance(controller, ActiveInferenceController) else ": check its gains")
+    raise ClosedLoopDivergence(f"the world diverged at t = {t:g} s (|x| = {np.nanmax(np.abs(x)):.3g} > divergence_limit "
+                               f"{limit:.3g}) under {type(controller).__name__}" + advice)
 
 
 class GeneralisedLoop(NamedTuple):
@@ -164,12 +174,7 @@ def run_generalised(process: GenerativeProcess, controller: ActiveInferenceContr
     dt = positive_scalar(controller.dt, "controller.dt", "s")
     duration = positive_scalar(duration, "duration", "s")
     limit = positive_scalar(divergence_limit, "divergence_limit")
-    if controller.model.n_outputs != process.n_outputs:
-        raise AttendInputError(f"model.n_outputs: the model predicts {controller.model.n_outputs} outputs, the process "
-                               f"gives n_outputs = {process.n_outputs}")
-    if controller.n_actions != process.n_actions:
-        raise AttendInputError(f"controller.n_actions: the controller gives {controller.n_actions} actions, the process "
-                               f"takes n_actions = {process.n_actions}")
+    _check_sizes(process, controller, True)
     n_samples = int(round(duration / dt))
     p, m = controller.model.embedding_order, process.n_outputs
     moved = np.arange(process.n_states) if world_states is None else np.asarray(world_states)
@@ -180,9 +185,8 @@ def run_generalised(process: GenerativeProcess, controller: ActiveInferenceContr
     causes = np.empty((n_samples + 1, controller.model.n_causes))
     actions = np.empty((n_samples + 1, process.n_actions))
     beliefs[0], causes[0], actions[0] = controller.states, controller.causes, run.applied
-    history = [run.applied.copy()]  # the action at the start of each bin so far
     for k in range(n_samples):
-        motion = embed_newest(history, p + 1, dt)[1:] if action_motion else None
+        motion = embed_newest(actions[: k + 1], p + 1, dt)[1:] if action_motion else None  # the actions so far
         if joint_world:  # the world's motion over the bin, its generalised response and dy~/da
             world_motion = process.generalised_motion(run.x, run.applied, p, action_motion=motion, drive=run.drive(),
                                                       states=world_states, outputs=world_outputs)
@@ -206,12 +210,7 @@ def run_generalised(process: GenerativeProcess, controller: ActiveInferenceContr
         else:
             run.advance(action)
         beliefs[k + 1], causes[k + 1], actions[k + 1] = controller.states, controller.causes, run.applied
-        history.append(run.applied.copy())
-        if not (np.isfinite(run.x).all() and np.abs(run.x).max() <= limit):
-            raise ClosedLoopDivergence(
-                f"the world diverged at t = {(k + 1) * dt:g} s (|x| = {np.nanmax(np.abs(run.x)):.3g} > divergence_limit "
-                f"{limit:.3g}) (action_gain kappa = {controller.action_gain:g}, dt = {dt:g} s): lower action_gain or "
-                "check dy~/da")
+        _check_bounded(run.x, limit, (k + 1) * dt, controller)
     return GeneralisedLoop(np.arange(n_samples) * dt, states, beliefs, causes, actions)
 
 

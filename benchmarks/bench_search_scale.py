@@ -176,8 +176,8 @@ def comparison_mission(seed: int, prior: str, planner_name: str, altitude_m: flo
     if planner_name == "lawnmower":
         spacing = spacing_factor * float(settings.camera.footprint_m(altitude_m)[0])
         planner = FieldLawnmowerPlanner(altitude_m, spacing, settings.camera, n_uavs, world.buildings)
-    else:
-        planner = ExpectedFreeEnergySearchPlanner.for_world(world, settings)
+    else:  # "efe", or "efe3": three legs scored (the beam of ExpectedFreeEnergySearchPlanner's legs=3)
+        planner = ExpectedFreeEnergySearchPlanner.for_world(world, settings, legs=3 if planner_name == "efe3" else 2)
     log = fly_search(world, planner, settings, seed)
     return log.time_to_fraction_s(0.9), len(log.found_times_s) == world.n_people, settings.budget_s, log.false_targets
 

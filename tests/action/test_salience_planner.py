@@ -277,6 +277,8 @@ def test_plan_time_on_a_million_cells(capsys):
         ({"climb_speed_m_s": 0.0}, "climb_speed_m_s"),
         ({"buildings": (object(),)}, "buildings"),
         ({"channel": "pixel"}, "channel"),
+        ({"legs": 4}, "legs"),
+        ({"beam_width": 0}, "beam_width"),
         ({"model": "paper"}, "model"),
         ({"camera": None}, "camera"),
     ],
@@ -397,3 +399,43 @@ def test_footprint_follows_the_heading_when_the_camera_turns_with_the_uav():
         for leg, (width_x, width_y) in enumerate(expected):
             # cells whose centres lie within the rectangle: its side in cells, to one cell
             assert abs((c1 - c0)[leg, 0] - width_x) <= 1.0 and abs((r1 - r0)[leg, 0] - width_y) <= 1.0
+
+
+def test_three_collinear_legs_are_worth_the_straight_leg_they_make():
+    """Along a straight leg the chain of looks is exact; split into three collinear legs at one
+    altitude whose images fall where the straight leg's do (spacing s = 10 m), V_1 + V_2 + V_3
+    (the third leg's chain running through the second leg's images, then the first's) equals the
+    straight leg's value. Pure information (c_pref = 0), whose k-th look is worth less than the
+    (k-1)-th, so the nearest-image bound never binds."""
+    grid = MapGrid.square(300.0, 1.0)
+    lattice = _Lattice(grid)
+    rng = np.random.default_rng(3)
+    belief = _map(grid, rng.uniform(1e-4, 0.05, grid.shape))
+    planner = ExpectedFreeEnergySearchPlanner(DetectionModel(), Camera(), 10.0, 1.0, altitude_layers_m=[30.0],
+                                              preference_nats_per_person=0.0, legs=3)
+    tables = planner._value_tables(belief, lattice, 2.0)
+    layer = np.array([0])
+    pose, a, b, c = (np.array([x, 5.0, 30.0]) for x in (-100.0, -60.0, -30.0, 20.0))
+    value1, _, ranges1, valid1, points1 = planner._leg_values(tables, lattice, pose[None], a[None], layer)
+    value2, _ = planner._second_leg_values(tables, lattice, a[None], b[None], layer, _take_first(ranges1),
+                                           valid1[0], points1[0])
+    value3, _ = planner._third_leg_values(tables, lattice, a, b, 0, _take_first(ranges1), valid1[0], points1[0],
+                                          c[None], layer)
+    straight, *_ = planner._leg_values(tables, lattice, pose[None], c[None], layer)
+    assert value1[0] > 0 and value3[0] > 0
+    # sums of the same table entries in another order: equal to rounding
+    assert value1[0] + value2[0] + value3[0] == pytest.approx(straight[0], rel=1e-10)
+
+
+def _take_first(ranges):
+    return tuple(r[0] for r in ranges)
+
+
+def test_three_legs_mission_with_buildings_respects_limits():
+    """legs = 3, two UAVs among buildings: fly_search raises if a waypoint leaves the limits or
+    hits a building; the beam changes which path is chosen, not the rules a path obeys."""
+    world = make_world(150.0, 1.0, 4, seed=3, n_buildings=3)
+    settings = SearchSettings(budget_s=60.0, n_uavs=2)
+    planner = ExpectedFreeEnergySearchPlanner.for_world(world, settings, legs=3, beam_width=4)
+    log = fly_search(world, planner, settings, seed=3)
+    assert log.images > 0 and log.area_covered_m2 > 0 and log.separation_violations == 0

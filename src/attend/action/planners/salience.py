@@ -57,7 +57,11 @@ only change altitude, legs above the most probable cells within the horizon, and
 to the best blocks of a coarse block-summed value map of the whole area (so the UAV still goes
 where the value is when nothing near is worth looking at); then second legs from the best first
 legs. The first leg of the pair with the largest (V_1 + V_2) / (t_1 + t_2) is flown and the
-mission replans at its end (``fly_second_leg``: both legs). Rejected: legs leaving the map's
+mission replans at its end (``fly_second_leg``: both legs). With ``legs=3`` the ``beam_width``
+pairs of largest rate are each extended by third legs from the end of their second (the chain of
+looks continuing through the second leg's images, then the first's, and the nearest-image loss
+taken over both), and the first leg of the triple with the largest (V_1 + V_2 + V_3) / (t_1 +
+t_2 + t_3) is flown (the best pair's when no third leg is feasible). Rejected: legs leaving the map's
 extent or the altitude limits; legs passing within ``OBSTACLE_MARGIN_M`` of a building box
 (:func:`attend.action.camera.segments_hit_box`; margin 0 when no leg clears it, e.g. right after
 take-off next to a building); legs whose end lies within ``min_separation_m`` (3-D distance) of
@@ -334,7 +338,9 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
     footprint_follows_heading: the camera turns with the UAV (False: it keeps its across-track
     side along x, as in the paper's world): the footprint of a leg flown closer to east-west than
     to north-south has its across-track side along y (the axis-aligned rectangle of the nearer
-    axis; a diagonal leg's rotated footprint is approximated by it).
+    axis; a diagonal leg's rotated footprint is approximated by it); legs: 2 (pairs of legs
+    scored) or 3 (the ``beam_width`` best pairs extended by a third leg, module docstring);
+    beam_width: the number of pairs extended when legs = 3.
     """
 
     name = "efe"
@@ -364,6 +370,8 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         value_levels: int | None = None,
         max_looks: int = MAX_LOOKS,
         footprint_follows_heading: bool = False,
+        legs: int = 2,
+        beam_width: int = 8,
     ) -> None:
         if not isinstance(model, DetectionModel):
             raise ActionInputError(f"model: expected a DetectionModel, got {type(model).__name__}")
@@ -433,6 +441,12 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         self.route_toward = route_toward
         self.book_other_plans = bool(book_other_plans)
         self.footprint_follows_heading = bool(footprint_follows_heading)
+        if legs not in (2, 3) or isinstance(legs, bool):
+            raise ActionInputError(f"legs: expected 2 or 3 (legs scored per plan), got {legs!r}")
+        if not (isinstance(beam_width, (int, np.integer)) and not isinstance(beam_width, bool) and beam_width >= 1):
+            raise ActionInputError(f"beam_width: expected a whole number >= 1 (pairs extended), got {beam_width!r}")
+        self.legs = int(legs)
+        self.beam_width = int(beam_width)
         if value_levels is not None and not (isinstance(value_levels, (int, np.integer)) and value_levels >= 16):
             raise ActionInputError(f"value_levels: expected None or a whole number >= 16, got {value_levels!r}")
         self.value_levels = None if value_levels is None else int(value_levels)
@@ -654,6 +668,7 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         order = np.argsort(-rate1, kind="stable")[:EXPANDED_FIRST_LEGS]
         # second legs from the best first legs
         best_rate, best = (rate1[order[0]], (order[0], None)) if self.single_legs else (-np.inf, (order[0], None))
+        pairs = []
         for parent in order:
             ends2, layers2 = self._second_candidates(ends[parent], layers[parent], lattice)
             starts2 = np.broadcast_to(ends[parent], ends2.shape)
@@ -667,11 +682,60 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
             j = int(np.argmax(rate))
             if rate[j] > best_rate:
                 best_rate, best = rate[j], (parent, ends2[j])
+            if self.legs == 3:
+                pairs += [(rate[k], int(parent), ends2[k], int(layers2[k]), value1[parent] + value2[k],
+                           time1[parent] + time2[k]) for k in range(len(rate))]
+        if pairs:
+            third = self._best_third_legs(tables, lattice, pairs, ends, ranges1, valid1, images1, others, allowed,
+                                          margin, best_rate if self.single_legs else -np.inf)
+            if third is not None:
+                best = third
         parent, second = best
         waypoints = _leg_waypoints(pose, ends[parent])
         if second is not None and self.fly_second_leg:
             waypoints += _leg_waypoints(ends[parent], second)
         return np.array(waypoints, dtype=float)
+
+    def _best_third_legs(self, tables, lattice: _Lattice, pairs, ends1, ranges1, valid1, images1, others, allowed,
+                         margin: float, floor_rate: float):
+        """(first leg's index, second leg's end) of the triple with the largest (V_1 + V_2 + V_3) /
+        (t_1 + t_2 + t_3) over the ``beam_width`` pairs of largest rate, each extended by the
+        third legs of :meth:`_second_candidates` from its end; None when no third leg is feasible
+        or no triple's rate exceeds ``floor_rate``.
+
+        pairs: (rate, first leg's index, second leg's end (3,), layer, V_1 + V_2, t_1 + t_2) per
+        feasible pair; ends1, ranges1, valid1, images1: the first legs' ends, image ranges,
+        validity and positions (:meth:`_leg_values`)."""
+        rates = np.array([pair[0] for pair in pairs])
+        best_rate, best = floor_rate, None
+        for b in np.argsort(-rates, kind="stable")[:self.beam_width]:
+            _, parent, end2, layer2, value12, time12 = pairs[b]
+            ends3, layers3 = self._second_candidates(end2, layer2, lattice)
+            ok = self._feasible(np.broadcast_to(end2, ends3.shape), ends3, lattice, others, allowed, margin,
+                                float(time12))
+            if not np.any(ok):
+                continue
+            value3, time3 = self._third_leg_values(tables, lattice, ends1[parent], end2, layer2, _take(ranges1, parent),
+                                                   valid1[parent], images1[parent], ends3[ok], layers3[ok])
+            rate = (value12 + value3) / (time12 + time3)
+            j = int(np.argmax(rate))
+            if rate[j] > best_rate:
+                best_rate, best = rate[j], (parent, end2)
+        return best
+
+    def _third_leg_values(self, tables, lattice: _Lattice, start2, end2, layer2: int, ranges1, valid1, points1,
+                          ends3, layers3):
+        """Value (m,) [nats] and time (m,) [s] of third legs end2 -> ends3 (m, 3) at ``layers3``
+        after the second leg start2 -> end2 at ``layer2``: :meth:`_second_leg_values` with the
+        chain of looks (latest first) through the second leg's images, then the first leg's
+        (``ranges1``, ``valid1``, ``points1``: the first leg's, as :meth:`_leg_values` gives them)."""
+        points2, valid2, _ = self._image_points(start2[None], end2[None])
+        ranges2 = self._footprint_ranges(lattice, points2, np.array([layer2]), start2[None], end2[None])
+        n2, n1 = int(valid2[0].sum()), int(valid1.sum())
+        chain_ranges = tuple(np.concatenate([r2[0, :n2], r1[:n1]]) for r2, r1 in zip(ranges2, ranges1))
+        chain_points = np.concatenate([points2[0, :n2], points1[:n1]])
+        return self._second_leg_values(tables, lattice, np.broadcast_to(end2, ends3.shape), ends3, layers3,
+                                       chain_ranges, np.ones(n1 + n2, dtype=bool), chain_points)
 
     def _value_tables(self, belief, lattice: _Lattice, radius_m: float) -> "BandedSummedAreaTables":
         """Summed-area tables (:class:`BandedSummedAreaTables`) of the value maps of ``belief``; the value maps

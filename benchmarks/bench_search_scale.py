@@ -167,6 +167,10 @@ def scenario_budget_s(world) -> float:
     return max(600.0, 1.2 * (x1 - x0) * (y1 - y0) / (37.0 * 10.0))
 
 
+#: Options of ExpectedFreeEnergySearchPlanner by the name comparison_mission gives them.
+EFE_VARIANTS = {"efe": {}, "efe3": {"legs": 3}, "efea": {"aligned_headings": True}}
+
+
 def comparison_mission(seed: int, prior: str, planner_name: str, altitude_m: float, spacing_factor: float,
                        n_uavs: int = 1):
     """(time to 90 % [s] (inf: not within the budget), all found at the end, budget [s], false
@@ -176,8 +180,8 @@ def comparison_mission(seed: int, prior: str, planner_name: str, altitude_m: flo
     if planner_name == "lawnmower":
         spacing = spacing_factor * float(settings.camera.footprint_m(altitude_m)[0])
         planner = FieldLawnmowerPlanner(altitude_m, spacing, settings.camera, n_uavs, world.buildings)
-    else:  # "efe", or "efe3": three legs scored (the beam of ExpectedFreeEnergySearchPlanner's legs=3)
-        planner = ExpectedFreeEnergySearchPlanner.for_world(world, settings, legs=3 if planner_name == "efe3" else 2)
+    else:
+        planner = ExpectedFreeEnergySearchPlanner.for_world(world, settings, **EFE_VARIANTS[planner_name])
     log = fly_search(world, planner, settings, seed)
     return log.time_to_fraction_s(0.9), len(log.found_times_s) == world.n_people, settings.budget_s, log.false_targets
 

@@ -439,3 +439,49 @@ def test_three_legs_mission_with_buildings_respects_limits():
     planner = ExpectedFreeEnergySearchPlanner.for_world(world, settings, legs=3, beam_width=4)
     log = fly_search(world, planner, settings, seed=3)
     assert log.images > 0 and log.area_covered_m2 > 0 and log.separation_violations == 0
+
+
+def _headings_of(planner, pose, grid, belief):
+    lattice = _Lattice(grid)
+    tables = planner._value_tables(belief, lattice, 2.0)
+    ends, _ = planner._first_candidates(pose, lattice, tables, belief, None)
+    moved = ends[:, :2] - pose[:2]
+    return np.arctan2(moved[:, 1], moved[:, 0])[np.hypot(moved[:, 0], moved[:, 1]) > 1e-9]
+
+
+def _has_heading(headings, angle):
+    return bool(np.any(np.abs(np.angle(np.exp(1j * (headings - angle)))) < 1e-9))
+
+
+def test_aligned_headings_add_the_axes_and_each_uavs_last_leg_both_ways():
+    """With aligned_headings the first legs include, at every distance and layer, the map's four
+    axis directions and the heading of this UAV's last leg (from its pose at its last plan) and
+    its reverse; another UAV's plans do not change this UAV's last leg."""
+    grid = MapGrid.square(300.0, 1.0)
+    belief = ProbabilityMap.uniform(grid, 5.0)
+    planner = ExpectedFreeEnergySearchPlanner(DetectionModel(), Camera(), 10.0, 1.0, aligned_headings=True, seed=1)
+    plain = ExpectedFreeEnergySearchPlanner(DetectionModel(), Camera(), 10.0, 1.0, seed=1)
+    first, then = np.array([0.0, 0.0, 30.0]), np.array([30.0, 40.0, 30.0])
+    planner.plan(belief, 0, first, 300.0)
+    planner.plan(belief, 1, np.array([-100.0, 90.0, 30.0]), 300.0)  # UAV 1 in between
+    planner.plan(belief, 0, then, 300.0)
+    headings = _headings_of(planner, then, grid, belief)
+    last = np.arctan2(40.0, 30.0)
+    for angle in (0.0, np.pi / 2, np.pi, -np.pi / 2, last, last + np.pi):
+        assert _has_heading(headings, angle)
+    plain.plan(belief, 0, first, 300.0)
+    plain.plan(belief, 0, then, 300.0)
+    assert not _has_heading(_headings_of(plain, then, grid, belief), last)
+    # 6 more headings x FIRST_DISTANCES x layers than the plain lattice
+    from attend.action.planners.salience import FIRST_DISTANCES
+
+    extra = len(headings) - len(_headings_of(plain, then, grid, belief))
+    assert extra == 6 * FIRST_DISTANCES * len(planner.altitude_layers_m)
+
+
+def test_aligned_headings_mission_with_buildings_respects_limits():
+    world = make_world(150.0, 1.0, 4, seed=3, n_buildings=3)
+    settings = SearchSettings(budget_s=60.0, n_uavs=2)
+    planner = ExpectedFreeEnergySearchPlanner.for_world(world, settings, aligned_headings=True)
+    log = fly_search(world, planner, settings, seed=3)
+    assert log.images > 0 and log.area_covered_m2 > 0 and log.separation_violations == 0

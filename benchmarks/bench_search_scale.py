@@ -75,6 +75,10 @@ def line(name: str, value: str, target: str) -> None:
     print(f"  {name:<58} {value:<26} target: {target}", flush=True)
 
 
+#: Options of ExpectedFreeEnergySearchPlanner by the name the missions below give them.
+EFE_VARIANTS = {"efe": {}, "efe3": {"legs": 3}}
+
+
 def run_parallel(function, jobs, workers=WORKERS):
     """function(*job) for every job, in at most ``workers`` fresh processes, results in order."""
     with ProcessPoolExecutor(max_workers=workers, max_tasks_per_child=1) as pool:
@@ -97,7 +101,7 @@ def paper_mission(seed: int, planner_name: str):
         planner = TruthOraclePlanner(world.people_m, settings.model.best_altitude_m, settings.found_radius_m,
                                      world.buildings, max_altitude_m=world.altitude_limits_m[1])
     else:
-        planner = ExpectedFreeEnergySearchPlanner.for_world(world, settings)
+        planner = ExpectedFreeEnergySearchPlanner.for_world(world, settings, **EFE_VARIANTS[planner_name])
     log = fly_search(world, planner, settings, seed)
     found = len(log.found_times_s)
     return found, found == world.n_people, log.false_targets, log.time_to_fraction_s(1.0)
@@ -165,10 +169,6 @@ def scenario_budget_s(world) -> float:
     apart (the footprint width at 45 m) at 10 m/s, at least 600 s."""
     x0, x1, y0, y1 = world.grid.extent_m
     return max(600.0, 1.2 * (x1 - x0) * (y1 - y0) / (37.0 * 10.0))
-
-
-#: Options of ExpectedFreeEnergySearchPlanner by the name comparison_mission gives them.
-EFE_VARIANTS = {"efe": {}, "efe3": {"legs": 3}, "efea": {"aligned_headings": True}}
 
 
 def comparison_mission(seed: int, prior: str, planner_name: str, altitude_m: float, spacing_factor: float,

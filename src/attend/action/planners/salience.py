@@ -52,10 +52,7 @@ the nearest image of the first (-T_2 over their intersection; the larger loss is
 Time of a leg: t = L / v + |dz| / v_z, and at least n / rate (the camera's pace).
 
 Candidates (receding horizon, two legs): first legs to a lattice of headings x distances
-(geometric, from half the lowest footprint to ``horizon_m``) x altitude layers (with
-``aligned_headings``, the lattice's randomly rotated headings are joined by the map's four axis
-directions and by the heading of the UAV's last leg and its reverse, so that a leg can run
-beside the last one or along the area's edge instead of crossing it at an angle), plus legs that
+(geometric, from half the lowest footprint to ``horizon_m``) x altitude layers, plus legs that
 only change altitude, legs above the most probable cells within the horizon, and legs straight
 to the best blocks of a coarse block-summed value map of the whole area (so the UAV still goes
 where the value is when nothing near is worth looking at); then second legs from the best first
@@ -343,8 +340,7 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
     to north-south has its across-track side along y (the axis-aligned rectangle of the nearer
     axis; a diagonal leg's rotated footprint is approximated by it); legs: 2 (pairs of legs
     scored) or 3 (the ``beam_width`` best pairs extended by a third leg, module docstring);
-    beam_width: the number of pairs extended when legs = 3; aligned_headings: add first legs
-    along the map's axes and along the UAV's last leg, both ways (module docstring).
+    beam_width: the number of pairs extended when legs = 3.
     """
 
     name = "efe"
@@ -376,7 +372,6 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         footprint_follows_heading: bool = False,
         legs: int = 2,
         beam_width: int = 8,
-        aligned_headings: bool = False,
     ) -> None:
         if not isinstance(model, DetectionModel):
             raise ActionInputError(f"model: expected a DetectionModel, got {type(model).__name__}")
@@ -452,7 +447,6 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
             raise ActionInputError(f"beam_width: expected a whole number >= 1 (pairs extended), got {beam_width!r}")
         self.legs = int(legs)
         self.beam_width = int(beam_width)
-        self.aligned_headings = bool(aligned_headings)
         if value_levels is not None and not (isinstance(value_levels, (int, np.integer)) and value_levels >= 16):
             raise ActionInputError(f"value_levels: expected None or a whole number >= 16, got {value_levels!r}")
         self.value_levels = None if value_levels is None else int(value_levels)
@@ -489,8 +483,6 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         """Start a new mission: forget the cached value maps; seed: reseeds the heading lattice's rotation."""
         super().reset(seed)
         self._cache = None
-        self._last_poses: dict = {}  # per UAV: its pose at its last plan
-        self._last_heading = None  # the heading [rad] of the planning UAV's last leg, or None
 
     @classmethod
     def for_world(cls, world, settings, **options) -> "ExpectedFreeEnergySearchPlanner":
@@ -637,10 +629,6 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         if allowed_legs is not None and not callable(allowed_legs):
             raise ActionInputError(f"allowed_legs: expected None or a function (starts, ends) -> mask, got {allowed_legs!r}")
         allowed = self.allowed_legs if allowed_legs is None else allowed_legs
-        last = self._last_poses.get(uav)
-        moved = None if last is None else pose[:2] - last[:2]
-        self._last_heading = None if moved is None or np.hypot(*moved) < 1e-6 else float(np.arctan2(moved[1], moved[0]))
-        self._last_poses[uav] = pose.copy()
         with single_blas_thread():
             return self._plan(belief, pose, float(time_left_s), other_paths, allowed)
 
@@ -809,11 +797,6 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         smallest = 2 * float(self._half_widths[:, 0].min())
         distances = np.geomspace(max(smallest / 2, lattice.cell), max(self.horizon_m, smallest), FIRST_DISTANCES)
         headings = self.rng.uniform(0, 2 * np.pi) + np.arange(FIRST_HEADINGS) * (2 * np.pi / FIRST_HEADINGS)
-        if self.aligned_headings:
-            aligned = [0.0, np.pi / 2, np.pi, 3 * np.pi / 2]
-            if self._last_heading is not None:
-                aligned += [self._last_heading, self._last_heading + np.pi]
-            headings = np.concatenate([headings, aligned])
         dx = (distances[:, None] * np.cos(headings)[None]).ravel()
         dy = (distances[:, None] * np.sin(headings)[None]).ravel()
         xy = [np.column_stack([pose[0] + dx, pose[1] + dy]), pose[None, :2]]

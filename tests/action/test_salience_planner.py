@@ -14,6 +14,7 @@ from attend.action.field import Obstacle
 from attend.action.planners.salience import (
     ExpectedFreeEnergySearchPlanner,
     _Lattice,
+    _take,
     binary_entropy,
     box_sums,
     mutual_information,
@@ -417,18 +418,14 @@ def test_three_collinear_legs_are_worth_the_straight_leg_they_make():
     layer = np.array([0])
     pose, a, b, c = (np.array([x, 5.0, 30.0]) for x in (-100.0, -60.0, -30.0, 20.0))
     value1, _, ranges1, valid1, points1 = planner._leg_values(tables, lattice, pose[None], a[None], layer)
-    value2, _ = planner._second_leg_values(tables, lattice, a[None], b[None], layer, _take_first(ranges1),
+    value2, _ = planner._second_leg_values(tables, lattice, a[None], b[None], layer, _take(ranges1, 0),
                                            valid1[0], points1[0])
-    value3, _ = planner._third_leg_values(tables, lattice, a, b, 0, _take_first(ranges1), valid1[0], points1[0],
+    value3, _ = planner._third_leg_values(tables, lattice, a, b, 0, _take(ranges1, 0), valid1[0], points1[0],
                                           c[None], layer)
     straight, *_ = planner._leg_values(tables, lattice, pose[None], c[None], layer)
     assert value1[0] > 0 and value3[0] > 0
     # sums of the same table entries in another order: equal to rounding
     assert value1[0] + value2[0] + value3[0] == pytest.approx(straight[0], rel=1e-10)
-
-
-def _take_first(ranges):
-    return tuple(r[0] for r in ranges)
 
 
 def test_three_legs_mission_with_buildings_respects_limits():

@@ -683,9 +683,10 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
             if rate[j] > best_rate:
                 best_rate, best = rate[j], (parent, ends2[j])
             if self.legs == 3:
-                pairs += [(rate[k], int(parent), ends2[k], int(layers2[k]), value1[parent] + value2[k],
-                           time1[parent] + time2[k]) for k in range(len(rate))]
+                pairs.append((rate, np.full(len(rate), parent), ends2, layers2, value1[parent] + value2,
+                              time1[parent] + time2))
         if pairs:
+            pairs = tuple(np.concatenate(column) for column in zip(*pairs))
             third = self._best_third_legs(tables, lattice, pairs, ends, ranges1, valid1, images1, others, allowed,
                                           margin, best_rate if self.single_legs else -np.inf)
             if third is not None:
@@ -703,13 +704,13 @@ class ExpectedFreeEnergySearchPlanner(SearchPlanner):
         third legs of :meth:`_second_candidates` from its end; None when no third leg is feasible
         or no triple's rate exceeds ``floor_rate``.
 
-        pairs: (rate, first leg's index, second leg's end (3,), layer, V_1 + V_2, t_1 + t_2) per
-        feasible pair; ends1, ranges1, valid1, images1: the first legs' ends, image ranges,
-        validity and positions (:meth:`_leg_values`)."""
-        rates = np.array([pair[0] for pair in pairs])
+        pairs: arrays over the feasible pairs (rate, first leg's index, second leg's end (m, 3),
+        layer, V_1 + V_2, t_1 + t_2); ends1, ranges1, valid1, images1: the first legs' ends, image
+        ranges, validity and positions (:meth:`_leg_values`)."""
+        rates, parents, ends2, layers2, values12, times12 = pairs
         best_rate, best = floor_rate, None
         for b in np.argsort(-rates, kind="stable")[:self.beam_width]:
-            _, parent, end2, layer2, value12, time12 = pairs[b]
+            parent, end2, layer2, value12, time12 = int(parents[b]), ends2[b], int(layers2[b]), values12[b], times12[b]
             ends3, layers3 = self._second_candidates(end2, layer2, lattice)
             ok = self._feasible(np.broadcast_to(end2, ends3.shape), ends3, lattice, others, allowed, margin,
                                 float(time12))

@@ -268,19 +268,22 @@ def tune_lawnmower(prior: str, seeds, altitudes, factors):
     return h, f
 
 
-def part3(missions: int, tuning_seeds: int, quick: bool, priors=("uniform", "informative")) -> None:
+def part3(missions: int, tuning_seeds: int, quick: bool, priors=("uniform", "informative"), efe_name: str = "efe",
+          first_seed: int = 0) -> None:
     # above the tallest building (40 m): FieldLawnmowerPlanner's detours can fail below roof height
     altitudes = (45.0, 60.0) if quick else (45.0, 52.0, 60.0, 70.0, 80.0, 90.0)
     factors = (1.0,) if quick else (0.8, 1.0, 1.2)
     last = TUNING_SEED_OFFSET + tuning_seeds - 1
     print(f"3. EFE against the best lawnmower (tuned on seeds {TUNING_SEED_OFFSET}..{last} "
-          f"over h {altitudes} m, spacing {factors} x w_x), {missions} missions per prior, 10 m/s, 1 Hz")
+          f"over h {altitudes} m, spacing {factors} x w_x), {missions} missions per prior (seeds {first_seed}.."
+          f"{first_seed + missions - 1}), planner {efe_name} {EFE_VARIANTS[efe_name]}, 10 m/s, 1 Hz")
+    evaluation = range(first_seed, first_seed + missions)
     seeds = list(range(TUNING_SEED_OFFSET, TUNING_SEED_OFFSET + tuning_seeds))
     for prior in priors:
         target = {"uniform": "<= 0.8", "informative": "<= 0.5"}[prior]
         start = time.perf_counter()
         h, factor = tune_lawnmower(prior, seeds, altitudes, factors)
-        jobs = [(seed, prior, name, h, factor) for seed in range(missions) for name in ("efe", "lawnmower")]
+        jobs = [(seed, prior, name, h, factor) for seed in evaluation for name in (efe_name, "lawnmower")]
         rows = run_parallel(comparison_mission, jobs)
         efe, mower = rows[0::2], rows[1::2]
         t_efe = np.array([r[0] if np.isfinite(r[0]) else 2 * r[2] for r in efe])
@@ -293,16 +296,16 @@ def part3(missions: int, tuning_seeds: int, quick: bool, priors=("uniform", "inf
              f"{np.median(ratio):.2f} (bootstrap 95 % [{low:.2f}, {high:.2f}])", target)
         line(f"{prior}: EFE faster in", f"{np.mean(ratio < 1) * 100:.0f} % of missions", "-")
         if prior == "uniform":
-            ideal = np.array([world_ideal_sweep_t90(seed, prior) for seed in range(missions)])
+            ideal = np.array([world_ideal_sweep_t90(seed, prior) for seed in evaluation])
             line(f"{prior}: median time to 90 %, ideal sweep (no transit, turns or buildings)",
                  f"{np.median(ideal):.0f} s; ideal / lawnmower {np.median(ideal / t_mow):.2f}, EFE / ideal "
                  f"{np.median(t_efe / ideal):.2f} (medians over missions)", "-")
             for confirm_s in DETOUR_SECONDS:
-                adaptive = np.array([world_detect_and_confirm_t90(seed, prior, confirm_s) for seed in range(missions)])
+                adaptive = np.array([world_detect_and_confirm_t90(seed, prior, confirm_s) for seed in evaluation])
                 line(f"{prior}: ideal sweep confirming by detours of {confirm_s:g} s / lawnmower",
                      f"{np.median(adaptive / t_mow):.2f} (median over missions)", "-")
         if prior == "informative":
-            ordered = np.array([world_ordered_sweep_t90(seed, prior) for seed in range(missions)])
+            ordered = np.array([world_ordered_sweep_t90(seed, prior) for seed in evaluation])
             line(f"{prior}: ideal sweep in order of the prior's density / lawnmower",
                  f"{np.median(ordered / t_mow):.2f}; EFE / that sweep {np.median(t_efe / ordered):.2f} "
                  f"(medians over missions)", "-")
@@ -310,6 +313,8 @@ def part3(missions: int, tuning_seeds: int, quick: bool, priors=("uniform", "inf
              f"{np.median(t_efe):.0f} s / {np.median(t_mow):.0f} s", "-")
         line(f"{prior}: P(all found by the end) EFE / lawnmower",
              f"{np.mean([r[1] for r in efe]):.2f} / {np.mean([r[1] for r in mower]):.2f}", "-")
+        failed = [[seed for seed, r in zip(evaluation, rows) if not r[1]] for rows in (efe, mower)]
+        line(f"{prior}: missions not finding everyone EFE / lawnmower", f"{failed[0]} / {failed[1]}", "-")
         line(f"{prior}: false targets per mission (end) EFE / lawnmower",
              f"{np.mean([r[3] for r in efe]):.2f} / {np.mean([r[3] for r in mower]):.2f}", "-")
         print(f"     ({time.perf_counter() - start:.0f} s wall)", flush=True)
@@ -352,6 +357,10 @@ def main() -> None:
     parser.add_argument("--missions", type=int, default=None, help="missions per configuration (parts 1, 3, 4)")
     parser.add_argument("--priors", nargs="+", default=["uniform", "informative"], choices=["uniform", "informative"],
                         help="priors of part 3")
+    parser.add_argument("--efe", default="efe", choices=sorted(EFE_VARIANTS),
+                        help="the EFE planner part 3 flies: efe (two legs, the default) or efe3 (legs=3)")
+    parser.add_argument("--first-seed", type=int, default=0,
+                        help="first evaluation seed of part 3 (seeds first .. first + missions - 1; 0 by default)")
     args = parser.parse_args()
     quick = args.quick
     start = time.perf_counter()
@@ -360,7 +369,8 @@ def main() -> None:
     if 2 in args.parts:
         part2(60.0 if quick else 300.0)
     if 3 in args.parts:
-        part3(args.missions or (3 if quick else 30), 2 if quick else 6, quick, tuple(args.priors))
+        part3(args.missions or (3 if quick else 30), 2 if quick else 6, quick, tuple(args.priors), args.efe,
+              args.first_seed)
     if 4 in args.parts:
         part4(args.missions or (2 if quick else 20))
     print(f"total {time.perf_counter() - start:.0f} s")

@@ -13,7 +13,9 @@ from attend.models.linear import ModelWarning
 from attend.models.noise import autocorrelation
 from attend.perception.input_width import (
     FLAT_LOG_LIKELIHOOD,
+    WHITE_FLOOR_DECADES,
     choose_input_width,
+    choose_white_floor,
     innovation_terms_on,
     input_width_grid,
     profiled_log_likelihood,
@@ -27,11 +29,12 @@ OSCILLATOR = attend.LinearSystem(np.array([[0.0, 1.0], [-2.0, -0.5]]), np.array(
 
 
 def dense_output_density(system, dt, N, *, process_std, sensor_std, process_width, sensor_width, input_mean=None,
-                         input_std=None, input_width=None, known_inputs=None, initial_mean, initial_std):
+                         input_std=None, input_width=None, known_inputs=None, initial_mean, initial_std,
+                         noise_correlation=None):
     """(mean, covariance) of the stacked outputs y = [y[0]; ...; y[N-1]] under the model, built
     densely: x = Phi x[0] + L (Bd u + dt w), w coloured with the simulator's kernel correlation,
     unknown inputs a Gaussian process with rho(tau) = exp(-tau^2 / (4 s_u^2)) sampled at the lags,
-    y = (I kron C) x + z."""
+    y = (I kron C) x + z; noise_correlation: (N, N), the correlation of w and z instead (both coloured)."""
     n, r = system.n_states, system.n_inputs
     Ad, Bd = system.discretize(dt)
     powers = [np.linalg.matrix_power(Ad, k) for k in range(N)]
@@ -41,7 +44,9 @@ def dense_output_density(system, dt, N, *, process_std, sensor_std, process_widt
         for j in range(k):
             L[k * n:(k + 1) * n, j * n:(j + 1) * n] = powers[k - 1 - j]
     Bbig = np.kron(np.eye(N), Bd)
-    drive_cov = np.kron(coloured_noise_correlation(N, dt, process_width), np.diag((dt * np.asarray(process_std)) ** 2))
+    process_correlation, sensor_correlation = (coloured_noise_correlation(N, dt, width) if noise_correlation is None
+                                               else noise_correlation for width in (process_width, sensor_width))
+    drive_cov = np.kron(process_correlation, np.diag((dt * np.asarray(process_std)) ** 2))
     if known_inputs is not None:
         drive_mean = Bbig @ np.asarray(known_inputs).reshape(-1)
     else:
@@ -52,7 +57,7 @@ def dense_output_density(system, dt, N, *, process_std, sensor_std, process_widt
     x_cov = L @ drive_cov @ L.T + Phi @ np.diag(np.square(initial_std)) @ Phi.T
     x_mean = Phi @ initial_mean + L @ drive_mean
     Cbig = np.kron(np.eye(N), system.C)
-    y_cov = Cbig @ x_cov @ Cbig.T + np.kron(coloured_noise_correlation(N, dt, sensor_width),
+    y_cov = Cbig @ x_cov @ Cbig.T + np.kron(sensor_correlation,
                                             np.diag(np.square(sensor_std)))
     return Cbig @ x_mean, 0.5 * (y_cov + y_cov.T)
 
@@ -100,6 +105,74 @@ def test_log_likelihood_with_measured_inputs_and_a_skipped_time_stamp():
     marginal = multivariate_normal.logpdf(log.outputs[keep].reshape(-1), mean[keep], cov[np.ix_(keep, keep)])
     value = smoother.log_likelihood(log.outputs[keep], u[keep], time=np.arange(N)[keep] * dt)
     assert value == pytest.approx(marginal, abs=1e-4)
+
+
+@pytest.mark.parametrize("floor", [1e-4, 1e-2])
+def test_a_raised_white_floor_is_white_noise_added_to_the_process_and_sensor_noise(floor):
+    """noise_white_floor f: each coloured noise's model has autocorrelation 1 + f at lag 0 (a white part of
+    f times its variance) and the kernel's at lags >= 1 to within f (noise_state_space drops singular values
+    below 1e-2 f .. f); the filter's log-likelihood is the dense Gaussian density of the outputs under that
+    noise model (to the 1e-5 nats it has at the default floor), and it moves with the floor."""
+    from scipy.linalg import toeplitz
+
+    from attend.models.noise import kernel_autocorrelation, noise_state_space
+
+    dt, N = 0.1, 50
+    sw, sz, su, eta = np.array([0.1, 0.3]), np.array([0.05]), np.array([2.0]), np.array([0.3])
+    m0, s0 = np.array([0.2, -0.1]), np.array([1.0, 0.5])
+    rng = np.random.default_rng(6)
+    log = attend.simulate(OSCILLATOR, rng.normal(size=(N, 1)), dt, kernel_width=0.1, process_std=sw, measurement_std=sz,
+                          initial_state=[0.5, 0.0], seed=7)
+    outputs = log.outputs + rng.normal(scale=0.01, size=log.outputs.shape)  # fast content the smooth noise lacks
+    settings = dict(sensor_precision=1 / sz**2, process_precision=1 / sw**2, kernel_width=0.1,
+                    input_prior_precision=1 / su**2, input_kernel_width=0.2, known_inputs=False, initial_state=m0,
+                    initial_state_std=s0)
+    kernel = kernel_autocorrelation(dt, 0.1)
+    densities = {}
+    for f in (1e-8, floor):
+        noise = noise_state_space(kernel, white_floor=f)
+        lagged, vector = [], noise.stationary_covariance @ noise.output
+        for _ in range(N):
+            lagged.append(noise.output @ vector)
+            vector = noise.transition @ vector
+        fitted = np.array(lagged)
+        assert fitted[0] == pytest.approx(1 + f, rel=1e-9)
+        reach = min(N, kernel.size)
+        assert np.max(np.abs(fitted[1:reach] - kernel[1:reach])) <= f and np.max(np.abs(fitted[reach:])) <= f
+        mean, cov = dense_output_density(OSCILLATOR, dt, N, process_std=sw, sensor_std=sz, process_width=0.1,
+                                         sensor_width=0.1, input_mean=eta, input_std=su, input_width=0.2,
+                                         initial_mean=m0, initial_std=s0, noise_correlation=toeplitz(fitted))
+        densities[f] = multivariate_normal.logpdf(outputs.reshape(-1), mean, cov)
+        value = KalmanEstimator(OSCILLATOR, dt, noise_white_floor=f, **settings).log_likelihood(
+            outputs, np.tile(eta, (N, 1)))
+        assert value == pytest.approx(densities[f], abs=1e-4)
+    assert densities[floor] - densities[1e-8] > 10  # the floor matters on this log: the test sees it
+    for bad in (0.0, 1.0, -1e-3, float("nan"), True):
+        with pytest.raises(attend.AttendInputError, match="noise_white_floor"):
+            KalmanEstimator(OSCILLATOR, dt, noise_white_floor=bad, **settings)
+
+
+def test_white_floor_rises_a_decade_at_a_time_while_each_rise_pays():
+    """choose_white_floor on likelihoods given in closed form: it stops at the first decade that gains
+    FLAT_LOG_LIKELIHOOD or less over the one below (one evaluation where nothing is raised)."""
+    def run(curve):
+        calls = []
+
+        def score(floor):
+            calls.append(floor)
+            return curve(floor)
+        return choose_white_floor(score, 1e-8, curve(1e-8)), calls
+
+    peak = {1e-8: 0.0, 1e-7: 50.0, 1e-6: 80.0, 1e-5: 90.0, 1e-4: 91.5, 1e-3: 60.0}
+    choice, calls = run(lambda f: peak.get(f, -1e3))
+    assert choice.floor == 1e-5 and calls == [1e-7, 1e-6, 1e-5, 1e-4]  # 1e-4 gains 1.5 <= 2: stop
+    assert choice.raised and "raised from 1e-08 to 1e-05" in choice.describe() and "+90.0" in choice.describe()
+    choice, calls = run(lambda f: 0.0)
+    assert choice.floor == 1e-8 and calls == [1e-7] and not choice.raised and choice.describe() == ""
+    choice, calls = run(lambda f: 3.0 * np.log10(f))  # 3 nats a decade, all the way up
+    assert choice.floor == WHITE_FLOOR_DECADES[-1] and calls == list(WHITE_FLOOR_DECADES)
+    choice, _ = run(lambda f: (FLAT_LOG_LIKELIHOOD + 1e-9) * np.log10(f) if f < 1e-6 else -1e3)
+    assert choice.floor == 1e-7
 
 
 def test_profiled_likelihood_is_the_likelihood_at_the_scaled_precisions():
@@ -258,7 +331,48 @@ def test_estimate_chooses_the_input_width_from_the_log_and_says_so(tmp_path, cap
     assert estimator.input_width_choice.width == pytest.approx(0.8)
     assert not estimator.input_width_choice.flat
     assert 0.5 < estimator.input_width_choice.noise_scale < 2  # the model is the log's: lambda* ~ 1
+    assert not estimator.input_width_choice.white_floor.raised and estimator.noise_white_floor == 1e-8
     assert "attend: warning:" not in captured.err
+
+
+def test_estimate_raises_the_white_floor_where_the_log_supports_it(tmp_path, capsys):
+    """A log from a system 20 % faster than the file's (A and B x 1.2), process noise 4x and sensor noise
+    1/4 of the stated ones, the input rougher than the prior (both states measured): the model's smooth
+    noise cannot carry the log's fast content; the white part is raised (hundreds of nats a decade on
+    these logs), the command line says so, the misfit is still judged on the model as stated."""
+    from attend import io, workflows
+    from attend.cli import main
+
+    A, B, dt, N = np.array([[0.0, 1.0], [-2.0, -0.5]]), np.array([[0.0], [1.0]]), 0.1, 300
+    rng = np.random.default_rng([2904, 0])
+    u = 3.0 * correlation_root(N, dt, 0.1) @ rng.standard_normal((N, 1))
+    log = attend.simulate(attend.LinearSystem(1.2 * A, 1.2 * B, np.eye(2)), u, dt, kernel_width=0.2,
+                          process_std=[0.2, 0.2], measurement_std=0.005, initial_state=rng.normal(size=2), seed=rng)
+    model_path, log_path = tmp_path / "model.toml", tmp_path / "log.csv"
+    model_path.write_text("""
+model = {A = [[0.0, 1.0], [-2.0, -0.5]], B = [[0.0], [1.0]], C = [[1.0, 0.0], [0.0, 1.0]]}
+outputs = {columns = ["y1", "y2"]}
+inputs = [{name = "u", prior_mean = 0.0, prior_precision = 0.111}]
+
+[observer]
+kernel_width = 0.2
+sensor_precision = 2500.0
+process_precision = 400.0
+""")
+    log_path.write_text("t,y1,y2\n" + "\n".join(f"{k * dt:.10g},{a:.12g},{b:.12g}"
+                                                 for k, (a, b) in enumerate(log.outputs)) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        assert main(["estimate", str(model_path), str(log_path), "--out", str(tmp_path / "e.csv"), "--no-progress"]) == 0
+    captured = capsys.readouterr()
+    line = next(line for line in captured.err.splitlines() if "input prior width" in line)
+    assert "white part of the process and sensor noise raised from 1e-08 to" in line
+    estimator, _ = workflows.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
+    floors = estimator.input_width_choice.white_floor
+    assert floors.raised and estimator.noise_white_floor == floors.floor > 1e-8
+    gains = np.diff(floors.log_likelihoods)
+    assert np.all(gains[:-1] > FLAT_LOG_LIKELIHOOD) and gains[-1] <= FLAT_LOG_LIKELIHOOD
+    assert estimator.input_width_choice.log_likelihoods.max() > floors.log_likelihoods[-2] - 1e-6  # width again
 
 
 def test_estimate_warns_when_the_innovations_are_far_from_the_models_prediction(tmp_path, capsys):

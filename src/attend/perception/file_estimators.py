@@ -68,7 +68,11 @@ def file_kalman_estimator(model: ModelFile, dt: float, outputs=None, signals=Non
     likelihood over a grid (:func:`attend.perception.input_width.choose_input_width`), recorded in
     the estimator's ``input_width_choice``; a flat likelihood keeps the process width with a
     ModelWarning naming input_kernel_width, and innovations 10x off the model's prediction (in
-    std) are a ModelWarning naming the precisions. Without the log: the process width."""
+    std) are a ModelWarning naming the precisions. The white part of the process and sensor noise is
+    raised from its numerical floor where the log supports it
+    (:func:`attend.perception.input_width.choose_white_floor`; not on jittered time stamps), and the
+    width chosen again under it.
+    Without the log: the process width."""
     from attend.perception.kalman import KalmanEstimator
 
     known = [spec.known for spec in model.inputs]
@@ -92,24 +96,42 @@ def _with_chosen_input_width(estimator, settings: dict, outputs, signals, time, 
     import warnings
 
     from attend.models.linear import ModelWarning
-    from attend.perception.input_width import choose_input_width, innovation_terms_on
+    from attend.models.sample_times import sample_grid
+    from attend.perception.input_width import (WhiteFloorChoice, choose_input_width, choose_white_floor,
+                                               innovation_terms_on, profiled_log_likelihood)
 
-    def build(width):
-        if np.isclose(width, estimator.input_kernel_width, rtol=1e-12, atol=0.0):
+    def build(width, floor=estimator.noise_white_floor):
+        if np.isclose(width, estimator.input_kernel_width, rtol=1e-12, atol=0.0) and floor == estimator.noise_white_floor:
             return estimator
         with warnings.catch_warnings():  # the observability note was given once, by ``estimator``
             warnings.simplefilter("ignore", ModelWarning)
-            return type(estimator)(estimator.system, estimator.dt, input_kernel_width=width, **settings)
+            return type(estimator)(estimator.system, estimator.dt, input_kernel_width=width, noise_white_floor=floor,
+                                   **settings)
 
-    choice = choose_input_width(lambda width: innovation_terms_on(build(width), outputs, signals, time),
-                                estimator.dt, estimator.input_kernel_width)
-    for message in (choice.warning(), choice.misfit()):  # a flat likelihood; a model far from the log
+    def width_at(floor):
+        return choose_input_width(lambda width: innovation_terms_on(build(width, floor), outputs, signals, time),
+                                  estimator.dt, estimator.input_kernel_width)
+
+    def score(width, floor):
+        return profiled_log_likelihood(innovation_terms_on(build(width, floor), outputs, signals, time))[0]
+
+    floor = estimator.noise_white_floor
+    stated = width_at(floor)
+    used = np.isclose(stated.widths, stated.width, rtol=1e-9, atol=0.0)
+    value = float(stated.log_likelihoods[used][0]) if used.any() else score(stated.width, floor)
+    if time is not None and not sample_grid(time, estimator.dt).uniform:  # jittered steps keep the floor 1e-8
+        floors = WhiteFloorChoice(floor, np.array([floor]), np.array([value]))
+    else:
+        floors = choose_white_floor(lambda candidate: score(stated.width, candidate), floor, value)
+    # the width again, under the noise the log supports; the misfit is judged on the model as stated
+    choice = (width_at(floors.floor) if floors.raised else stated)._replace(white_floor=floors)
+    for message in (choice.warning(), stated.misfit()):  # a flat likelihood; a model far from the log
         if message:
             warnings.warn(f"{path}: {message}", ModelWarning, stacklevel=4)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ModelWarning)
         return type(estimator)(estimator.system, estimator.dt, input_kernel_width=choice.width,
-                               input_width_choice=choice, **settings)
+                               noise_white_floor=floors.floor, input_width_choice=choice, **settings)
 
 
 def file_dem_observer(model: ModelFile, dt: float) -> DEMObserver:

@@ -47,6 +47,9 @@ import numpy as np
 OCTAVES = tuple(0.25 * 2.0**k for k in range(7))
 #: Log-likelihood difference [nats] under which two widths are not told apart by the log.
 FLAT_LOG_LIKELIHOOD = 2.0
+#: White parts of the process and sensor noise tried above the numerical floor, in decades (fractions of
+#: each noise's variance): 1e-7 .. 1e-1.
+WHITE_FLOOR_DECADES = (1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1)
 #: lambda* beyond this factor either way (innovations 100x the variance the model predicts, or
 #: 1/100 of it: 10x in std) is a warning that the model does not fit the log.
 MISFIT_SCALE = 100.0
@@ -63,7 +66,7 @@ class InputWidthChoice(NamedTuple):
     supported: (smallest, largest) width within FLAT_LOG_LIKELIHOOD of the best [s]; flat: every
     width is within FLAT_LOG_LIKELIHOOD of the best (the log does not decide); fallback: the width
     used when flat [s] (the process width); dt: the sample time [s]; at_edge: the best is the
-    smallest or largest width tried.
+    smallest or largest width tried; white_floor: the :class:`WhiteFloorChoice` made with it (None: not searched).
     """
 
     width: float
@@ -77,6 +80,7 @@ class InputWidthChoice(NamedTuple):
     fallback: float
     dt: float
     at_edge: bool
+    white_floor: object = None
 
     @property
     def noise_scale(self) -> float:
@@ -101,10 +105,11 @@ class InputWidthChoice(NamedTuple):
         if self.at_edge:
             side = "smallest" if self.best == self.widths[0] else "largest"
             edge = f"; the {side} width tried (the likelihood may rise beyond it)"
+        floor = "" if self.white_floor is None else self.white_floor.describe()
         return (f"input prior width {self.width:g} s ({self.width / self.dt:.3g} sample times) chosen from the log "
                 f"([observer] input_kernel_width not given): maximum likelihood over {len(self.widths)} widths "
                 f"{self.widths[0] / self.dt:.3g}-{self.widths[-1] / self.dt:.3g} sample times, noise level profiled; "
-                f"{near}{edge}{self._noise_note()}")
+                f"{near}{edge}{self._noise_note()}{'; ' + floor if floor else ''}")
 
     def misfit(self) -> str | None:
         """The warning to give when lambda* is beyond MISFIT_SCALE either way (and the likelihood
@@ -124,6 +129,60 @@ class InputWidthChoice(NamedTuple):
                 f"{FLAT_LOG_LIKELIHOOD:g} of its best over {self.widths[0]:g}-{self.widths[-1]:g} s); using the "
                 f"process width {self.fallback:g} s; set input_kernel_width to the time over which the unknown "
                 f"inputs change{self._noise_note()}")
+
+
+class WhiteFloorChoice(NamedTuple):
+    """How the white part of the process and sensor noise was chosen from a log
+    (:func:`choose_white_floor`). floor: the one used (a fraction of each noise's variance); floors (F,):
+    those tried, increasing from the numerical floor; log_likelihoods (F,): max over lambda of
+    log p(y | floor) at each [nats]."""
+
+    floor: float
+    floors: np.ndarray
+    log_likelihoods: np.ndarray
+
+    @property
+    def raised(self) -> bool:
+        """The floor used is above the numerical one (the first tried)."""
+        return bool(self.floor > self.floors[0])
+
+    def describe(self) -> str:
+        """A clause for the command line when the floor was raised, else ""."""
+        if not self.raised:
+            return ""
+        gain = float(self.log_likelihoods[list(self.floors).index(self.floor)] - self.log_likelihoods[0])
+        return (f"white part of the process and sensor noise raised from {self.floors[0]:g} to {self.floor:g} of "
+                f"their variance (log-likelihood +{gain:.1f}: the log has fast content the smooth noise does not "
+                "carry)")
+
+
+def choose_white_floor(score: Callable[[float], float], floor: float, value: float) -> WhiteFloorChoice:
+    """The white part of the process and sensor noise, raised from the numerical ``floor`` a decade at a
+    time (WHITE_FLOOR_DECADES) while each raise lifts the profiled log-likelihood by more than
+    FLAT_LOG_LIKELIHOOD::
+
+        f_j = 10 f_(j-1)  kept while  L(f_j) > L(f_(j-1)) + FLAT_LOG_LIKELIHOOD
+
+    L(f) = max over lambda of log p(y | f) (:func:`profiled_log_likelihood`). The smooth (Gaussian-kernel)
+    noise of the model predicts its next sample almost exactly; a log whose model error or noise has
+    fast content makes the filter's innovations far larger than predicted, and the estimates then follow
+    whatever the numerical floor allows (docs/benchmarks.md, "Unknown inputs on logs the model fits
+    poorly"). Raising the floor while the log supports each step is maximum likelihood over that part,
+    stopped at the first decade that does not pay: one extra filter pass where nothing is raised.
+    score(f) -> L(f) at the input width chosen; value: L(floor)."""
+    floors, values = [float(floor)], [float(value)]
+    for candidate in WHITE_FLOOR_DECADES:
+        if candidate <= floors[-1]:
+            continue
+        result = float(score(candidate))
+        floors.append(candidate)
+        values.append(result)
+        if not result > values[-2] + FLAT_LOG_LIKELIHOOD:
+            break
+    kept = 0
+    while kept + 1 < len(floors) and values[kept + 1] > values[kept] + FLAT_LOG_LIKELIHOOD:
+        kept += 1
+    return WhiteFloorChoice(floor=floors[kept], floors=np.array(floors), log_likelihoods=np.array(values))
 
 
 def input_width_grid(dt: float) -> np.ndarray:

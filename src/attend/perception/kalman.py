@@ -134,8 +134,10 @@ INPUT_FIT_ACCURACY = 1e-5
 INPUT_FLOOR_MAX_WIDTH = 16
 
 
-def _channel_model(dt: float, width: float, kind: str, field: str) -> tuple[NoiseStateSpace, float]:
-    """(the noise model of one channel, its white floor: relative variance, 0 for white noise)."""
+def _channel_model(dt: float, width: float, kind: str, field: str,
+                   floor: float = NOISE_WHITE_FLOOR) -> tuple[NoiseStateSpace, float]:
+    """(the noise model of one channel, its white floor: relative variance, 0 for white noise); floor: the
+    white part of a "kernel" channel (process or sensor noise)."""
     if width == 0:
         return white_state_space(), 0.0
     if width > MAX_WIDTH_SAMPLES * dt:
@@ -144,7 +146,7 @@ def _channel_model(dt: float, width: float, kind: str, field: str) -> tuple[Nois
             f"({MAX_WIDTH_SAMPLES * dt:g} s): noise that smooth is a slowly varying offset, better modelled as a state"
         )
     if kind == "kernel":
-        return noise_state_space(kernel_autocorrelation(dt, width)), NOISE_WHITE_FLOOR
+        return noise_state_space(kernel_autocorrelation(dt, width), white_floor=floor), floor
     sequence = sampled_autocorrelation(dt, width)
     for floor in INPUT_WHITE_FLOORS if width <= INPUT_FLOOR_MAX_WIDTH * dt else ():
         model = noise_state_space(sequence, white_floor=floor)
@@ -173,6 +175,10 @@ class KalmanEstimator:
     initial_state: prior mean of x[0] (default 0) and initial_state_std its standard deviation
     (0: known; default: known when initial_state is given, else unknown: a broad prior, 100 times
     the scale of the state seen through C in the first sample, or of the sensor noise if larger).
+    noise_white_floor: f, the white part of the process and sensor noise models at the nominal step: white noise
+    of f times each noise's variance added to it (default NOISE_WHITE_FLOOR, 1e-8: a numerical floor;
+    file_kalman_estimator raises it where the log supports more,
+    :func:`attend.perception.input_width.choose_white_floor`); steps off dt (jitter) keep the floor 1e-8.
     input_width_choice: how input_kernel_width was chosen from a log (an
     :class:`attend.perception.input_width.InputWidthChoice`, set by file_kalman_estimator; None: given).
     Logs with missing values (NaN) and irregular time stamps: :meth:`estimate` (see the module).
@@ -191,6 +197,7 @@ class KalmanEstimator:
     known_inputs: bool = True
     initial_state: np.ndarray | None = None
     initial_state_std: np.ndarray | float | None = None
+    noise_white_floor: float = NOISE_WHITE_FLOOR
     input_width_choice: object = field(default=None, repr=False, compare=False)
     noise: InitVar[NoiseModel | None] = None
     _model: dict = field(default_factory=dict, repr=False)
@@ -205,6 +212,11 @@ class KalmanEstimator:
         take_noise(self, noise, "KalmanEstimator")
         n, r, m = system.n_states, system.n_inputs, system.n_outputs
         set_(self, "dt", positive_scalar(self.dt, "dt", "s"))
+        floor = self.noise_white_floor
+        if isinstance(floor, bool) or not isinstance(floor, (int, float, np.floating)) or not 0 < floor < 1:
+            raise AttendInputError(f"noise_white_floor: expected a fraction of the noise variance in (0, 1), got "
+                                   f"{floor!r}")
+        set_(self, "noise_white_floor", float(floor))
         shared = None if self.kernel_width is None else checked_width(self.kernel_width, "kernel_width")
         widths, sources = {}, {}
         for name in ("process_kernel_width", "sensor_kernel_width"):
@@ -271,8 +283,11 @@ class KalmanEstimator:
         discrete fits of :func:`attend.models.noise.noise_state_space`)."""
         system, dt = self.system, self.dt
         fields = self._model["width_fields"]
-        process, process_floor = _channel_model(dt, self.process_kernel_width, "kernel", fields["process_kernel_width"])
-        sensor, sensor_floor = _channel_model(dt, self.sensor_kernel_width, "kernel", fields["sensor_kernel_width"])
+        floor = self.noise_white_floor
+        process, process_floor = _channel_model(dt, self.process_kernel_width, "kernel", fields["process_kernel_width"],
+                                                floor)
+        sensor, sensor_floor = _channel_model(dt, self.sensor_kernel_width, "kernel", fields["sensor_kernel_width"],
+                                              floor)
         unknown = not self._known_mask().all()
         inputs, input_floor = _channel_model(dt, self.input_kernel_width, "sampled", "input_kernel_width") \
             if unknown else (None, None)

@@ -1202,9 +1202,15 @@ def main():
                         help="run the tuning (random search, then Nelder-Mead; the budget each) K times with "
                              "random-search seeds 7..7+K-1 and keep the least tuning objective, for every controller "
                              "(default: %(default)s, seed 7 alone)")
+    parser.add_argument("--effort-weight", type=float, default=None, metavar="W",
+                        help="the tuning objective's weight on effort, mean ITAE + W effort, for every controller "
+                             "(a diagnostic: the default is each plant's, 1e-3 msd, 1e-5 roll, 1e-4 arm)")
     args = parser.parse_args()
     if args.restarts < 1:
         parser.error("--restarts must be at least 1")
+    if args.effort_weight is not None and not (np.isfinite(args.effort_weight) and args.effort_weight >= 0):
+        parser.error("--effort-weight must be a finite number >= 0")
+    weight = {} if args.effort_weight is None else {"effort_weight": args.effort_weight}
     out_dir = None if args.plots == "none" else args.plots
     warnings.simplefilter("ignore")
     if args.loop_shape:
@@ -1230,9 +1236,9 @@ def main():
     for name in {"both": ("msd", "roll"), "all": ("msd", "roll", "arm"), "none": ()}.get(args.plant, (args.plant,)):
         print(f"\n=== plant {name} ===")
         if name == "arm":
-            compare_arm(dict(ARM_SETTINGS), tune_seeds, eval_seeds, evaluations, out_dir, args.restarts)
+            compare_arm(dict(ARM_SETTINGS, **weight), tune_seeds, eval_seeds, evaluations, out_dir, args.restarts)
         else:
-            compare(dict(plants[name]), tune_seeds, eval_seeds, evaluations, args.restarts)
+            compare(dict(plants[name], **weight), tune_seeds, eval_seeds, evaluations, args.restarts)
 
     # step time ----------------------------------------------------------------------------------
     times = step_time(dict(SETTINGS))

@@ -90,9 +90,9 @@ def file_kalman_estimator(model: ModelFile, dt: float, outputs=None, signals=Non
 
 
 def _with_chosen_input_width(estimator, settings: dict, outputs, signals, time, path: str):
-    """The Kalman smoother of ``settings`` at the input width of largest likelihood on the log
-    (``estimator``: the one at the process width, which is also the fallback; path: the model
-    file, named in the flat-likelihood warning)."""
+    """The Kalman smoother of ``settings`` at the input width of largest likelihood on the log, with the
+    white part of its noise raised where the log supports it (``estimator``: the one at the process width,
+    which is also the fallback; path: the model file, named in the warnings)."""
     import warnings
 
     from attend.models.linear import ModelWarning
@@ -101,7 +101,8 @@ def _with_chosen_input_width(estimator, settings: dict, outputs, signals, time, 
                                                innovation_terms_on, profiled_log_likelihood)
 
     def build(width, floor=estimator.noise_white_floor):
-        if np.isclose(width, estimator.input_kernel_width, rtol=1e-12, atol=0.0) and floor == estimator.noise_white_floor:
+        same_width = np.isclose(width, estimator.input_kernel_width, rtol=1e-12, atol=0.0)
+        if same_width and floor == estimator.noise_white_floor:
             return estimator
         with warnings.catch_warnings():  # the observability note was given once, by ``estimator``
             warnings.simplefilter("ignore", ModelWarning)

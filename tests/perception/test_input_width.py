@@ -373,6 +373,14 @@ process_precision = 400.0
     gains = np.diff(floors.log_likelihoods)
     assert np.all(gains[:-1] > FLAT_LOG_LIKELIHOOD) and gains[-1] <= FLAT_LOG_LIKELIHOOD
     assert estimator.input_width_choice.log_likelihoods.max() > floors.log_likelihoods[-2] - 1e-6  # width again
+    # jittered time stamps (steps 1 % off dt) keep the numerical floor: their steps use the continuous noise model
+    from attend.perception.file_estimators import file_kalman_estimator
+
+    time = np.arange(N) * dt + 0.001 * np.sin(np.arange(N))
+    jittered = file_kalman_estimator(io.read_model(model_path), dt, log.outputs, np.zeros((N, 1)), time)
+    assert len(jittered.input_width_choice.white_floor.floors) == 1 and jittered.noise_white_floor == 1e-8
+    same = file_kalman_estimator(io.read_model(model_path), dt, log.outputs, np.zeros((N, 1)), np.arange(N) * dt)
+    assert same.noise_white_floor == floors.floor  # uniform stamps: searched as without them
 
 
 def test_estimate_warns_when_the_innovations_are_far_from_the_models_prediction(tmp_path, capsys):

@@ -517,6 +517,7 @@ def _describe_estimator(estimator) -> str:
 
     from attend.perception.dem import DEMObserver
     from attend.perception.file_estimators import NonlinearFileEstimator
+    from attend.perception.kalman import NOISE_WHITE_FLOOR
 
     if isinstance(estimator, NonlinearFileEstimator):
         model = estimator.model
@@ -563,6 +564,8 @@ def _describe_estimator(estimator) -> str:
         if estimator.input_width_choice is not None and estimator.input_width_choice.flat:
             how = "the process width: the log does not decide it"
         inputs = f", input prior width {estimator.input_kernel_width:g} s ({how})"
+    if estimator.noise_white_floor != NOISE_WHITE_FLOOR:
+        noise += f"; white part of w and z {estimator.noise_white_floor:g} of their variance (chosen from the log)"
     return (f"method kalman (Kalman smoother under the coloured-noise model): process width "
             f"{estimator.process_kernel_width:g} s, sensor width {estimator.sensor_kernel_width:g} s{inputs}; "
             f"noise models: {noise}; {start}; [observer] method = \"dem\" selects the paper's DEM observer")

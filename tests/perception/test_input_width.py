@@ -367,6 +367,7 @@ process_precision = 400.0
     captured = capsys.readouterr()
     line = next(line for line in captured.err.splitlines() if "input prior width" in line)
     assert "white part of the process and sensor noise raised from 1e-08 to" in line
+    assert "white part of w and z 1e-0" in captured.out and "of their variance (chosen from the log)" in captured.out
     estimator, _ = workflows.estimate_from_files(io.read_model(model_path), io.read_log(log_path))
     floors = estimator.input_width_choice.white_floor
     assert floors.raised and estimator.noise_white_floor == floors.floor > 1e-8

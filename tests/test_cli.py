@@ -236,6 +236,27 @@ def test_internal_errors_are_not_blamed_on_the_user(tmp_path, capsys, monkeypatc
         main(["estimate", str(model), str(log), "--out", str(tmp_path / "e.csv"), "--debug"])
 
 
+@pytest.mark.parametrize("gaps", [False, True])
+def test_a_failure_inside_the_smoother_names_the_model_and_the_log(tmp_path, capsys, monkeypatch, gaps):
+    """The recursion's own errors (a singular innovation covariance, a non-finite estimate: logs of 1e140 found
+    them in bench_fuzz.py) are one line naming both files, on complete logs and on logs with gaps."""
+    from attend import AttendInputError
+    from attend.perception.kalman import KalmanEstimator
+
+    t = np.arange(60) * 0.1
+    y = np.sin(t)
+    if gaps:
+        y[7] = np.nan
+    model, log = _files(tmp_path, log="t,y\n" + "\n".join(f"{a:.10g},{b:.10g}" for a, b in zip(t, y)) + "\n")
+
+    def failing(*args, **kwargs):
+        raise AttendInputError("outputs: the estimate went non-finite; check the scale of the log and of the precisions")
+
+    monkeypatch.setattr(KalmanEstimator, "estimate", failing)
+    assert main(["estimate", str(model), str(log), "--out", str(tmp_path / "e.csv")]) == 2
+    _one_error_line(capsys, f"{model}: [observer] outputs: the estimate went non-finite", f"(on the log {log})")
+
+
 @pytest.mark.parametrize("where", ["one", "every"])
 def test_huge_values_in_a_log_are_errors_naming_file_column_and_line(tmp_path, capsys, where):
     t = np.arange(60) * 0.1

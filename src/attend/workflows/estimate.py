@@ -39,6 +39,14 @@ def _observer_of(model: ModelFile, dt: float, outputs=None, signals=None) -> DEM
         raise AttendInputError(f"{model.path}: [observer] {message}") from None
 
 
+def located(error: Exception, model: ModelFile, log: Log) -> str:
+    """An estimator's error message prefixed with the model file (and naming the log) unless it names a file."""
+    text = str(error)
+    if text.startswith((str(model.path), str(log.path))):
+        return text
+    return f"{model.path}: [observer] {text} (on the log {log.path})"
+
+
 def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, Estimate]:
     """Run the model file's observer on the log (checks columns, finiteness and sample time)."""
     outputs = log.matrix(model.output_columns)
@@ -72,7 +80,10 @@ def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, Estima
                     raise  # the user's f or g failed: the message names the file and the function
                 raise AttendInputError(f"{model.path}: [observer] method {model.method!r}: {text}") from None
         else:
-            estimate = observer.estimate(outputs, signals)
+            try:
+                estimate = observer.estimate(outputs, signals)
+            except AttendInputError as error:  # a failure of the recursion itself names the files
+                raise AttendInputError(located(error, model, log)) from None
     for name, values in (("states", estimate.states), ("inputs", estimate.inputs)):
         if not np.all(np.isfinite(values)):
             raise AttendInputError(

@@ -22,6 +22,7 @@ from attend.io import Log, ModelFile
 from attend.models.noise import GAUSSIAN_SPECTRUM_DENOMINATOR
 from attend.models.sample_times import BRIDGED_GAP, SampleGrid, bridge, describe, sample_grid
 from attend.perception.file_estimators import file_estimator
+from attend.workflows.estimate import located
 
 JITTERED_DT_TOLERANCE = 1e-2
 """Relative distance between [model] dt and a jittered log's nominal step that is accepted (the
@@ -102,7 +103,10 @@ def estimate_with_gaps(model: ModelFile, log: Log):
         raise AttendInputError(message if message.startswith(str(model.path)) else
                                f"{model.path}: [observer] {message}") from None
     with np.errstate(over="ignore", invalid="ignore"):
-        estimate = observer.estimate(outputs, signals, time=log.time)
+        try:
+            estimate = observer.estimate(outputs, signals, time=log.time)
+        except AttendInputError as error:  # a failure of the recursion itself names the files
+            raise AttendInputError(located(error, model, log)) from None
     _check_estimate(model, log, estimate)
     return observer, estimate, summary(grid, outputs, bridged, model.method)
 

@@ -51,7 +51,7 @@ def g(x, v):
 '''
 
 
-def write_case(case: dict, folder: Path, path_mode: bool) -> tuple[Path, Path]:
+def write_case(case: dict, folder: Path, path_mode: bool, input_width: bool = True) -> tuple[Path, Path]:
     """model.py, model.toml and log.csv of ``case`` in ``folder``."""
     system, log = case["system"], case["log"]
     closure = {name: cell.cell_contents for name, cell in zip(system.f.__code__.co_freevars, system.f.__closure__)}
@@ -70,7 +70,7 @@ def write_case(case: dict, folder: Path, path_mode: bool) -> tuple[Path, Path]:
         lines += ["[[inputs]]", 'name = "u1"', "prior_mean = 0.0", "prior_precision = 1.0", ""]
     lines += ["[observer]", f"kernel_width = {case['s']!r}", f"sensor_precision = {case['sigma_z'] ** -2!r}",
               f"process_precision = {case['sigma_w'] ** -2!r}"]
-    if case["input_kind"] == "unknown":
+    if case["input_kind"] == "unknown" and input_width:
         lines.append(f"input_kernel_width = {case['input_width']!r}")
     if path_mode:
         lines += ['method = "dem"', 'states = "path"']
@@ -82,10 +82,13 @@ def write_case(case: dict, folder: Path, path_mode: bool) -> tuple[Path, Path]:
     return folder / "model.toml", folder / "log.csv"
 
 
-def run_cli(case: dict, folder: Path, path_mode: bool, reference: float) -> tuple[str, float, float]:
+def run_cli(case: dict, folder: Path, path_mode: bool, reference: float, input_width: bool = True,
+            input_reference: float | None = None) -> tuple[str, float, float]:
     """(one line: exit status, SSE ratio to the library smoother with the true x[0] prior, |error| <
-    2 std, warnings; the ratio; the fraction of state samples within 2 std) (NaN on a failure)."""
-    model, log = write_case(case, folder, path_mode)
+    2 std, warnings; the ratio; the fraction of state samples within 2 std) (NaN on a failure).
+    input_width False: the file leaves input_kernel_width out; input_reference: that smoother's input SSE
+    (an unknown input: the line gives the ratio of the estimate's to it)."""
+    model, log = write_case(case, folder, path_mode, input_width)
     out = folder / "estimates.csv"
     started = time.perf_counter()
     done = subprocess.run([shutil.which("attend") or "attend", "estimate", str(model), str(log), "--out", str(out)],
@@ -101,7 +104,13 @@ def run_cli(case: dict, folder: Path, path_mode: bool, reference: float) -> tupl
     sse = float(np.sum((states - case["log"].states)[trim] ** 2))
     inside = float(np.mean(np.abs(states - case["log"].states)[trim] < 2 * std[trim]))
     finite = "" if np.all(np.isfinite(states)) else " NON-FINITE"
-    warned = " [warned: " + done.stderr.strip().splitlines()[0][:100] + "]" if done.stderr.strip() else ""
+    warnings = [line for line in done.stderr.strip().splitlines() if line.startswith("attend: warning:")]
+    warned = " [warned: " + warnings[0][:100] + "]" if warnings else ""
+    chosen = [line for line in done.stderr.splitlines() if "chosen from the log" in line]
+    if input_reference is not None:
+        input_sse = float(np.sum((estimate["u1"] - case["log"].inputs[:, 0])[trim] ** 2))
+        width = chosen[0].split("input prior width ")[1].split(" (")[0] if chosen else "?"
+        finite += f"; input SSE {input_sse / input_reference:.3f} x its (width {width})"
     return (f"{sse / reference:7.3f} x the smoother told x[0] ~ N(0, I), |error| < 2 std {inside:.2f} "
             f"({seconds:4.1f} s){finite}{warned}", sse / reference, inside)
 
@@ -111,6 +120,8 @@ def main() -> None:
     parser.add_argument("--cases", type=int, default=36)
     parser.add_argument("--first", type=int, default=0)
     parser.add_argument("--path", action="store_true", help="also run method = \"dem\", states = \"path\"")
+    parser.add_argument("--no-input-width", action="store_true",
+                        help="leave input_kernel_width out of the files: the default chooses it from the log")
     args = parser.parse_args()
     from attend.perception.nonlinear_smoothers import input_random_walk_variance, unscented_kalman, \
         white_noise_covariances
@@ -135,12 +146,14 @@ def main() -> None:
             p = case["p"]
             trim = slice(p + 1, bank.SAMPLES - p - 1)
             reference = float(np.sum((smoother.states - case["log"].states)[trim] ** 2))
+            input_reference = float(np.sum((smoother.inputs - case["log"].inputs)[trim] ** 2)) if unknown else None
             for label, path_mode in (("ukf", False), ("path", True)):
                 if path_mode and not args.path:
                     continue
                 folder = Path(work) / f"{index}-{label}"
                 folder.mkdir()
-                line, ratio, inside = run_cli(case, folder, path_mode, reference)
+                line, ratio, inside = run_cli(case, folder, path_mode, reference, not args.no_input_width,
+                                              input_reference if unknown and not path_mode else None)
                 print(f"  {bank.describe(case)} {label:4s}: {line}", flush=True)
                 ratios[label].append(ratio)
                 coverage[label].append(inside)

@@ -532,8 +532,9 @@ def _describe_estimator(estimator) -> str:
                     f"{model.kernel_width:g} s{input_width}, {mode}; "
                     f"[observer] method = \"ukf\" (the default) runs the unscented Kalman smoother")
         unknown = estimator.system.n_inputs and not estimator.known.all()
-        inputs = (f"; unknown inputs as random walks matching their prior (width {estimator.input_kernel_width:g} s)"
-                  if unknown else "")
+        how = ", chosen from the log" if estimator.input_width_choice is not None else ""
+        inputs = (f"; unknown inputs as random walks matching their prior (width {estimator.input_kernel_width:g} s"
+                  f"{how})" if unknown else "")
         start = ("[observer] initial_state" if model.initial_state is not None
                  else "the best of a search over x[0] (several starts, ranked by how well they explain the log)")
         return (f"method ukf (unscented Kalman smoother, the default for nonlinear models; model "

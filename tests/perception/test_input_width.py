@@ -408,3 +408,24 @@ def test_estimate_warns_when_the_log_does_not_decide_the_input_width(tmp_path, c
               and "input_kernel_width" in line and "does not decide" in line]
     assert len(warned) == 1 and "model.toml" in warned[0]
     assert "input prior width 0.05 s (the process width: the log does not decide it)" in captured.out
+
+
+def test_unscented_innovation_terms_are_the_filters_log_likelihood():
+    """The unscented filter's prediction-error decomposition (the width choice's criterion for nonlinear
+    models) sums to the log-likelihood the filter itself accumulates, sample by sample."""
+    from attend.models import NonlinearSystem
+    from attend.perception.nonlinear_smoothers import unscented_innovation_terms, unscented_kalman
+
+    system = NonlinearSystem(lambda x, v: np.array([x[1], -np.sin(x[0]) - 0.2 * x[1] + v[0]]),
+                             lambda x, v: np.array([np.sin(x[0]), x[1]]), n_states=2, n_inputs=1, n_outputs=2)
+    rng = np.random.default_rng(4)
+    outputs = np.column_stack([np.sin(0.1 * np.arange(80)), 0.1 * np.cos(0.1 * np.arange(80))])
+    outputs += 0.05 * rng.standard_normal(outputs.shape)
+    options = dict(process_covariance=np.diag([1e-4, 1e-3]), measurement_covariance=np.diag([0.0025, 0.0025]),
+                   input_variance=np.array([[0.01]]), input_mean=np.zeros(1), initial_mean=np.zeros(2),
+                   initial_covariance=np.eye(2), substeps=4)
+    terms = unscented_innovation_terms(system, 0.1, outputs, **options)
+    filtered = unscented_kalman(system, 0.1, outputs, smooth=False, spread_draws=None, **options)
+    assert terms.count == outputs.size
+    assert terms.log_likelihood == pytest.approx(filtered.log_likelihood, rel=1e-12, abs=1e-9)
+    assert terms.quadratic > 0

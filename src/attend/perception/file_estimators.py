@@ -5,7 +5,7 @@ itself is read and checked by :mod:`attend.io.model`."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -173,7 +173,8 @@ class NonlinearFileEstimator:
 
     model: the parsed :class:`ModelFile`; dt: sample time [s]; method: "ukf" or "dem";
     embedding_order: p, resolved to an int (:func:`file_nonlinear_order`); automatic_order:
-    True when the file said "auto" and p was chosen here.
+    True when the file said "auto" and p was chosen here; choices: what was chosen from the last log
+    (the unknown inputs' width: :attr:`input_width_choice`), filled by :meth:`estimate`.
     """
 
     model: ModelFile
@@ -181,6 +182,7 @@ class NonlinearFileEstimator:
     method: str
     embedding_order: int
     automatic_order: bool
+    choices: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def system(self) -> NonlinearSystem:
@@ -209,13 +211,23 @@ class NonlinearFileEstimator:
 
     @property
     def input_kernel_width(self) -> float:
-        return self.model.input_kernel_width or self.model.kernel_width
+        """s_v [s]: the file's input_kernel_width, else the width chosen from the last log (method "ukf",
+        :attr:`input_width_choice`), else the kernel width."""
+        choice = self.input_width_choice
+        return self.model.input_kernel_width or (choice.width if choice is not None else self.model.kernel_width)
+
+    @property
+    def input_width_choice(self):
+        """How method "ukf" chose the unknown inputs' width on the last log (an
+        :class:`attend.perception.input_width.InputWidthChoice`), or None (given, or not estimated yet)."""
+        return self.choices.get("input_width")
 
     def estimate(self, outputs, signals):
         """Estimates on outputs (N, m), an :class:`attend.perception.estimate.Estimate` (method "nonlinear
         dem" or "unscented kalman smoother"); signals (N, r): measured inputs (operating point
         removed) or the prior means of the unknown ones."""
         model = self.model
+        self.choices.pop("input_width", None)  # a choice belongs to one log
         initial = None if model.initial_state is None else np.array(model.initial_state)
         if self.method == "dem":
             dem = self.dem()
@@ -241,9 +253,12 @@ class NonlinearFileEstimator:
             input_mean=signals[0] if unknown else None, who='method "ukf"')
         inputs = (signals if known.any() else None) if unknown else (signals if r else None)
         mean, std, substeps = self._start(outputs, signals, initial, inputs, options)
+        width = self.input_kernel_width
+        if unknown and model.input_kernel_width is None:  # the width from the log, as the linear default
+            options, width = self._chosen_input_width(outputs, inputs, mean, std, substeps, precisions, signals)
         # the std: the smoother's error spread under the file's coloured noise, its exact covariance
         # through the smoother's linearisation (error_spread.smoother_error_covariance: no draws)
-        prior = (1.0 / precisions, self.input_kernel_width) if unknown else None
+        prior = (1.0 / precisions, width) if unknown else None
         from attend.perception.estimate import as_estimate
 
         return as_estimate(unscented_kalman(self.system, self.dt, outputs, inputs, initial_mean=mean,
@@ -251,6 +266,40 @@ class NonlinearFileEstimator:
                                             substeps=substeps, noise_kernel_width=model.kernel_width,
                                             input_prior=prior, spread_draws=None, **options),
                            "unscented kalman smoother")
+
+    def _chosen_input_width(self, outputs, inputs, mean, std, substeps, precisions, signals):
+        """(the smoother's options, s_v [s]) at the unknown inputs' width of largest likelihood on the log:
+        :func:`attend.perception.input_width.choose_input_width` over the unscented filter's prediction-error
+        decomposition from the start found (:func:`attend.perception.nonlinear_smoothers.unscented_innovation_terms`),
+        the noise level profiled; the random walk's steps follow the width. A flat likelihood keeps the kernel
+        width with a warning naming input_kernel_width, as for linear models."""
+        import warnings
+
+        from attend.models.linear import ModelWarning
+        from attend.perception.input_width import choose_input_width
+        from attend.perception.nonlinear_smoothers import unscented_innovation_terms, white_noise_options
+
+        model = self.model
+
+        def options_at(width):
+            return white_noise_options(
+                self.dt, process_precision=precision_matrix(model.process_precision, self.system.n_states,
+                                                            "process_precision"),
+                sensor_precision=precision_matrix(model.sensor_precision, self.system.n_outputs, "sensor_precision"),
+                input_prior_precision=precisions, input_kernel_width=width, known_inputs=self.known,
+                input_mean=signals[0], who='method "ukf"')
+
+        covariance = np.diag(np.asarray(std, dtype=float) ** 2)
+        choice = choose_input_width(
+            lambda width: unscented_innovation_terms(self.system, self.dt, outputs, inputs, initial_mean=mean,
+                                                     initial_covariance=covariance, substeps=substeps,
+                                                     **options_at(width)),
+            self.dt, model.kernel_width, smallest=model.kernel_width)
+        self.choices["input_width"] = choice
+        for message in (choice.warning(), choice.misfit()):
+            if message:
+                warnings.warn(f"{model.path}: {message}", ModelWarning, stacklevel=4)
+        return options_at(choice.width), choice.width
 
     def _start(self, outputs, signals, initial, inputs, options):
         """(x[0], its std, RK4 sub-steps) of the smoother. With the file's initial_state: it and

@@ -229,12 +229,14 @@ def innovation_terms_on(estimator, outputs, signals=None, time=None):
                                           model["slices"].values())
 
 
-def choose_input_width(innovation_terms: Callable[[float], object], dt: float, fallback: float) -> InputWidthChoice:
+def choose_input_width(innovation_terms: Callable[[float], object], dt: float, fallback: float,
+                       smallest: float | None = None) -> InputWidthChoice:
     """The maximum-likelihood input width (see the module docstring).
 
     innovation_terms(width) -> the filter's InnovationTerms at s_u = width (e.g. ``lambda s:
     KalmanEstimator(..., input_kernel_width=s).innovation_terms(y, eta)``); dt: the log's sample
-    time [s]; fallback: the width used when the likelihood is flat [s] (the process width).
+    time [s]; fallback: the width used when the likelihood is flat [s] (the process width);
+    smallest: no width below it is tried (it is tried itself) [s]; None: the whole grid.
     """
     values = {}
 
@@ -246,6 +248,9 @@ def choose_input_width(innovation_terms: Callable[[float], object], dt: float, f
         return values[key][0]
 
     coarse = input_width_grid(dt)
+    if smallest is not None:
+        coarse = coarse[coarse > smallest * (1 + 1e-9)]
+        coarse = np.concatenate([[float(smallest)], coarse])
     scores = [evaluate(width) for width in coarse]
     best = int(np.nanargmax(scores))
     for neighbour in (best - 1, best + 1):  # the half-octaves either side of the best octave

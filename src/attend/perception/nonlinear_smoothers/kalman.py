@@ -3,6 +3,8 @@ discrete model of :mod:`attend.perception.nonlinear_smoothers`."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from attend._progress import steps
@@ -12,6 +14,9 @@ from attend.models.noise import autocorrelation
 from attend.models.noise_model import NoiseModel, resolve_noise
 from attend.models.nonlinear import NonlinearSystem, evaluate_columns, finite_difference_jacobian
 from attend.perception.references import KalmanEstimate
+
+if TYPE_CHECKING:  # imported where used: the recursions' module is not needed on the nonlinear path otherwise
+    from attend.perception.kalman_recursions import InnovationTerms
 
 
 def white_noise_covariances(system: NonlinearSystem, dt: float, *, kernel_width: float, process_std,
@@ -333,14 +338,15 @@ class _Model:
 
 def _update(mean, cov, y, predicted, H_cov_cross, S):
     """Kalman update from predicted output, cross covariance C = Cov(z, y) and S = Cov(y):
-    (mean, covariance, log-likelihood of y, gain K = C inv(S))."""
+    (mean, covariance, log-likelihood of y, gain K = C inv(S), (nu' inv(S) nu, log det S))."""
     gain = np.linalg.solve(S, H_cov_cross.T).T
     innovation = y - predicted
     mean = mean + gain @ innovation
     cov = cov - gain @ S @ gain.T
     sign, logdet = np.linalg.slogdet(S)
-    ll = -0.5 * (innovation @ np.linalg.solve(S, innovation) + logdet + len(y) * np.log(2 * np.pi))
-    return mean, 0.5 * (cov + cov.T), ll, gain
+    quadratic = innovation @ np.linalg.solve(S, innovation)
+    ll = -0.5 * (quadratic + logdet + len(y) * np.log(2 * np.pi))
+    return mean, 0.5 * (cov + cov.T), ll, gain, (quadratic, logdet)
 
 
 def _smooth(mf, Pf, mp, Pp, cross, smooth, gains=None):
@@ -442,7 +448,7 @@ def _extended_update(model, mean, cov, y, k):
     H = finite_difference_jacobian(lambda Z: model.observation_points(Z.T, k).T, mean, vectorized=True)
     S = H @ cov @ H.T + model.R
     Cy = cov @ H.T
-    mean, cov, step_ll, gain = _update(mean, cov, y, model.observation(mean, k), Cy, S)
+    mean, cov, step_ll, gain, _ = _update(mean, cov, y, model.observation(mean, k), Cy, S)
     return mean, cov, step_ll, gain, Cy
 
 
@@ -507,6 +513,26 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
     return model.result(means, _error_spread(model, smooth, spread, record, spread_draws, seed, covs), ll)
 
 
+def unscented_innovation_terms(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance,
+                               measurement_covariance, input_variance=None, input_mean=None, initial_mean=None,
+                               initial_covariance=None, substeps: int = 10, known_inputs=None, alpha: float = 1.0,
+                               beta: float = 2.0, kappa: float = 0.0) -> InnovationTerms:
+    """The unscented filter's prediction-error decomposition of log p(y): the sums over samples of
+    log det S[k] and nu[k]' inv(S[k]) nu[k] and the number of outputs, an
+    :class:`attend.perception.kalman_recursions.InnovationTerms` (the criterion of
+    :func:`attend.perception.input_width.choose_input_width`). One filter pass, no smoother.
+
+    system, dt [s], outputs (N, m), inputs (N, r) or None, process_covariance, measurement_covariance,
+    input_variance, input_mean, initial_mean, initial_covariance, substeps, known_inputs and the sigma-point
+    spread alpha, beta, kappa: as :func:`unscented_kalman`."""
+    model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
+                   measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs)
+    record = {}
+    _unscented(model.transition_points, model.observation_points, model.y, model.m0, model.P0, model.Qz, model.R,
+               False, (alpha, beta, kappa), "unscented_kalman", record)
+    return record["innovation_terms"]
+
+
 def _error_spread(model, smooth, spread, record: dict, draws: int, seed: int, covs):
     """The covariances to report: the error spread under coloured noise where ``spread`` (from
     :func:`_spread_settings`) is given, else the white-noise model's own ``covs``."""
@@ -557,15 +583,15 @@ def _unscented_predict(transition, mean, cov, Qz, spread, k):
 
 def _unscented_update(observation, mean, cov, R, spread, y, k):
     """The unscented filter's update at sample k with its outputs y (m,): (mean, cov, log-likelihood
-    of y, gain, Cov(z[k], y[k]), the covariance the sigma points stand for)."""
+    of y, gain, Cov(z[k], y[k]), the covariance the sigma points stand for, (nu' inv(S) nu, log det S))."""
     points, wm, wc = _sigma_points(mean, cov, *spread)
     observed = observation(points, k)
     predicted = wm @ observed
     S = ((observed - predicted).T * wc) @ (observed - predicted) + R
     Cy = ((points - mean).T * wc) @ (observed - predicted)
     points_cov = ((points - mean).T * wc) @ (points - mean)
-    mean, cov, step_ll, gain = _update(mean, cov, y, predicted, Cy, S)
-    return mean, cov, step_ll, gain, Cy, points_cov
+    mean, cov, step_ll, gain, parts = _update(mean, cov, y, predicted, Cy, S)
+    return mean, cov, step_ll, gain, Cy, points_cov, parts
 
 
 class EvidenceBelowFloor(Exception):
@@ -612,20 +638,27 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, 
     # regressions of the error spread divide cross and Cy by these, not by Pf and Pp
     Pf_points, Pp_points = np.empty((max(N - 1, 0), d, d)), np.empty((N, d, d))
     mean, cov, ll = m0.copy(), P0.copy(), 0.0
+    quadratic = log_determinant = 0.0
     for k in steps(range(N), name):
         if k > 0:
             mean, cov, cross[k - 1], Pf_points[k - 1] = _unscented_predict(transition, mean, cov, Qz, spread, k)
         mp[k], Pp[k] = mean, 0.5 * (cov + cov.T)
-        mean, cov, step_ll, K[k], Cy[k], Pp_points[k] = _unscented_update(observation, mean, cov, R, spread, y[k], k)
+        mean, cov, step_ll, K[k], Cy[k], Pp_points[k], parts = _unscented_update(observation, mean, cov, R, spread,
+                                                                                 y[k], k)
         ll += step_ll
+        quadratic += parts[0]
+        log_determinant += parts[1]
         mf[k], Pf[k] = mean, cov
         if bound is not None and ll + (N - 1 - k) * bound < floor:  # False for NaN: _check reports it
             raise EvidenceBelowFloor(k + 1)
     _check(mf, name)
     gains = smoother_gains(Pp, cross) if smooth is True else None
     if record is not None:
+        from attend.perception.kalman_recursions import InnovationTerms
+
         record.update(Pf=Pf, Pp=Pp, cross=cross, Cy=Cy, K=K, gains=gains, Pf_points=Pf_points,
-                      Pp_points=Pp_points)
+                      Pp_points=Pp_points, innovation_terms=InnovationTerms(float(log_determinant), float(quadratic),
+                                                                            int(y.size)))
     means, covs = _smooth(mf, Pf, mp, Pp, cross, smooth, gains)
     return means, covs, ll
 

@@ -429,3 +429,14 @@ def test_unscented_innovation_terms_are_the_filters_log_likelihood():
     assert terms.count == outputs.size
     assert terms.log_likelihood == pytest.approx(filtered.log_likelihood, rel=1e-12, abs=1e-9)
     assert terms.quadratic > 0
+
+
+def test_a_likelihood_not_finite_at_any_width_is_an_error_naming_input_kernel_width():
+    """(and widths where it is not finite are never chosen)"""
+    from attend import AttendInputError
+    from attend.perception.kalman_recursions import InnovationTerms
+
+    with pytest.raises(AttendInputError, match=r"input_kernel_width: not given, and the log-likelihood is not finite"):
+        choose_input_width(lambda width: InnovationTerms(np.nan, np.nan, 10), 0.1, 0.05)
+    choice = choose_input_width(lambda width: InnovationTerms(np.inf if width < 0.05 else width, 5.0, 10), 0.1, 0.05)
+    assert choice.width == pytest.approx(0.05) and np.isneginf(choice.log_likelihoods[:2]).all()

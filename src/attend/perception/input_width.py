@@ -43,6 +43,8 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
+from attend._validation import AttendInputError
+
 #: Octaves of the coarse grid, in sample times: 0.25, 0.5, 1, 2, 4, 8, 16.
 OCTAVES = tuple(0.25 * 2.0**k for k in range(7))
 #: Log-likelihood difference [nats] under which two widths are not told apart by the log.
@@ -251,17 +253,20 @@ def choose_input_width(innovation_terms: Callable[[float], object], dt: float, f
     if smallest is not None:
         coarse = coarse[coarse > smallest * (1 + 1e-9)]
         coarse = np.concatenate([[float(smallest)], coarse])
-    scores = [evaluate(width) for width in coarse]
-    best = int(np.nanargmax(scores))
+    scores = np.array([evaluate(width) for width in coarse])
+    if not np.isfinite(scores).any():
+        raise AttendInputError("input_kernel_width: not given, and the log-likelihood is not finite at any width "
+                               f"{coarse[0] / dt:.3g}-{coarse[-1] / dt:.3g} sample times; give [observer] "
+                               "input_kernel_width, then check the precisions and the log's scale")
+    best = int(np.nanargmax(np.where(np.isfinite(scores), scores, -np.inf)))
     for neighbour in (best - 1, best + 1):  # the half-octaves either side of the best octave
         if 0 <= neighbour < len(coarse):
             evaluate(float(np.sqrt(coarse[best] * coarse[neighbour])))
     keys = sorted(values)
     widths = np.array(keys) * dt
     profiled, scales, stated = (np.array([values[key][i] for key in keys]) for i in range(3))
-    if not np.isfinite(profiled).any():
-        raise ValueError("input_kernel_width: the log-likelihood is not finite at any width")
-    top = int(np.nanargmax(profiled))
+    profiled = np.where(np.isfinite(profiled), profiled, -np.inf)
+    top = int(np.argmax(profiled))
     near = widths[profiled >= profiled[top] - FLAT_LOG_LIKELIHOOD]
     flat = bool(np.all(profiled >= profiled[top] - FLAT_LOG_LIKELIHOOD))
     return InputWidthChoice(

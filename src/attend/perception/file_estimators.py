@@ -126,13 +126,22 @@ def _with_chosen_input_width(estimator, settings: dict, outputs, signals, time, 
         floors = choose_white_floor(lambda candidate: score(stated.width, candidate), floor, value)
     # the width again, under the noise the log supports; the misfit is judged on the model as stated
     choice = (width_at(floors.floor) if floors.raised else stated)._replace(white_floor=floors)
-    for message in (choice.warning(), stated.misfit()):  # a flat likelihood; a model far from the log
-        if message:
-            warnings.warn(f"{path}: {message}", ModelWarning, stacklevel=4)
+    _warn(path, choice.warning(), stated.misfit())  # a flat likelihood; a model far from the log
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ModelWarning)
         return type(estimator)(estimator.system, estimator.dt, input_kernel_width=choice.width,
                                noise_white_floor=floors.floor, input_width_choice=choice, **settings)
+
+
+def _warn(path, *messages) -> None:
+    """A ModelWarning "path: message" for each message that is not None (the width choice's warnings)."""
+    import warnings
+
+    from attend.models.linear import ModelWarning
+
+    for message in messages:
+        if message:
+            warnings.warn(f"{path}: {message}", ModelWarning, stacklevel=5)
 
 
 def file_dem_observer(model: ModelFile, dt: float) -> DEMObserver:
@@ -233,9 +242,9 @@ class NonlinearFileEstimator:
             dem = self.dem()
             return dem.estimate(outputs, signals, initial_state=initial,
                                 initial_state_std=_path_prior_std(model) if dem.states == "path" else None)
-        from attend.perception.nonlinear_smoothers import unscented_kalman, white_noise_options
+        from attend.perception.nonlinear_smoothers import unscented_kalman
 
-        n, r = self.system.n_states, self.system.n_inputs
+        r = self.system.n_inputs
         known = self.known
         unknown = bool(r) and not known.all()
         if unknown:
@@ -246,60 +255,56 @@ class NonlinearFileEstimator:
         # the unknown inputs' prior precisions (1 in the places of the measured ones, which are masked)
         precisions = np.array([1.0 if spec.known else spec.prior_precision for spec in model.inputs]) if unknown \
             else None
-        options = white_noise_options(
-            self.dt, process_precision=precision_matrix(model.process_precision, n, "process_precision"),
-            sensor_precision=precision_matrix(model.sensor_precision, self.system.n_outputs, "sensor_precision"),
-            input_prior_precision=precisions, input_kernel_width=self.input_kernel_width, known_inputs=known,
-            input_mean=signals[0] if unknown else None, who='method "ukf"')
+        input_mean = signals[0] if unknown else None
+        width = self.input_kernel_width
+        options = self._ukf_options(width, precisions, input_mean)
         inputs = (signals if known.any() else None) if unknown else (signals if r else None)
         mean, std, substeps = self._start(outputs, signals, initial, inputs, options)
-        width = self.input_kernel_width
+        covariance = np.diag(np.asarray(std, dtype=float) ** 2)
         if unknown and model.input_kernel_width is None:  # the width from the log, as the linear default
-            options, width = self._chosen_input_width(outputs, inputs, mean, std, substeps, precisions, signals)
+            width = self._chosen_input_width(outputs, inputs, mean, covariance, substeps, precisions, input_mean)
+            options = self._ukf_options(width, precisions, input_mean)
         # the std: the smoother's error spread under the file's coloured noise, its exact covariance
         # through the smoother's linearisation (error_spread.smoother_error_covariance: no draws)
         prior = (1.0 / precisions, width) if unknown else None
         from attend.perception.estimate import as_estimate
 
         return as_estimate(unscented_kalman(self.system, self.dt, outputs, inputs, initial_mean=mean,
-                                            initial_covariance=np.diag(np.asarray(std, dtype=float) ** 2),
-                                            substeps=substeps, noise_kernel_width=model.kernel_width,
+                                            initial_covariance=covariance, substeps=substeps, noise_kernel_width=model.kernel_width,
                                             input_prior=prior, spread_draws=None, **options),
                            "unscented kalman smoother")
 
-    def _chosen_input_width(self, outputs, inputs, mean, std, substeps, precisions, signals):
-        """(the smoother's options, s_v [s]) at the unknown inputs' width of largest likelihood on the log:
+    def _ukf_options(self, width, precisions, input_mean) -> dict:
+        """The unscented smoother's noise options of the file (:func:`attend.perception.nonlinear_smoothers.
+        white_noise_options`) with the unknown inputs' random walk at width s_v = ``width`` [s]; precisions: the
+        inputs' prior precisions (None: no unknown input); input_mean: their prior mean at the first sample."""
+        from attend.perception.nonlinear_smoothers import white_noise_options
+
+        model, system = self.model, self.system
+        return white_noise_options(
+            self.dt, process_precision=precision_matrix(model.process_precision, system.n_states, "process_precision"),
+            sensor_precision=precision_matrix(model.sensor_precision, system.n_outputs, "sensor_precision"),
+            input_prior_precision=precisions, input_kernel_width=width, known_inputs=self.known,
+            input_mean=input_mean, who='method "ukf"')
+
+    def _chosen_input_width(self, outputs, inputs, mean, covariance, substeps, precisions, input_mean) -> float:
+        """s_v [s], the unknown inputs' width of largest likelihood on the log:
         :func:`attend.perception.input_width.choose_input_width` over the unscented filter's prediction-error
         decomposition from the start found (:func:`attend.perception.nonlinear_smoothers.unscented_innovation_terms`),
         the noise level profiled; the random walk's steps follow the width. A flat likelihood keeps the kernel
         width with a warning naming input_kernel_width, as for linear models."""
-        import warnings
-
-        from attend.models.linear import ModelWarning
         from attend.perception.input_width import choose_input_width
-        from attend.perception.nonlinear_smoothers import unscented_innovation_terms, white_noise_options
+        from attend.perception.nonlinear_smoothers import unscented_innovation_terms
 
         model = self.model
-
-        def options_at(width):
-            return white_noise_options(
-                self.dt, process_precision=precision_matrix(model.process_precision, self.system.n_states,
-                                                            "process_precision"),
-                sensor_precision=precision_matrix(model.sensor_precision, self.system.n_outputs, "sensor_precision"),
-                input_prior_precision=precisions, input_kernel_width=width, known_inputs=self.known,
-                input_mean=signals[0], who='method "ukf"')
-
-        covariance = np.diag(np.asarray(std, dtype=float) ** 2)
         choice = choose_input_width(
             lambda width: unscented_innovation_terms(self.system, self.dt, outputs, inputs, initial_mean=mean,
                                                      initial_covariance=covariance, substeps=substeps,
-                                                     **options_at(width)),
+                                                     **self._ukf_options(width, precisions, input_mean)),
             self.dt, model.kernel_width, smallest=model.kernel_width)
         self.choices["input_width"] = choice
-        for message in (choice.warning(), choice.misfit()):
-            if message:
-                warnings.warn(f"{model.path}: {message}", ModelWarning, stacklevel=4)
-        return options_at(choice.width), choice.width
+        _warn(model.path, choice.warning(), choice.misfit())
+        return choice.width
 
     def _start(self, outputs, signals, initial, inputs, options):
         """(x[0], its std, RK4 sub-steps) of the smoother. With the file's initial_state: it and

@@ -57,6 +57,7 @@ def _points(count=7, seed=0):
     ("J @ x / 32.0", False), ("J @ x / parameters['scale']", True), ("(J @ x / 32.0)[:, None]", False),
     ("list(J @ x / 32.0)", False),
     ("BUFFER.__setitem__(slice(None), J @ x / 32.0) or BUFFER", False),  # one buffer, filled at every call
+    ("BUFFER.__setitem__(slice(None), J @ x / 32.0) or BUFFER[:]", False),  # a new view of that buffer each time
     ("x", False),  # a view of the point itself
 ])
 def test_many_points_give_the_values_of_one_call_each(tmp_path, value, parameters):

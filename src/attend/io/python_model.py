@@ -108,19 +108,20 @@ class _UserFunction:
         the same as ``P`` calls of this function (:meth:`__call__`) with the same checks, but with one
         error state and one check of the shape and finiteness for all of them (the smoothers call f
         at every sigma point of every RK4 stage). Anything unusual (an exception in the user's code,
-        a wrong shape, a non-finite value) is left to the one-at-a-time calls, which report it. Each
-        value is copied when it is returned (a function may fill and return the same buffer at every
-        call)."""
+        a wrong shape, a non-finite value) is left to the one-at-a-time calls, which report it. A
+        value is copied when it is returned unless it is an array that owns its memory (a function
+        may fill and return the same buffer at every call: such a buffer, returned twice, sends all
+        the points to the one-at-a-time calls)."""
         count = len(x)
         function, parameters = self.function, self.parameters
         try:
             with np.errstate(all="ignore"):
                 if parameters is None:
-                    values = [np.array(function(point, inputs), dtype=float) for point, inputs in zip(x, v)]
+                    values = [_owned(function(point, inputs)) for point, inputs in zip(x, v)]
                 else:
-                    values = [np.array(function(point, inputs, parameters), dtype=float)
-                              for point, inputs in zip(x, v)]
-                value = np.array(values, dtype=float)
+                    values = [_owned(function(point, inputs, parameters)) for point, inputs in zip(x, v)]
+                distinct = len({id(item) for item in values}) == count
+                value = np.array(values, dtype=float) if distinct else None
         except Exception:  # noqa: BLE001 - reported below, by the calls one at a time
             value = None
         if value is not None and value.shape != (count, self.size) and value.ndim <= 3 and count \
@@ -145,6 +146,12 @@ class _UserFunction:
                 f"{self.source}: {self.name}(x, v) returned non-finite values {_short(value[:, k])} at x = "
                 f"{_short(x[:, k])}, v = {_short(np.asarray(v)[:, k])}; expected finite numbers")
         return value
+
+
+def _owned(value):
+    """``value`` itself if it is an array that owns its memory (a fresh result: np.array(...), J @ x),
+    else a float copy of it, made before the next call of the user's function could change it."""
+    return value if type(value) is np.ndarray and value.base is None else np.array(value, dtype=float)
 
 
 def _traced(value) -> bool:

@@ -140,15 +140,53 @@ def test_model_dt_is_checked_against_the_nominal_step(tmp_path, capsys):
     assert code == 2 and "[model] dt = 0.2 s but the log" in err and "nominal step" in err
 
 
-def test_nonlinear_models_refuse_gaps_naming_the_line(tmp_path, capsys):
-    (tmp_path / "model.py").write_text(
-        "import numpy as np\n\ndef f(x, v):\n    return np.array([x[1], -np.sin(x[0])])\n\n"
-        "def g(x, v):\n    return np.array([x[0]])\n")
-    model = ('[model]\npython = "model.py"\nn_states = 2\nn_inputs = 0\nn_outputs = 1\n\n[outputs]\n'
-             'columns = ["y1"]\n\n[observer]\nkernel_width = 0.1\nsensor_precision = 400.0\n'
-             'process_precision = 400.0\n')
-    rows = [[f"{k * DT:.6f}", f"{np.sin(k * DT):.6f}", "0", "0"] for k in range(50)]
-    rows[7][1] = ""
-    code, _, err, _ = _estimate(tmp_path, rows, capsys, model)
-    assert code == 2 and "log.csv: line 9, column 'y1': a missing value; the estimators of nonlinear models" in err
+PENDULUM_PY = "import numpy as np\n\ndef f(x, v):\n    return np.array([x[1], -np.sin(x[0])])\n\n" \
+    "def g(x, v):\n    return np.array([x[0]])\n"
+PENDULUM = ('[model]\npython = "model.py"\nn_states = 2\nn_inputs = 0\nn_outputs = 1\n\n[outputs]\n'
+            'columns = ["y1"]\n\n[observer]\nkernel_width = 0.1\nsensor_precision = 400.0\n'
+            'process_precision = 400.0\ninitial_state = [1.0, 0.0]\n')
 
+
+def test_nonlinear_models_take_missing_values_and_skipped_stamps(tmp_path, capsys):
+    """A nonlinear model file on a log with empty cells and skipped time stamps: an estimate at every
+    row of the log, at its stamps, as close to the truth as on the complete log (within the spread
+    that 9 of 80 missing outputs allow), and the report's line on the gaps."""
+    from attend.models import simulate_nonlinear
+
+    (tmp_path / "model.py").write_text(PENDULUM_PY)
+    (tmp_path / "model.toml").write_text(PENDULUM)
+    system = io.read_model(tmp_path / "model.toml").system
+    log = simulate_nonlinear(system, 80, DT, kernel_width=0.1, process_std=0.05, measurement_std=0.05,
+                             initial_state=[1.0, 0.0], seed=3)
+    rows = [[f"{k * DT:.6f}", f"{log.outputs[k, 0]:.8g}", "0", "0"] for k in range(80)]
+    code, _, err, path = _estimate(tmp_path, rows, capsys, PENDULUM)
+    assert code == 0, err
+    complete = np.loadtxt(path, delimiter=",", skiprows=1)
+    dropped = [5, 6, 30, 61]  # skipped stamps (two in a row)
+    for k in (12, 40, 41, 70, 77):
+        rows[k][1] = ""  # empty cells
+    kept = [k for k in range(80) if k not in dropped]
+    code, out, err, path = _estimate(tmp_path, [rows[k] for k in kept], capsys, PENDULUM)
+    assert code == 0, err
+    table = np.loadtxt(path, delimiter=",", skiprows=1)
+    assert "gaps and jitter: 9 of 80 samples missing (4 skipped time stamps, 5 rows with missing outputs)" in out
+    np.testing.assert_allclose(table[:, 0], np.array(kept) * DT, atol=1e-6)  # every row, at its stamp
+    truth = log.states[kept]
+    error, full_error = np.sum((table[:, 1:3] - truth) ** 2), np.sum((complete[kept, 1:3] - truth) ** 2)
+    assert error < 1.5 * full_error
+    # the std of the measured angle is wider where its measurement is missing (no update there)
+    widened = table[:, 3] / complete[kept, 3]
+    assert np.all(widened[np.isin(kept, [40, 41])] > 1.01)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda rows: rows[7].__setitem__(0, f"{7.3 * DT:.6f}"), "line 9: a step of"),  # jitter
+    (lambda rows: [rows[k].__setitem__(1, "") for k in (10, 11, 12, 13)], "'y1': 4 consecutive missing samples"),
+])
+def test_nonlinear_gaps_it_cannot_take_are_one_line_errors(tmp_path, capsys, edit, message):
+    """Jitter (nonlinear smoothers step by dt) and, for nonlinear DEM, more than 3 missing outputs in a row."""
+    (tmp_path / "model.py").write_text(PENDULUM_PY)
+    rows = [[f"{k * DT:.6f}", f"{np.cos(k * DT):.6f}", "0", "0"] for k in range(50)]
+    edit(rows)
+    code, _, err, _ = _estimate(tmp_path, rows, capsys, PENDULUM.replace("[observer]\n", '[observer]\nmethod = "dem"\n'))
+    assert code == 2 and message in err and err.count("\n") == 1

@@ -334,7 +334,7 @@ class NonlinearFileEstimator:
         try:
             with warnings.catch_warnings():  # of the D-step, which only helps start the smoother here
                 warnings.simplefilter("ignore", ModelWarning)
-                checked = dem.checked_signals(outputs, signals)
+                checked = dem.checked_signals(_interpolated(outputs), signals)
                 basis = d_step_basis(dem, checked, dem.dstep_estimate(checked, True, None, check=False))
                 substeps = smoother_substeps(dem, basis)
                 if initial is None:
@@ -359,6 +359,24 @@ class NonlinearFileEstimator:
         with np.errstate(all="ignore"):
             substeps = rk4_substeps(self.system, self.dt, best.states, signals)
         return search.mean, search.std, substeps
+
+
+def _interpolated(outputs) -> np.ndarray:
+    """outputs (N, m) with each missing value (NaN) interpolated linearly between the measured ones of
+    its column (held at the ends): what DEM's D-step, which needs every sample, reads where it only
+    helps the unscented smoother start (the smoother itself skips the missing values). A column
+    without any measured value stays NaN (the D-step then refuses the log and the start search
+    goes without it)."""
+    outputs = np.asarray(outputs, dtype=float)
+    missing = np.isnan(outputs)
+    if not missing.any():
+        return outputs
+    filled = outputs.copy()
+    samples = np.arange(len(outputs))
+    for j in np.flatnonzero(missing.any(axis=0) & ~missing.all(axis=0)):
+        known = ~missing[:, j]
+        filled[missing[:, j], j] = np.interp(samples[missing[:, j]], samples[known], outputs[known, j])
+    return filled
 
 
 def _path_prior_std(model) -> np.ndarray | None:

@@ -9,8 +9,12 @@ samples or jitter (:mod:`attend.models.sample_times`). The linear estimators tak
   at most BRIDGED_GAP missing samples in a row (longer gaps are refused).
 
 Measured inputs must be known at every step: gaps of at most BRIDGED_GAP samples are
-interpolated linearly, longer ones (and gaps at either end of the log) are refused. Nonlinear
-models are refused (their estimators need a uniform, complete log).
+interpolated linearly, longer ones (and gaps at either end of the log) are refused.
+
+Nonlinear models run on the log's grid when its stamps are uniform (whole samples may be skipped):
+method "ukf" with no update for a missing output (a skipped stamp is a sample without outputs),
+method "dem" on the outputs bridged as for the linear DEM; their estimates are returned at the
+log's rows. Jittered stamps are refused for nonlinear models (their smoothers step by dt).
 """
 
 from __future__ import annotations
@@ -20,8 +24,8 @@ import numpy as np
 from attend._validation import AttendInputError
 from attend.io import Log, ModelFile
 from attend.models.noise import GAUSSIAN_SPECTRUM_DENOMINATOR
-from attend.models.sample_times import BRIDGED_GAP, SampleGrid, bridge, describe, sample_grid
-from attend.perception.file_estimators import file_estimator
+from attend.models.sample_times import BRIDGED_GAP, UNIFORM_TOLERANCE, SampleGrid, bridge, describe, sample_grid
+from attend.perception.file_estimators import file_estimator, file_nonlinear_order
 from attend.workflows.estimate import located
 
 JITTERED_DT_TOLERANCE = 1e-2
@@ -72,9 +76,7 @@ def estimate_with_gaps(model: ModelFile, log: Log):
     jitter: estimates at every row of the log; summary: one line on what was missing and the
     jitter handled. Errors name the file and lines."""
     if model.nonlinear:
-        raise AttendInputError(
-            f"{log.path}: {_first_gap(model, log)}; the estimators of nonlinear models need a complete log on a "
-            "uniform time grid (gaps and jitter are handled for linear models)")
+        return _nonlinear_with_gaps(model, log)
     minimum = 2 if model.method == "kalman" else max(model.learning_order, model.input_order) + 1
     if len(log.time) < max(minimum, 2):
         raise AttendInputError(f"{log.path}: expected at least {max(minimum, 2)} samples, got {len(log.time)}")
@@ -107,6 +109,59 @@ def estimate_with_gaps(model: ModelFile, log: Log):
             estimate = observer.estimate(outputs, signals, time=log.time)
         except AttendInputError as error:  # a failure of the recursion itself names the files
             raise AttendInputError(located(error, model, log)) from None
+    _check_estimate(model, log, estimate)
+    return observer, estimate, summary(grid, outputs, bridged, model.method)
+
+
+def _nonlinear_with_gaps(model: ModelFile, log: Log):
+    """:func:`estimate_with_gaps` of a nonlinear model file (module docstring): the estimator runs on
+    the log's uniform grid, its estimates are returned at the log's rows."""
+    from attend.perception.estimate import as_estimate
+    from attend.perception.nonlinear.start_search import AmbiguousStartError
+
+    dt = _sample_time(model, log)
+    grid = sample_grid(log.time, dt, field=f"{log.path}: column {model.time_column!r}", labels=log.labels)
+    if not grid.uniform:
+        raise AttendInputError(
+            f"{log.path}: {_first_gap(model, log)}; the estimators of nonlinear models step by dt, so their "
+            f"logs need time stamps on t0 + k dt (within {UNIFORM_TOLERANCE:g} dt; skipped samples are handled): "
+            "resample the log onto a uniform grid, or use a linear model (jitter is handled there)")
+    outputs = log.matrix(model.output_columns, missing=True)
+    if not np.isfinite(outputs).any():
+        raise AttendInputError(f"{log.path}: every value of the output columns {', '.join(model.output_columns)} is "
+                               "missing; expected measured outputs")
+    minimum = 2 if model.method == "ukf" else max(file_nonlinear_order(model, dt), model.input_order) + 1
+    if len(grid.time) < max(minimum, 2):
+        raise AttendInputError(f"{log.path}: expected at least {max(minimum, 2)} samples, got {len(grid.time)}")
+    if model.method == "dem":  # DEM's embedding needs every sample
+        on_grid = bridge(grid, outputs, f"{log.path}: column", list(model.output_columns), labels=log.labels)
+    else:
+        on_grid = grid.spread(outputs)
+    signals = np.empty((len(grid.time), model.system.n_inputs))
+    bridged = 0
+    for j, spec in enumerate(model.inputs):
+        if spec.known:
+            column = log.matrix([spec.column], missing=True)[:, 0]
+            bridged += int(np.isnan(column).sum())
+            signals[:, j] = bridge(grid, column, f"{log.path}: column", [spec.column], labels=log.labels)[:, 0] \
+                - spec.operating_point
+        else:
+            signals[:, j] = spec.prior_mean
+    observer = file_estimator(model, dt)
+    with np.errstate(over="ignore", invalid="ignore"):
+        try:
+            estimate = observer.estimate(on_grid, signals)
+        except AmbiguousStartError as error:  # names the setting that decides: [observer] initial_state
+            raise AttendInputError(f"{model.path}: [observer] {error}") from None
+        except AttendInputError as error:
+            if model.python_path and str(error).startswith(model.python_path):
+                raise  # the user's f or g failed: the message names the file and the function
+            raise AttendInputError(located(error, model, log)) from None
+    details = estimate.details
+    rows = {name: np.asarray(value)[grid.rows] for name, value in details._asdict().items()
+            if isinstance(value, np.ndarray) and value.ndim and value.shape[0] == len(grid.time)}
+    rows["time"] = np.asarray(log.time, dtype=float)
+    estimate = as_estimate(details._replace(**rows), estimate.method)
     _check_estimate(model, log, estimate)
     return observer, estimate, summary(grid, outputs, bridged, model.method)
 

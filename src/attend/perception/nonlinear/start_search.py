@@ -411,7 +411,8 @@ def prior_map(information, shift, guess, prior: StartPrior, iterations: int = 50
 
 
 def _misfit(system, outputs, estimate, measurement_covariance) -> float:
-    """mean_k r_k' inv(R) r_k / m with r_k = y_k - g(x_k, v_k) at ``estimate`` (a KalmanEstimate)."""
+    """mean_k r_k' inv(R) r_k / m with r_k = y_k - g(x_k, v_k) at ``estimate`` (a KalmanEstimate);
+    with missing outputs (NaN) the sum over the measured ones (R_oo) over their number."""
     from attend.perception.nonlinear_smoothers.kalman import observe_points
 
     y = np.asarray(outputs, dtype=float).reshape(len(estimate.states), -1)
@@ -421,7 +422,13 @@ def _misfit(system, outputs, estimate, measurement_covariance) -> float:
     except AttendInputError:
         return float("inf")
     R = np.atleast_2d(np.asarray(measurement_covariance, dtype=float))
-    value = float(np.mean(np.einsum("ki,ki->k", residual, np.linalg.solve(R, residual.T).T)) / y.shape[1])
+    measured = np.isfinite(y)
+    if measured.all():
+        value = float(np.mean(np.einsum("ki,ki->k", residual, np.linalg.solve(R, residual.T).T)) / y.shape[1])
+    else:  # missing outputs (NaN): each sample's measured ones, over the number of measured values
+        total = sum(float(row[seen] @ np.linalg.solve(R[np.ix_(seen, seen)], row[seen]))
+                    for row, seen in zip(residual, measured) if seen.any())
+        value = total / max(int(measured.sum()), 1)
     return value if np.isfinite(value) else float("inf")
 
 
@@ -436,7 +443,7 @@ class _Bank:
         # x = 0: a model may be stiff only near 0
         self.model = _Model(system, dt, outputs, inputs, options["input_variance"], options["input_mean"],
                             options["process_covariance"], options["measurement_covariance"], centres[0], None,
-                            options["substeps"], options["known_inputs"])
+                            options["substeps"], options["known_inputs"], missing=True)
         n, d = system.n_states, self.model.size
         self.mean = np.tile(self.model.m0, (len(centres), 1))
         self.mean[:, :n] = centres
@@ -499,20 +506,7 @@ class _Bank:
                 self.mean = np.einsum("p,kpd->kd", wm, moved)
                 spread = moved - self.mean[:, None]
                 self.cov = np.einsum("p,kpi,kpj->kij", wc, spread, spread) + model.Qz
-            points = self._points(self.mean, self.cov)
-            observed = self._apply(model.observation_points, points, k)
-            predicted = np.einsum("p,kpm->km", wm, observed)
-            residual = observed - predicted[:, None]
-            S = np.einsum("p,kpi,kpj->kij", wc, residual, residual) + model.R
-            cross = np.einsum("p,kpi,kpj->kij", wc, points - self.mean[:, None], residual)
-            innovation = y[k] - predicted
-            with np.errstate(all="ignore"):
-                gain, whitened, logdet = self._solve(S, cross, innovation)
-                self.mean = self.mean + np.einsum("kij,kj->ki", gain, innovation)
-                self.cov = self.cov - np.einsum("kij,kjl,kml->kim", gain, S, gain)
-                self.cov = 0.5 * (self.cov + np.swapaxes(self.cov, 1, 2))
-                self.score = self.score - 0.5 * (np.einsum("ki,ki->k", innovation, whitened) + logdet
-                                                 + y.shape[1] * np.log(2 * np.pi))
+            self._update(y[k], k)
             finite = np.isfinite(self.score) & np.all(np.isfinite(self.mean), axis=1) \
                 & np.all(np.isfinite(self.cov), axis=(1, 2))
             if not finite.any():
@@ -525,6 +519,28 @@ class _Bank:
                 break
         order = np.argsort(-self.score)
         return [int(i) for i in self.index[order]], k + 1
+
+    def _update(self, outputs, k: int) -> None:
+        """Every component's unscented update with the outputs (m,) of sample k, and its score; a
+        missing output (NaN) is left out, and a sample without any is no update."""
+        model, wm, wc = self.model, self.weights_mean, self.weights_cov
+        measured = np.isfinite(outputs)
+        if not measured.any():
+            return
+        points = self._points(self.mean, self.cov)
+        observed = self._apply(model.observation_points, points, k)[:, :, measured]
+        predicted = np.einsum("p,kpm->km", wm, observed)
+        residual = observed - predicted[:, None]
+        S = np.einsum("p,kpi,kpj->kij", wc, residual, residual) + model.R[np.ix_(measured, measured)]
+        cross = np.einsum("p,kpi,kpj->kij", wc, points - self.mean[:, None], residual)
+        innovation = outputs[measured] - predicted
+        with np.errstate(all="ignore"):
+            gain, whitened, logdet = self._solve(S, cross, innovation)
+            self.mean = self.mean + np.einsum("kij,kj->ki", gain, innovation)
+            self.cov = self.cov - np.einsum("kij,kjl,kml->kim", gain, S, gain)
+            self.cov = 0.5 * (self.cov + np.swapaxes(self.cov, 1, 2))
+            self.score = self.score - 0.5 * (np.einsum("ki,ki->k", innovation, whitened) + logdet
+                                             + int(measured.sum()) * np.log(2 * np.pi))
 
     @staticmethod
     def _solve(S, cross, innovation):

@@ -236,13 +236,23 @@ class _Model:
     """The discrete (possibly input-augmented) model z = [x; u] seen by the Kalman baselines."""
 
     def __init__(self, system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
-                 measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs=None):
+                 measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs=None,
+                 missing: bool = False):
+        """missing: NaN in ``outputs`` marks a missing value (the Kalman filters skip it); else every
+        output must be finite."""
         if not isinstance(system, NonlinearSystem):
             raise AttendInputError("system: expected an attend NonlinearSystem")
         self.system = system
         self.dt = positive_scalar(dt, "dt", "s")
         n, r, m = system.n_states, system.n_inputs, system.n_outputs
-        self.y = as_matrix(outputs, "outputs", cols=m if np.ndim(outputs) == 2 else 1)
+        if missing:
+            from attend.models.sample_times import matrix_with_gaps
+
+            self.y = matrix_with_gaps(outputs, "outputs", m)
+            if self.y.size and not np.isfinite(self.y).any():
+                raise AttendInputError("outputs: every value is missing (NaN); expected some measured outputs")
+        else:
+            self.y = as_matrix(outputs, "outputs", cols=m if np.ndim(outputs) == 2 else 1)
         if self.y.shape[1] != m:
             raise AttendInputError(f"outputs: expected {m} columns, got {self.y.shape[1]}")
         N = self.y.shape[0]
@@ -338,7 +348,17 @@ class _Model:
 
 def _update(mean, cov, y, predicted, H_cov_cross, S):
     """Kalman update from predicted output, cross covariance C = Cov(z, y) and S = Cov(y):
-    (mean, covariance, log-likelihood of y, gain K = C inv(S), (nu' inv(S) nu, log det S))."""
+    (mean, covariance, log-likelihood of y, gain K = C inv(S), (nu' inv(S) nu, log det S)). A
+    missing output (NaN in y) is left out: the update uses the measured ones o alone (S_oo, C_o),
+    and the gain's columns of the missing ones are 0; with none measured, no update (log-likelihood 0)."""
+    measured = np.isfinite(y)
+    if not measured.all():
+        gain = np.zeros_like(H_cov_cross)
+        if not measured.any():
+            return mean, cov, 0.0, gain, (0.0, 0.0)
+        mean, cov, ll, gain[:, measured], parts = _update(mean, cov, y[measured], predicted[measured],
+                                                          H_cov_cross[:, measured], S[np.ix_(measured, measured)])
+        return mean, cov, ll, gain, parts
     gain = np.linalg.solve(S, H_cov_cross.T).T
     innovation = y - predicted
     mean = mean + gain @ innovation
@@ -394,7 +414,9 @@ def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
     """Extended Kalman filter (``smooth=False``), filter + RTS smoother (``True``) or fixed-lag
     smoother (``smooth=L`` samples: row k uses y[0..k+L], e.g. the DEM estimator's delay).
 
-    system: NonlinearSystem; dt [s]; outputs (N, m); inputs (N, r) measured inputs (None: zero,
+    system: NonlinearSystem; dt [s]; outputs (N, m), NaN where a value is missing (no update for
+    that output at that sample; a sample of a log's uniform grid without a row is a row of NaN);
+    inputs (N, r) measured inputs (None: zero,
     or unknown with ``input_variance``); Q, R: white-noise covariances (scalar, diagonal or
     matrix); input_variance: random-walk variance of unknown inputs per sample [input unit^2];
     input_mean: their initial value; initial_mean/initial_covariance of x[0] (default 0, 0).
@@ -410,7 +432,7 @@ def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
     process_covariance, measurement_covariance = covariances_from_noise(
         system, dt, noise, process_covariance, measurement_covariance, "extended_kalman")
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
-                   measurement_covariance, initial_mean, initial_covariance, substeps)
+                   measurement_covariance, initial_mean, initial_covariance, substeps, missing=True)
     spread = _spread_settings(model, smooth, noise_kernel_width, input_prior, spread_draws)
     N, d = model.y.shape[0], model.size
     mf, Pf = np.empty((N, d)), np.empty((N, d, d))
@@ -499,13 +521,13 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
     starts or models by their evidence): the filter stops with :class:`EvidenceBelowFloor` as soon as
     its log-likelihood so far plus the most the remaining samples can add
     (:func:`evidence_bound_per_sample`) is below it. None (default): never; also ignored for a spread
-    (alpha, beta, kappa) with a negative covariance weight, where the bound does not hold (the
-    outputs are complete: the filter refuses NaN).
+    (alpha, beta, kappa) with a negative covariance weight, where the bound does not hold (a sample
+    adds at most that bound for its measured outputs, nothing where all are missing).
     """
     process_covariance, measurement_covariance = covariances_from_noise(
         system, dt, noise, process_covariance, measurement_covariance, "unscented_kalman")
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
-                   measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs)
+                   measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs, missing=True)
     spread = _spread_settings(model, smooth, noise_kernel_width, input_prior, spread_draws)
     record = {}
     means, covs, ll = _unscented(model.transition_points, model.observation_points, model.y, model.m0, model.P0, model.Qz,
@@ -526,7 +548,7 @@ def unscented_innovation_terms(system: NonlinearSystem, dt: float, outputs, inpu
     input_variance, input_mean, initial_mean, initial_covariance, substeps, known_inputs and the sigma-point
     spread alpha, beta, kappa: as :func:`unscented_kalman`."""
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
-                   measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs)
+                   measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs, missing=True)
     record = {}
     _unscented(model.transition_points, model.observation_points, model.y, model.m0, model.P0, model.Qz, model.R,
                False, (alpha, beta, kappa), "unscented_kalman", record)
@@ -613,6 +635,17 @@ def evidence_bound_per_sample(measurement_covariance) -> float:
     return float(-0.5 * (np.linalg.slogdet(R)[1] + R.shape[0] * np.log(2 * np.pi)))
 
 
+def _remaining_bounds(y, R) -> np.ndarray:
+    """(N,) the most samples k + 1 .. N - 1 of the outputs y (N, m) (NaN: missing) can add to an
+    unscented filter's log-likelihood: the sum of :func:`evidence_bound_per_sample` of the measured
+    outputs' sensor covariance R_oo at each (0 where none is measured)."""
+    measured = np.isfinite(y)
+    if measured.all():
+        return np.arange(len(y) - 1, -1, -1) * evidence_bound_per_sample(R)
+    per_sample = np.array([evidence_bound_per_sample(R[np.ix_(row, row)]) if row.any() else 0.0 for row in measured])
+    return np.concatenate([np.cumsum(per_sample[::-1])[::-1][1:], [0.0]])
+
+
 def _nonnegative_weights(spread, d: int) -> bool:
     """Whether the sigma points of (alpha, beta, kappa) in d dimensions have covariance weights >= 0."""
     alpha, beta, kappa = spread
@@ -629,7 +662,8 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, 
     transition (Pf_points, samples 0..N-2) and of the observation (Pp_points) stand for. floor: the
     evidence_floor of :func:`unscented_kalman` (EvidenceBelowFloor), or None."""
     N, d = y.shape[0], m0.shape[0]
-    bound = None if floor is None or not _nonnegative_weights(spread, d) else evidence_bound_per_sample(R)
+    # the most the samples after k can add to the log-likelihood (each by its measured outputs)
+    remaining = None if floor is None or not _nonnegative_weights(spread, d) else _remaining_bounds(y, R)
     mf, Pf = np.empty((N, d)), np.empty((N, d, d))
     mp, Pp = np.empty((N, d)), np.empty((N, d, d))
     cross = np.empty((max(N - 1, 0), d, d))
@@ -649,7 +683,7 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, 
         quadratic += parts[0]
         log_determinant += parts[1]
         mf[k], Pf[k] = mean, cov
-        if bound is not None and ll + (N - 1 - k) * bound < floor:  # False for NaN: _check reports it
+        if remaining is not None and ll + remaining[k] < floor:  # False for NaN: _check reports it
             raise EvidenceBelowFloor(k + 1)
     _check(mf, name)
     gains = smoother_gains(Pp, cross) if smooth is True else None
@@ -658,7 +692,7 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, 
 
         record.update(Pf=Pf, Pp=Pp, cross=cross, Cy=Cy, K=K, gains=gains, Pf_points=Pf_points,
                       Pp_points=Pp_points, innovation_terms=InnovationTerms(float(log_determinant), float(quadratic),
-                                                                            int(y.size)))
+                                                                            int(np.isfinite(y).sum())))
     means, covs = _smooth(mf, Pf, mp, Pp, cross, smooth, gains)
     return means, covs, ll
 

@@ -533,3 +533,19 @@ time_column = "t"
     assert main(["estimate", str(tmp_path / "model.toml"), str(tmp_path / "log.csv"),
                  "--out", str(tmp_path / "out.csv")]) == 0
     assert "estimate's RMS" not in capsys.readouterr().err
+
+
+def test_a_kernel_width_far_beyond_the_log_is_one_clean_line_for_both_commands(tmp_path, capsys):
+    """kernel_width = 1e200 s: `attend estimate` names the width in sample times once (the file named
+    once), `attend identify` names kernel_width (was an OverflowError in S(s), exit 1)."""
+    (tmp_path / "model.toml").write_text(MASS_SPRING_LEARNING_MODEL.replace("kernel_width = 0.5", "kernel_width = 1e200"))
+    t = np.arange(60) * 0.1
+    np.savetxt(tmp_path / "log.csv", np.column_stack([t, np.sin(t), np.cos(t)]), delimiter=",", header="t,y,u",
+               comments="")
+    model, log = str(tmp_path / "model.toml"), str(tmp_path / "log.csv")
+    assert main(["estimate", model, log, "--out", str(tmp_path / "e.csv"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("model.toml: [observer]") == 1 and "1e+201 sample times" in err and err.count("\n") == 1
+    assert main(["identify", model, log, "--out", str(tmp_path / "learned.toml"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "kernel_width: 1e+200 s" in err and "floating-point range" in err and err.count("\n") == 1

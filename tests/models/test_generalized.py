@@ -138,3 +138,12 @@ def test_fold_orders_has_the_gradient_of_the_prior_at_all_orders():
         padded = np.vstack([v, np.zeros((P - Q, r))])
         gradient = (S @ (padded - table[k]))[:Q]
         np.testing.assert_allclose(gradient, S[:Q, :Q] @ (v - folded[k]), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("n_orders, width", [(3, 1e200), (7, 1e60)])
+def test_a_kernel_width_beyond_the_floating_point_range_is_named(n_orders, width):
+    """(2 s^2)^k overflows: an error naming kernel_width, not inf (or an OverflowError) in S and V."""
+    with pytest.raises(AttendInputError, match="kernel_width: .* outside the floating-point range"):
+        smoothness_precision(n_orders, width)
+    with pytest.raises(AttendInputError, match="kernel_width"):
+        temporal_covariance(n_orders, 1.0 / width)

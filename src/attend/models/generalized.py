@@ -82,8 +82,20 @@ def temporal_covariance(n_orders: int, kernel_width: float) -> np.ndarray:
     n_orders = order(n_orders, "n_orders", maximum=40)
     s = positive_scalar(kernel_width, "kernel_width")
     core = np.array([[float(v) for v in row] for row in _unit_covariance_core(n_orders)])
-    scale = (2 * s**2) ** (-np.arange(n_orders) / 2)
-    return scale[:, None] * core * scale[None, :]
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        scale = (2 * np.float64(s) ** 2) ** (-np.arange(n_orders) / 2)
+        covariance = scale[:, None] * core * scale[None, :]
+    return _finite_scales(covariance, s, n_orders)
+
+
+def _finite_scales(matrix: np.ndarray, s: float, n_orders: int) -> np.ndarray:
+    """``matrix`` (V(s) or S(s)) if its entries are finite, else an AttendInputError naming the kernel
+    width s [s], whose powers up to (2 s^2)^((n_orders - 1) / 2) left the floating-point range."""
+    if np.all(np.isfinite(matrix)):
+        return matrix
+    raise AttendInputError(f"kernel_width: {s:g} s with {n_orders} orders of motion gives (2 s^2)^k outside the "
+                           "floating-point range; expected a kernel width of about the sample time (a few sample "
+                           "times at most)")
 
 
 def smoothness_precision(n_orders: int, kernel_width: float) -> np.ndarray:
@@ -96,8 +108,10 @@ def smoothness_precision(n_orders: int, kernel_width: float) -> np.ndarray:
     if n_orders < 1:
         raise AttendInputError("n_orders: expected at least 1 order")
     s = positive_scalar(kernel_width, "kernel_width")
-    inverse_scale = (2 * s**2) ** (np.arange(n_orders) / 2)
-    return inverse_scale[:, None] * _unit_precision_core(n_orders) * inverse_scale[None, :]
+    with np.errstate(over="ignore", invalid="ignore"):
+        inverse_scale = (2 * np.float64(s) ** 2) ** (np.arange(n_orders) / 2)
+        precision = inverse_scale[:, None] * _unit_precision_core(n_orders) * inverse_scale[None, :]
+    return _finite_scales(precision, s, n_orders)
 
 
 def block_precisions(

@@ -36,7 +36,8 @@ def _observer_of(model: ModelFile, dt: float, outputs=None, signals=None) -> DEM
         return file_estimator(model, dt, outputs, signals)
     except AttendInputError as error:  # in the file's words: P_v is the [[inputs]] prior_precision
         message = str(error).replace("input_prior_precision", "[[inputs]] prior_precision")
-        raise AttendInputError(f"{model.path}: [observer] {message}") from None
+        raise AttendInputError(message if message.startswith(str(model.path)) else
+                               f"{model.path}: [observer] {message}") from None
 
 
 def located(error: Exception, model: ModelFile, log: Log) -> str:

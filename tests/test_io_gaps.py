@@ -190,3 +190,38 @@ def test_nonlinear_gaps_it_cannot_take_are_one_line_errors(tmp_path, capsys, edi
     edit(rows)
     code, _, err, _ = _estimate(tmp_path, rows, capsys, PENDULUM.replace("[observer]\n", '[observer]\nmethod = "dem"\n'))
     assert code == 2 and message in err and err.count("\n") == 1
+
+
+def test_nonlinear_logs_are_split_at_gaps_longer_than_three_samples():
+    from attend.workflows.estimate_gaps import _segments
+
+    rows = np.ones((30, 2))
+    rows[[0, 1, 2, 3, 4], :] = np.nan  # a run at the start: kept with the first part
+    rows[8:11] = np.nan                # 3 samples: bridged by the smoother
+    rows[14, 0] = np.nan               # one output missing: not a gap
+    rows[15:19] = np.nan               # 4 samples: split
+    rows[25:] = np.nan                 # a run at the end: kept with the last part
+    assert _segments(rows) == [slice(0, 15), slice(19, 30)]
+    assert _segments(np.ones((5, 1))) == [slice(0, 5)]
+
+
+def test_a_nonlinear_log_with_a_long_gap_is_estimated_in_parts(tmp_path, capsys):
+    """20 skipped stamps: the part after the gap starts from its own searched start; estimates at
+    every row, within 3 std of the truth after the gap too."""
+    from attend.models import simulate_nonlinear
+
+    (tmp_path / "model.py").write_text(PENDULUM_PY)
+    (tmp_path / "model.toml").write_text(PENDULUM)
+    system = io.read_model(tmp_path / "model.toml").system
+    log = simulate_nonlinear(system, 100, DT, kernel_width=0.1, process_std=0.05, measurement_std=0.05,
+                             initial_state=[1.0, 0.0], seed=4)
+    kept = [k for k in range(100) if not 40 <= k < 60]
+    rows = [[f"{k * DT:.6f}", f"{log.outputs[k, 0]:.8g}", "0", "0"] for k in kept]
+    code, out, err, path = _estimate(tmp_path, rows, capsys, PENDULUM)
+    assert code == 0, err
+    assert "split at 1 gap of more than 3 samples without outputs" in out
+    table = np.loadtxt(path, delimiter=",", skiprows=1)
+    assert table.shape[0] == 80
+    after = np.array(kept) >= 60
+    error = np.abs(table[after, 1:3] - log.states[kept][after])
+    assert np.mean(error < 3 * table[after, 3:5]) > 0.9

@@ -13,11 +13,14 @@ interpolated linearly, longer ones (and gaps at either end of the log) are refus
 
 Nonlinear models run on the log's grid when its stamps are uniform (whole samples may be skipped):
 method "ukf" with no update for a missing output (a skipped stamp is a sample without outputs),
-method "dem" on the outputs bridged as for the linear DEM; their estimates are returned at the
-log's rows. Jittered stamps are refused for nonlinear models (their smoothers step by dt).
+split at every gap of more than BRIDGED_GAP samples without outputs, each part from its own start
+(:func:`_segments`); method "dem" on the outputs bridged as for the linear DEM; their estimates are
+returned at the log's rows. Jittered stamps are refused for nonlinear models (their smoothers step by dt).
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -147,23 +150,78 @@ def _nonlinear_with_gaps(model: ModelFile, log: Log):
                 - spec.operating_point
         else:
             signals[:, j] = spec.prior_mean
-    observer = file_estimator(model, dt)
-    with np.errstate(over="ignore", invalid="ignore"):
-        try:
-            estimate = observer.estimate(on_grid, signals)
-        except AmbiguousStartError as error:  # names the setting that decides: [observer] initial_state
-            raise AttendInputError(f"{model.path}: [observer] {error}") from None
-        except AttendInputError as error:
-            if model.python_path and str(error).startswith(model.python_path):
-                raise  # the user's f or g failed: the message names the file and the function
-            raise AttendInputError(located(error, model, log)) from None
-    details = estimate.details
-    rows = {name: np.asarray(value)[grid.rows] for name, value in details._asdict().items()
-            if isinstance(value, np.ndarray) and value.ndim and value.shape[0] == len(grid.time)}
-    rows["time"] = np.asarray(log.time, dtype=float)
-    estimate = as_estimate(details._replace(**rows), estimate.method)
+    parts = _segments(on_grid)
+    pieces = []
+    for number, part in enumerate(parts):
+        # after a long gap the state is searched again (the file's initial_state is the first part's)
+        part_model = model if number == 0 else replace(model, initial_state=None)
+        observer = file_estimator(part_model, dt)
+        with np.errstate(over="ignore", invalid="ignore"):
+            try:
+                estimate = observer.estimate(on_grid[part], signals[part])
+            except AmbiguousStartError as error:  # names the setting that decides: [observer] initial_state
+                raise AttendInputError(f"{model.path}: [observer] {_in_part(error, parts, number, log, grid)}") from None
+            except AttendInputError as error:
+                if model.python_path and str(error).startswith(model.python_path):
+                    raise  # the user's f or g failed: the message names the file and the function
+                raise AttendInputError(located(_in_part(error, parts, number, log, grid), model, log)) from None
+        pieces.append((part, estimate))
+    estimate = _at_log_rows(pieces, grid, log)
     _check_estimate(model, log, estimate)
-    return observer, estimate, summary(grid, outputs, bridged, model.method)
+    text = summary(grid, outputs, bridged, model.method)
+    if len(parts) > 1:
+        text += (f"; split at {len(parts) - 1} gap{'s' if len(parts) > 2 else ''} of more than {BRIDGED_GAP} samples "
+                 "without outputs, each part from its own start (searched, or the file's initial_state for the "
+                 "first)")
+    return observer, estimate, text
+
+
+def _segments(outputs: np.ndarray) -> list[slice]:
+    """The parts of the grid a nonlinear smoother runs on: split inside every run of more than
+    BRIDGED_GAP samples without any output (the Gaussian approximation of the unscented smoother
+    is not trusted to carry the state over more: after a long gap its prediction may span several
+    of the model's modes, e.g. turns of a pendulum). A run at either end stays with its neighbour.
+    outputs (M, m) on the grid, NaN where missing."""
+    measured = np.flatnonzero(np.isfinite(outputs).any(axis=1))
+    starts, stops = [0], []
+    for before, after in zip(measured[:-1], measured[1:]):
+        if after - before - 1 > BRIDGED_GAP:
+            stops.append(int(before) + 1)
+            starts.append(int(after))
+    stops.append(len(outputs))
+    return [slice(start, stop) for start, stop in zip(starts, stops)]
+
+
+def _in_part(error: Exception, parts: list, number: int, log: Log, grid: SampleGrid) -> str:
+    """The error's message, naming the part of the log (its first and last rows) when it was split."""
+    if len(parts) == 1:
+        return str(error)
+    rows = [int(row) for row in np.flatnonzero((grid.rows >= parts[number].start) & (grid.rows < parts[number].stop))]
+    where = f"{log.labels[rows[0]]} to {log.labels[rows[-1]]}" if rows else "a part without rows"
+    return f"{error} (on the part of the log from {where}, after a gap of more than {BRIDGED_GAP} samples)"
+
+
+def _at_log_rows(pieces: list, grid: SampleGrid, log: Log):
+    """One Estimate at the log's rows from the estimates of the grid's parts ((slice, Estimate) in order):
+    every array of their details with a row per grid sample taken at the log's rows, the others
+    (e.g. a log-likelihood) summed over the parts; time: the log's stamps."""
+    from attend.perception.estimate import as_estimate
+
+    M = len(grid.time)
+    first = pieces[0][1]
+    fields = {}
+    for name, value in first.details._asdict().items():
+        values = [getattr(estimate.details, name) for _, estimate in pieces]
+        if isinstance(value, np.ndarray) and value.ndim and all(
+                isinstance(v, np.ndarray) and v.shape[0] == part.stop - part.start for (part, _), v in zip(pieces, values)):
+            whole = np.full((M,) + value.shape[1:], np.nan)
+            for (part, _), v in zip(pieces, values):
+                whole[part] = v
+            fields[name] = whole[grid.rows]
+        elif isinstance(value, float) and len(pieces) > 1:
+            fields[name] = float(sum(values))
+    fields["time"] = np.asarray(log.time, dtype=float)
+    return as_estimate(first.details._replace(**fields), first.method)
 
 
 def _check_estimate(model: ModelFile, log: Log, estimate) -> None:

@@ -41,9 +41,12 @@ class Case:
     mutations: list[str] = field(default_factory=list)
     crlf: bool = False
     bom: bool = False
+    python: str | None = None  # the text of model.py of a nonlinear model file
 
     def write(self, folder: Path) -> tuple[Path, Path]:
         model_path, log_path = folder / "model.toml", folder / "log.csv"
+        if self.python is not None:
+            (folder / "model.py").write_text(self.python)
         if self.model is None:
             model_path.mkdir()
         else:
@@ -348,6 +351,141 @@ def fuzz_case(draw) -> Case:
     return case
 
 
+# --- nonlinear model files ([model] python) -----------------------------------------------------
+
+#: f and g of the valid nonlinear cases: (code, n_states, n_inputs, n_outputs)
+_PYTHON_MODELS = {
+    "pendulum": ("import numpy as np\n\n\ndef f(x, v):\n    return np.array([x[1], -np.sin(x[0]) - 0.2 * x[1]])\n\n\n"
+                 "def g(x, v):\n    return np.array([np.sin(x[0]), x[1]])\n", 2, 0, 2),
+    "pushed": ("import numpy as np\n\n\ndef f(x, v):\n    return np.array([x[1], -x[0] - 0.3 * x[1] + v[0]])\n\n\n"
+               "def g(x, v):\n    return np.array([x[0]])\n", 2, 1, 1),
+    "well": ("def f(x, v):\n    return (16.0 * x / (1.0 + x**2) - x / 2.0 + 2.0 * v) / 8.0\n\n\n"
+             "def g(x, v):\n    return x**2 / 16.0\n", 1, 1, 1),
+}
+
+#: broken versions of f (its return line replaced), each a mistake a user makes
+_BROKEN_F = [
+    "    return np.array([1.0])  # too few values",
+    "    return None",
+    "    return 'x'",
+    "    return np.array([float('nan')] * len(x))",
+    "    return 1 / (x[0] - x[0])",
+    "    raise ValueError('model not ready')",
+    "    return [x[0], x[1], x[2]]",
+    "    return np.full(len(x), 1e308) * 10",
+    "    return x if abs(x[0]) < 1 else x * float('inf')",
+]
+
+
+@st.composite
+def valid_nonlinear_case(draw) -> Case:
+    """A valid nonlinear model file (model.py and model.toml) and a log of 30-60 samples."""
+    name = draw(st.sampled_from(sorted(_PYTHON_MODELS)))
+    code, n, r, m = _PYTHON_MODELS[name]
+    rng = np.random.default_rng(draw(st.integers(0, 2**16)))
+    dt = draw(st.sampled_from([0.05, 0.1, 1.0]))
+    samples = draw(st.integers(30, 60))
+    measured = draw(st.booleans())
+    observer = {"kernel_width": dt * draw(st.sampled_from([0.5, 1.0, 2.0])), "sensor_precision": 100.0,
+                "process_precision": draw(st.sampled_from([100.0, 1e4]))}
+    if draw(st.booleans()):
+        observer["initial_state"] = [0.5] * n
+    if draw(st.integers(0, 4)) == 0:
+        observer["method"] = "dem"
+    inputs = [{"name": "u", "column": "u"} if measured else {"name": "u", "prior_mean": 0.0, "prior_precision": 1.0}
+              for _ in range(r)]
+    model = {"model": {"python": "model.py", "n_states": n, "n_inputs": r, "n_outputs": m},
+             "outputs": {"columns": [f"y{i + 1}" for i in range(m)]}, "observer": observer}
+    if inputs:
+        model["inputs"] = inputs
+    t = np.arange(samples) * dt
+    outputs = np.column_stack([0.5 * np.sin((i + 1) * t) + 0.05 * rng.standard_normal(samples) for i in range(m)])
+    commands = 0.3 * rng.standard_normal((samples, r)) if measured else np.zeros((samples, 0))
+    header = ["t"] + [f"y{i + 1}" for i in range(m)] + (["u"] * r if measured else [])
+    rows = [header] + [[float(v) for v in row] for row in np.column_stack([t, outputs, commands])]
+    return Case(model, rows, python=code)
+
+
+def _nonlinear_model_mutation(draw, case: Case) -> str:
+    data = case.model
+    model, observer = data["model"], data["observer"]
+    kind = draw(st.sampled_from(["f", "f", "size", "observer", "observer", "python key", "gaps", "gaps"]))
+    if kind == "f":
+        lines = case.python.splitlines()
+        where = next(i for i, line in enumerate(lines) if line.startswith("    return"))
+        broken = draw(st.sampled_from(_BROKEN_F + ["syntax", "no g"]))
+        if broken == "syntax":
+            case.python = case.python.replace("def f(x, v):", "def f(x, v)")
+        elif broken == "no g":
+            case.python = case.python.split("def g")[0]
+        else:
+            lines[where] = broken
+            case.python = "import numpy as np\n" + "\n".join(lines) + "\n"
+        return f"f: {broken}"
+    if kind == "size":
+        key = draw(st.sampled_from(["n_states", "n_inputs", "n_outputs"]))
+        model[key] = draw(st.sampled_from([0, 3, 7, -1, 2.5, "2"]))
+        return f"model.{key} = {model[key]!r}"
+    if kind == "python key":
+        how = draw(st.sampled_from(["missing file", "directory", "vectorized", "parameters"]))
+        if how == "missing file":
+            model["python"] = "nowhere.py"
+        elif how == "directory":
+            model["python"] = "."
+        elif how == "vectorized":
+            model["vectorized"] = draw(st.sampled_from(["yes", True, 1]))
+        else:
+            model["parameters"] = draw(st.sampled_from([{"k": 1.0}, [1.0], "k"]))
+        return f"python: {how}"
+    if kind == "gaps":  # missing values and skipped stamps, which nonlinear models now take
+        body = case.log[1:]
+        how = draw(st.sampled_from(["empty cells", "skipped rows", "long gap", "all outputs empty"]))
+        if how == "empty cells":
+            for i in draw(st.lists(st.integers(0, len(body) - 1), min_size=1, max_size=6)):
+                body[i][1] = ""
+        elif how == "skipped rows":
+            for i in sorted(set(draw(st.lists(st.integers(1, len(body) - 1), min_size=1, max_size=5))), reverse=True):
+                del body[i]
+        elif how == "long gap":
+            start = draw(st.integers(1, max(1, len(body) - 12)))
+            del body[start:start + 10]
+        else:
+            for row in body:
+                for j in range(1, 1 + len(data["outputs"]["columns"])):
+                    row[j] = ""
+        case.log = [case.log[0]] + body
+        return f"log: {how}"
+    key = draw(st.sampled_from(["kernel_width", "sensor_precision", "process_precision", "initial_state",
+                                "initial_state_std", "method", "input_kernel_width", "embedding_order"]))
+    values = {
+        "kernel_width": [0.0, -1.0, 1e200, 1e-9, float("nan"), "0.1"],
+        "sensor_precision": [-5.0, 0.0, 1e300, 1e-300, float("nan"), [1.0, 2.0, 3.0]],
+        "process_precision": [0.0, 1e300, 1e-300, float("inf"), "big"],
+        "initial_state": [[0.0], [float("nan")] * 2, [1e300, 0.0], "0", [0.0, 0.0, 0.0]],
+        "initial_state_std": [-1.0, 0.0, float("inf"), [1.0, 2.0, 3.0], 1e300],
+        "method": ["kalman", "bogus", "dem", "ukf", 3],
+        "input_kernel_width": [0.0, -1.0, 1e200, 1e-9, "1"],
+        "embedding_order": [-1, 30, 2.5, "auto", 0],
+    }[key]
+    observer[key] = draw(st.sampled_from(values))
+    return f"observer.{key} = {observer[key]!r}"
+
+
+@st.composite
+def nonlinear_fuzz_case(draw) -> Case:
+    """A valid nonlinear case with 0..3 mutations of model.py, the model file and the log."""
+    case = draw(valid_nonlinear_case())
+    for _ in range(draw(st.integers(0, 3))):
+        target = draw(st.sampled_from(["model", "model", "log"]))
+        mutate = {"model": _nonlinear_model_mutation, "log": _log_mutation}[target]
+        if isinstance(getattr(case, target), (dict, list)):
+            try:
+                case.mutations.append(mutate(draw, case))
+            except (KeyError, IndexError, TypeError, AttributeError, StopIteration, ValueError):
+                case.mutations.append(f"{target} mutation skipped")
+    return case
+
+
 # --- running and classifying ---------------------------------------------------------------
 
 @dataclass
@@ -375,8 +513,9 @@ def run_case(case: Case, folder: Path, command: str) -> Outcome:
             code = main(argv)
     except BaseException:  # noqa: BLE001 - the harness records every escape as a traceback
         return Outcome("traceback", command, None, stderr.getvalue() + traceback.format_exc(), case.mutations)
-    return Outcome(classify(code, stderr.getvalue(), out, (model_path, log_path, out), command), command, code,
-                   stderr.getvalue(), case.mutations)
+    named = (model_path, log_path, out) + ((folder / "model.py",) if case.python is not None else ())
+    return Outcome(classify(code, stderr.getvalue(), out, named, command), command, code, stderr.getvalue(),
+                   case.mutations)
 
 
 def classify(code, stderr: str, out: Path, paths, command: str) -> str:

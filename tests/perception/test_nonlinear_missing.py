@@ -141,3 +141,4 @@ def test_the_start_search_takes_missing_outputs():
     search = search_start(_system(), DT, y, process_covariance=Q, measurement_covariance=R, substeps=SUBSTEPS)
     assert not search.ambiguous
     assert np.all(np.abs(search.mean - [1.0, 0.0]) < 3 * search.std)
+

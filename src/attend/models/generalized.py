@@ -93,9 +93,10 @@ def _finite_scales(matrix: np.ndarray, s: float, n_orders: int) -> np.ndarray:
     width s [s], whose powers up to (2 s^2)^((n_orders - 1) / 2) left the floating-point range."""
     if np.all(np.isfinite(matrix)):
         return matrix
-    raise AttendInputError(f"kernel_width: {s:g} s with {n_orders} orders of motion gives (2 s^2)^k outside the "
-                           "floating-point range; expected a kernel width of about the sample time (a few sample "
-                           "times at most)")
+    raise AttendInputError(f"kernel_width: a width of {s:g} (in the unit of time of the derivatives: seconds, or "
+                           f"sample times where the flow runs in samples) with {n_orders} orders of motion gives "
+                           "(2 s^2)^k outside the floating-point range; expected a kernel width of about the sample "
+                           "time (a few sample times at most)")
 
 
 def smoothness_precision(n_orders: int, kernel_width: float) -> np.ndarray:

@@ -40,9 +40,12 @@ def file_nonlinear_order(model: ModelFile, dt: float) -> int:
 
     if model.embedding_order != "auto":
         return int(model.embedding_order)
-    for p in range(AUTO_MAX_ORDER, 0, -1):
-        if smoothness_condition(p + 1, model.kernel_width, dt) <= AUTO_MAX_CONDITION:
-            return p
+    try:
+        for p in range(AUTO_MAX_ORDER, 0, -1):
+            if smoothness_condition(p + 1, model.kernel_width, dt) <= AUTO_MAX_CONDITION:
+                return p
+    except AttendInputError as error:
+        raise AttendInputError(f"{model.path}: [observer] embedding_order = \"auto\": {error}") from None
     return 0
 
 
@@ -339,6 +342,8 @@ class NonlinearFileEstimator:
                 substeps = smoother_substeps(dem, basis)
                 if initial is None:
                     dem_start, dem_followed = initial_state_prior(dem, checked, basis), basis[1]
+        except np.linalg.LinAlgError:  # the D-step failed numerically: the search goes without its hint
+            pass
         except AttendInputError as error:
             if self.model.python_path and str(error).startswith(self.model.python_path):
                 raise

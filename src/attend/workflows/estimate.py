@@ -58,6 +58,7 @@ def estimate_from_files(model: ModelFile, log: Log) -> tuple[DEMObserver, Estima
         else:
             signals[:, j] = spec.prior_mean
     if model.nonlinear and model.method == "dem":
+        checked_sample_time(model, log, 2, "nonlinear DEM")  # the order "auto" needs the log's dt
         window = max(file_nonlinear_order(model, log.dt), model.input_order) + 1
         dt = checked_sample_time(model, log, max(2, window), f"the embedding window of order {window - 1}")
     elif model.nonlinear:

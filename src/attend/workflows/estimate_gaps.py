@@ -122,6 +122,8 @@ def _nonlinear_with_gaps(model: ModelFile, log: Log):
     from attend.perception.estimate import as_estimate
     from attend.perception.nonlinear.start_search import AmbiguousStartError
 
+    if len(log.time) < 2:
+        raise AttendInputError(f"{log.path}: expected at least 2 samples, got {len(log.time)}")
     dt = _sample_time(model, log)
     grid = sample_grid(log.time, dt, field=f"{log.path}: column {model.time_column!r}", labels=log.labels)
     if not grid.uniform:
@@ -155,7 +157,12 @@ def _nonlinear_with_gaps(model: ModelFile, log: Log):
     for number, part in enumerate(parts):
         # after a long gap the state is searched again (the file's initial_state is the first part's)
         part_model = model if number == 0 else replace(model, initial_state=None)
-        observer = file_estimator(part_model, dt)
+        try:
+            observer = file_estimator(part_model, dt)
+        except AttendInputError as error:  # as estimate_from_files: the settings, in the file's words
+            message = str(error)
+            raise AttendInputError(message if message.startswith(str(model.path)) else
+                                   f"{model.path}: [observer] {message}") from None
         with np.errstate(over="ignore", invalid="ignore"):
             try:
                 estimate = observer.estimate(on_grid[part], signals[part])

@@ -51,11 +51,17 @@ def jacobi_scaling(matrix) -> np.ndarray:
 
 
 def scaled_solve(matrix, vector):
-    """inv(matrix) vector with Jacobi scaling (units of the coordinates may differ by 1e12).
+    """inv(matrix) vector with Jacobi scaling (units of the coordinates may differ by 1e12); a
+    LinAlgError where the scaled system is not finite.
 
     matrix: square (k, k); vector: (k,)."""
     d = jacobi_scaling(matrix)
-    return d * np.linalg.lstsq(matrix * np.outer(d, d), vector * d, rcond=None)[0]
+    with np.errstate(over="ignore", invalid="ignore"):
+        scaled, right = matrix * np.outer(d, d), vector * d
+    if not (np.all(np.isfinite(scaled)) and np.all(np.isfinite(right))):  # LAPACK would print and return NaN
+        raise np.linalg.LinAlgError("scaled_solve: the scaled system is not finite (diagonal entries near 0 or "
+                                    "beyond the floating-point range)")
+    return d * np.linalg.lstsq(scaled, right, rcond=None)[0]
 
 
 def inverse_diagonals(matrices, indices) -> np.ndarray:

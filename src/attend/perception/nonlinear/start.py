@@ -17,7 +17,12 @@ def gauss_newton_start(evaluate, X, iterations: int = 20) -> np.ndarray:
     from it counts as F = -inf); X: the starting generalised state; iterations: the most steps."""
     gradient, curvature, energy = evaluate(X)
     for _ in range(iterations):
-        step = scaled_solve(curvature, gradient)
+        if not (np.all(np.isfinite(curvature)) and np.all(np.isfinite(gradient))):
+            break  # no step from a non-finite curvature or gradient (LAPACK would refuse it): X as it is
+        try:
+            step = scaled_solve(curvature, gradient)
+        except np.linalg.LinAlgError:  # a system beyond the floating-point range: X as it is
+            break
         accepted = False
         for _ in range(30):
             candidate = X + step

@@ -475,6 +475,12 @@ def _extended_update(model, mean, cov, y, k):
 
 
 def _sigma_points(mean, cov, alpha, beta, kappa):
+    """The 2d + 1 sigma points of N(mean, cov) and their mean and covariance weights; an
+    AttendInputError where mean or cov is not finite (the filter's covariance left the floating-point
+    range: f and g would be called at NaN, and the error blamed on them)."""
+    if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(cov))):
+        raise AttendInputError("the filter's mean or covariance is not finite (beyond the floating-point range); check "
+                               "the covariances (process_precision, sensor_precision, initial_state_std)")
     d = mean.shape[0]
     lam = alpha**2 * (d + kappa) - d
     try:
@@ -698,7 +704,17 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, 
 
 
 
+#: estimates beyond this (in the states' own units) are a filter that diverged, not a state
+DIVERGED_MAGNITUDE = 1e100
+
+
 def _check(means, name):
+    """Refuse a filter that diverged: non-finite means, or means beyond DIVERGED_MAGNITUDE (a process
+    or start covariance of ~1e300, e.g. a precision of 1e-300, puts the sigma points at ~1e150, where
+    f and g give finite nonsense)."""
     if not np.all(np.isfinite(means)):
         raise AttendInputError(f"{name}: the filter diverged (non-finite estimates); check the covariances")
+    if np.max(np.abs(means), initial=0.0) > DIVERGED_MAGNITUDE:
+        raise AttendInputError(f"{name}: the filter diverged (estimates beyond {DIVERGED_MAGNITUDE:g}); check the "
+                               "covariances (process_precision, initial_state_std)")
 

@@ -118,8 +118,8 @@ def estimate_with_gaps(model: ModelFile, log: Log):
 
 def _nonlinear_with_gaps(model: ModelFile, log: Log):
     """:func:`estimate_with_gaps` of a nonlinear model file (module docstring): the estimator runs on
-    the log's uniform grid, its estimates are returned at the log's rows."""
-    from attend.perception.estimate import as_estimate
+    the log's uniform grid, its estimates are returned at the log's rows. The observer returned is
+    the last part's (its choices, e.g. an unknown input's width, are that part's)."""
     from attend.perception.nonlinear.start_search import AmbiguousStartError
 
     if len(log.time) < 2:
@@ -205,7 +205,8 @@ def _in_part(error: Exception, parts: list, number: int, log: Log, grid: SampleG
         return str(error)
     rows = [int(row) for row in np.flatnonzero((grid.rows >= parts[number].start) & (grid.rows < parts[number].stop))]
     where = f"{log.labels[rows[0]]} to {log.labels[rows[-1]]}" if rows else "a part without rows"
-    return f"{error} (on the part of the log from {where}, after a gap of more than {BRIDGED_GAP} samples)"
+    return (f"{error} (on the part of the log from {where}; the log is split at its gaps of more than {BRIDGED_GAP} "
+            "samples without outputs)")
 
 
 def _at_log_rows(pieces: list, grid: SampleGrid, log: Log):

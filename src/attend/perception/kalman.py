@@ -142,7 +142,7 @@ def _channel_model(dt: float, width: float, kind: str, field: str,
         return white_state_space(), 0.0
     if width > MAX_WIDTH_SAMPLES * dt:
         raise AttendInputError(
-            f"{field}: {width:g} s is {width / dt:.3g} sample times; expected at most {MAX_WIDTH_SAMPLES} "
+            f"{field}: {width:g} s is {width / dt:.6g} sample times; expected at most {MAX_WIDTH_SAMPLES} "
             f"({MAX_WIDTH_SAMPLES * dt:g} s): noise that smooth is a slowly varying offset, better modelled as a state"
         )
     if kind == "kernel":

@@ -1,6 +1,7 @@
 """Gaps in the logs of nonlinear models: `attend estimate` (method "ukf") on logs that drop rows and values.
 
     PYTHONPATH=src python benchmarks/bench_nonlinear_gaps.py [--quick] [--drop 0.05] [--cells 0.02] [--seeds 2]
+                                                             [--keep-inputs] [--jitter 0.05]
 
 The bank of benchmarks/bench_nonlinear_start.py (SPM's Lorenz from 10 points of its attractor, a
 double well, van der Pol, a pendulum with an unknown push; SPM's settings as model files, 128
@@ -13,6 +14,10 @@ samples; its generators imported, not copied). Each log is estimated twice by `a
   fraction ``cells`` of the remaining output values set missing (an empty cell: no update for that
   output at that sample). --keep-inputs: the dropped rows keep their stamp and measured input, only
   their outputs go missing (what the smoother loses, without what the input's gap loses).
+- --jitter J instead: every row kept, at the stamp k + e_k with e_k uniform in +-J/2 (steps within
+  +-J of dt); each log read from a simulation 100x finer with the same noises (one seed), its measured
+  input switching at its own stamps; the complete one at the stamps k. The smoother integrates each
+  step over its own length.
 
 Metric: the state SSE over the rows of the gappy log, gappy / complete, per case and log seed;
 target (the linear smoother's, issue 29): median <= 1.1. Beside it the same with initial_state
@@ -32,9 +37,13 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_nonlinear_start import case_settings, cases, simulate_case, write_model  # noqa: E402
+from bench_nonlinear_start import case_inputs, case_settings, cases, simulate_case, write_model  # noqa: E402
 
 from attend.cli import main as cli  # noqa: E402
+from attend.io import read_model  # noqa: E402
+from attend.models import simulate_nonlinear  # noqa: E402
+
+FINE = 100  # sub-samples per sample of the simulation that jittered logs are read from
 
 TARGET = 1.1
 
@@ -79,6 +88,33 @@ def gappy_copy(log: Path, rng, drop: float, cells: float, keep_inputs: bool = Fa
     return path, kept
 
 
+def jittered_logs(folder: Path, kind: str, x0, samples: int, seed: int, amplitude: float, jitter: float, rng):
+    """log.csv (stamps k) and jittered.csv (stamps k + e_k, e_k uniform in +-jitter/2, so every step is
+    within +-jitter of dt = 1) of ``kind``, each read from a simulation FINE times finer with the same
+    noises (one seed: the same continuous-time process and sensor noise) whose measured input
+    switches at its own log's stamps (held from each row to the next, as the estimator assumes);
+    returns (the true states at log.csv's rows, at jittered.csv's rows)."""
+    model_path, settings = write_model(folder, kind)
+    system = read_model(model_path).system
+    fine_t = np.arange(samples * FINE) / FINE
+    offsets = np.round(rng.uniform(-jitter / 2, jitter / 2, samples) * FINE).astype(int)
+    offsets[0] = 0
+    known = settings["r"] and settings["known"]
+    header = ",".join(["t"] + [f"y{i + 1}" for i in range(settings["m"])] + (["u"] if known else []))
+    truths = []
+    for name, index in (("log.csv", np.arange(samples) * FINE),
+                        ("jittered.csv", np.clip(np.arange(samples) * FINE + offsets, 0, len(fine_t) - 1))):
+        row = np.clip(np.searchsorted(index, np.arange(len(fine_t)), side="right") - 1, 0, samples - 1)
+        inputs = case_inputs(kind, row.astype(float), amplitude)  # row k's input from its stamp to the next
+        log = simulate_nonlinear(system, len(fine_t) if inputs is None else inputs, 1.0 / FINE,
+                                 kernel_width=settings["s"], process_std=settings["W"] ** -0.5,
+                                 measurement_std=settings["V"] ** -0.5, initial_state=x0, seed=seed)
+        columns = [fine_t[index], log.outputs[index]] + ([np.asarray(log.inputs)[index]] if known else [])
+        np.savetxt(folder / name, np.column_stack(columns), delimiter=",", header=header, comments="", fmt="%.12g")
+        truths.append(log.states[index])
+    return truths[0], truths[1]
+
+
 def sse(estimate, truth, n: int) -> float:
     return float("nan") if estimate is None else float(np.sum((estimate[:, 1:1 + n] - truth) ** 2))
 
@@ -97,6 +133,9 @@ def main(argv=None) -> None:
     parser.add_argument("--cells", type=float, default=0.02, help="fraction of output values emptied (default 0.02)")
     parser.add_argument("--seeds", type=int, default=2, help="gappy logs per case (default 2)")
     parser.add_argument("--samples", type=int, default=128)
+    parser.add_argument("--jitter", type=float, default=0.0,
+                        help="instead of drops: every stamp jittered by up to +-jitter/2 dt (e.g. 0.05), both logs "
+                             "read from a simulation 100x finer")
     parser.add_argument("--keep-inputs", action="store_true",
                         help="a dropped row keeps its stamp and measured inputs (only its outputs go missing)")
     args = parser.parse_args(argv)
@@ -107,23 +146,31 @@ def main(argv=None) -> None:
     for index, (label, kind, x0, amplitude, seed) in enumerate(cases(10, args.quick)):
         with tempfile.TemporaryDirectory() as name:
             folder = Path(name)
-            truth = simulate_case(folder, kind, x0, args.samples, seed, amplitude)
+            if args.jitter:
+                truth, jittered_truth = jittered_logs(folder, kind, x0, args.samples, seed, amplitude, args.jitter,
+                                                      np.random.default_rng([2912, index]))
+            else:
+                truth = simulate_case(folder, kind, x0, args.samples, seed, amplitude)
             n = truth.shape[1]
             r = case_settings(kind)["r"]
             searched = write_model(folder, kind)[0]
             known = write_model(folder, kind, f"initial_state = {list(map(float, x0))}\n", "known.toml")[0]
             complete = {model: run(model, folder / "log.csv") for model in (searched, known)}
-            for log_seed in range(args.seeds):
+            for log_seed in range(1 if args.jitter else args.seeds):
                 rng = np.random.default_rng([2911, index, log_seed])
-                gappy, kept = gappy_copy(folder / "log.csv", rng, args.drop, args.cells, args.keep_inputs)
+                if args.jitter:  # every row, at its jittered stamp (the truth there)
+                    gappy, kept = folder / "jittered.csv", np.arange(args.samples)
+                else:
+                    gappy, kept = gappy_copy(folder / "log.csv", rng, args.drop, args.cells, args.keep_inputs)
+                target = jittered_truth if args.jitter else truth[kept]
                 line = [f"{label:30s} {log_seed:4d} {len(kept):5d}"]
                 for model, store, which in ((searched, ratios, "searched"), (known, known_ratios, "known")):
                     status, message, estimate = run(model, gappy)
-                    covered[which].append(inside(estimate, truth[kept], n, r))
+                    covered[which].append(inside(estimate, target, n, r))
                     full = complete[model][2]
                     covered[f"{which} complete"].append(inside(None if full is None else full[kept], truth[kept], n, r))
                     reference = sse(None if full is None else full[kept], truth[kept], n)
-                    value = sse(estimate, truth[kept], n)
+                    value = sse(estimate, target, n)
                     refusals += status != 0
                     store.append(value / reference)
                     line.append(f"{reference:18.4g} {value:9.4g} {value / reference:6.3f}")

@@ -160,18 +160,25 @@ def write_model(folder: Path, kind: str, extra: str = "", name: str = "model.tom
     return folder / name, settings
 
 
+def case_inputs(kind: str, t: np.ndarray, amplitude: float = 0.0) -> np.ndarray | None:
+    """The input of ``kind`` at the times t (N,) [bins]: (N, r), or None without inputs: the double
+    well's measured drive amplitude sin(pi t / 16), the pendulum's unknown push (two bumps)."""
+    settings = case_settings(kind)
+    if settings["r"] and settings["known"]:
+        return amplitude * np.sin(np.pi * t / 16.0)[:, None]
+    if settings["r"]:
+        return (0.08 * np.exp(-0.5 * ((t - 40.0) / 4.0) ** 2) - 0.06 * np.exp(-0.5 * ((t - 90.0) / 6.0) ** 2))[:, None]
+    return None
+
+
 def simulate_case(folder: Path, kind: str, x0, samples: int, seed: int, amplitude: float = 0.0,
                   with_inputs: bool = False):
     """log.csv of ``kind`` from x[0] = x0; returns the true states (N, n) (with_inputs: and inputs (N, r))."""
     model_path, settings = write_model(folder, kind)
     system = read_model(model_path).system
     t = np.arange(samples, dtype=float)
-    if settings["r"] and settings["known"]:
-        inputs = amplitude * np.sin(np.pi * t / 16.0)[:, None]
-    elif settings["r"]:
-        inputs = (0.08 * np.exp(-0.5 * ((t - 40.0) / 4.0) ** 2) - 0.06 * np.exp(-0.5 * ((t - 90.0) / 6.0) ** 2))[:, None]
-    else:
-        inputs = samples
+    inputs = case_inputs(kind, t, amplitude)
+    inputs = samples if inputs is None else inputs
     log = simulate_nonlinear(system, inputs, 1.0, kernel_width=settings["s"], process_std=settings["W"] ** -0.5,
                              measurement_std=settings["V"] ** -0.5, initial_state=x0, seed=seed)
     columns = [t, log.outputs] + ([log.inputs] if settings["r"] and settings["known"] else [])

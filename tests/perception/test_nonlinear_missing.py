@@ -142,3 +142,60 @@ def test_the_start_search_takes_missing_outputs():
     assert not search.ambiguous
     assert np.all(np.abs(search.mean - [1.0, 0.0]) < 3 * search.std)
 
+
+
+def _rk4_matrix_over(h):
+    """The RK4 transition of dx/dt = A x over a step h in ceil(SUBSTEPS h / DT) steps (the sub-steps
+    the smoother takes for a step of its own length)."""
+    count = max(1, int(np.ceil(SUBSTEPS * h / DT - 1e-9)))
+    hA = A * h / count
+    step = np.eye(2) + hA + hA @ hA / 2 + hA @ hA @ hA / 6 + hA @ hA @ hA @ hA / 24
+    return np.linalg.matrix_power(step, count)
+
+
+@pytest.mark.parametrize("smoother, tolerance", [(unscented_kalman, 1e-9), (extended_kalman, 1e-6)])
+def test_jittered_steps_give_the_kalman_smoother_of_each_steps_own_transition(smoother, tolerance):
+    """Steps of their own length (a jittered log, and one step of 1.4 dt): the transition of step k is
+    RK4 over h_k, its process noise Q (h_k / dt)^2 (the white-noise model holds w over the step), and
+    missing values are skipped as before; the oracle is the plain Kalman smoother of those."""
+    y = _log()
+    steps = DT * (1.0 + np.random.default_rng(5).uniform(-0.05, 0.05, len(y) - 1))
+    steps[20] = 1.4 * DT
+    m0, P0 = np.array([0.5, 0.2]), np.diag([1.0, 1.0])
+    N = len(y)
+    mf, Pf, mp, Pp = np.zeros((N, 2)), np.zeros((N, 2, 2)), np.zeros((N, 2)), np.zeros((N, 2, 2))
+    mean, cov, ll = m0.copy(), P0.copy(), 0.0
+    transitions = [None] + [_rk4_matrix_over(h) for h in steps]
+    for k in range(N):
+        if k:
+            F = transitions[k]
+            mean, cov = F @ mean, F @ cov @ F.T + Q * (steps[k - 1] / DT) ** 2
+        mp[k], Pp[k] = mean, cov
+        seen = np.isfinite(y[k])
+        if seen.any():
+            H, Rs = C[seen], R[np.ix_(seen, seen)]
+            S = H @ cov @ H.T + Rs
+            K = cov @ H.T @ np.linalg.inv(S)
+            innovation = y[k, seen] - H @ mean
+            ll += -0.5 * (innovation @ np.linalg.solve(S, innovation) + np.linalg.slogdet(S)[1]
+                          + seen.sum() * np.log(2 * np.pi))
+            mean, cov = mean + K @ innovation, cov - K @ S @ K.T
+        mf[k], Pf[k] = mean, cov
+    ms = mf.copy()
+    for k in range(N - 2, -1, -1):
+        G = Pf[k] @ transitions[k + 1].T @ np.linalg.inv(Pp[k + 1])
+        ms[k] = mf[k] + G @ (ms[k + 1] - mp[k + 1])
+    result = smoother(_system(), DT, y, process_covariance=Q, measurement_covariance=R, initial_mean=m0,
+                      initial_covariance=P0, substeps=SUBSTEPS, step_lengths=steps)
+    np.testing.assert_allclose(result.states, ms, rtol=0, atol=tolerance * np.max(np.abs(ms)))
+    assert abs(result.log_likelihood - ll) <= tolerance * abs(ll)
+    np.testing.assert_allclose(result.time[1:], np.cumsum(steps), rtol=1e-14)
+
+
+def test_steps_of_the_wrong_count_or_not_positive_are_refused():
+    from attend._validation import AttendInputError
+
+    y = _log()
+    for steps in (np.full(len(y), DT), np.concatenate([[0.0], np.full(len(y) - 2, DT)])):
+        with pytest.raises(AttendInputError, match="steps: expected 59 step lengths > 0"):
+            unscented_kalman(_system(), DT, y, process_covariance=Q, measurement_covariance=R, step_lengths=steps)

@@ -234,14 +234,17 @@ class NonlinearFileEstimator:
         :class:`attend.perception.input_width.InputWidthChoice`), or None (given, or not estimated yet)."""
         return self.choices.get("input_width")
 
-    def estimate(self, outputs, signals):
+    def estimate(self, outputs, signals, steps=None):
         """Estimates on outputs (N, m), an :class:`attend.perception.estimate.Estimate` (method "nonlinear
         dem" or "unscented kalman smoother"); signals (N, r): measured inputs (operating point
-        removed) or the prior means of the unknown ones."""
+        removed) or the prior means of the unknown ones; steps: (N - 1,) the steps' lengths [s] of a
+        log whose stamps jitter (method "ukf": each step integrated over its own length), None: dt."""
         model = self.model
         self.choices.pop("input_width", None)  # a choice belongs to one log
         initial = None if model.initial_state is None else np.array(model.initial_state)
         if self.method == "dem":
+            if steps is not None:
+                raise AttendInputError('steps: method "dem" needs samples every dt (a uniform embedding)')
             dem = self.dem()
             return dem.estimate(outputs, signals, initial_state=initial,
                                 initial_state_std=_path_prior_std(model) if dem.states == "path" else None)
@@ -260,13 +263,14 @@ class NonlinearFileEstimator:
             else None
         input_mean = signals[0] if unknown else None
         width = self.input_kernel_width
-        options = self._ukf_options(width, precisions, input_mean)
+        options = self._ukf_options(width, precisions, input_mean, steps)
         inputs = (signals if known.any() else None) if unknown else (signals if r else None)
         mean, std, substeps = self._start(outputs, signals, initial, inputs, options)
         covariance = np.diag(np.asarray(std, dtype=float) ** 2)
         if unknown and model.input_kernel_width is None:  # the width from the log, as the linear default
-            width = self._chosen_input_width(outputs, inputs, mean, covariance, substeps, precisions, input_mean)
-            options = self._ukf_options(width, precisions, input_mean)
+            width = self._chosen_input_width(outputs, inputs, mean, covariance, substeps, precisions, input_mean,
+                                             steps)
+            options = self._ukf_options(width, precisions, input_mean, steps)
         # the std: the smoother's error spread under the file's coloured noise, its exact covariance
         # through the smoother's linearisation (error_spread.smoother_error_covariance: no draws)
         prior = (1.0 / precisions, width) if unknown else None
@@ -277,25 +281,28 @@ class NonlinearFileEstimator:
                                             input_prior=prior, spread_draws=None, **options),
                            "unscented kalman smoother")
 
-    def _ukf_options(self, width, precisions, input_mean) -> dict:
+    def _ukf_options(self, width, precisions, input_mean, steps=None) -> dict:
         """The unscented smoother's noise options of the file (:func:`attend.perception.nonlinear_smoothers.
         white_noise_options`) with the unknown inputs' random walk at width s_v = ``width`` [s]; precisions: the
-        inputs' prior precisions (None: no unknown input); input_mean: their prior mean at the first sample."""
+        inputs' prior precisions (None: no unknown input); input_mean: their prior mean at the first sample;
+        steps: the steps' lengths of a jittered log (None: dt)."""
         from attend.perception.nonlinear_smoothers import white_noise_options
 
         model, system = self.model, self.system
-        return white_noise_options(
+        return dict(step_lengths=steps) | white_noise_options(
             self.dt, process_precision=precision_matrix(model.process_precision, system.n_states, "process_precision"),
             sensor_precision=precision_matrix(model.sensor_precision, system.n_outputs, "sensor_precision"),
             input_prior_precision=precisions, input_kernel_width=width, known_inputs=self.known,
             input_mean=input_mean, who='method "ukf"')
 
-    def _chosen_input_width(self, outputs, inputs, mean, covariance, substeps, precisions, input_mean) -> float:
+    def _chosen_input_width(self, outputs, inputs, mean, covariance, substeps, precisions, input_mean,
+                            steps=None) -> float:
         """s_v [s], the unknown inputs' width of largest likelihood on the log:
         :func:`attend.perception.input_width.choose_input_width` over the unscented filter's prediction-error
         decomposition from the start found (:func:`attend.perception.nonlinear_smoothers.unscented_innovation_terms`),
         the noise level profiled; the random walk's steps follow the width. A flat likelihood keeps the kernel
-        width with a warning naming input_kernel_width, as for linear models."""
+        width with a warning naming input_kernel_width, as for linear models. steps: as
+        :meth:`estimate`."""
         from attend.perception.input_width import choose_input_width
         from attend.perception.nonlinear_smoothers import unscented_innovation_terms
 
@@ -303,7 +310,7 @@ class NonlinearFileEstimator:
         choice = choose_input_width(
             lambda width: unscented_innovation_terms(self.system, self.dt, outputs, inputs, initial_mean=mean,
                                                      initial_covariance=covariance, substeps=substeps,
-                                                     **self._ukf_options(width, precisions, input_mean)),
+                                                     **self._ukf_options(width, precisions, input_mean, steps)),
             self.dt, model.kernel_width, smallest=model.kernel_width)
         self.choices["input_width"] = choice
         _warn(model.path, choice.warning(), choice.misfit())

@@ -15,7 +15,8 @@ Nonlinear models run on the log's grid when its stamps are uniform (whole sample
 method "ukf" with no update for a missing output (a skipped stamp is a sample without outputs),
 split at every gap of more than BRIDGED_GAP samples without outputs, each part from its own start
 (:func:`_segments`); method "dem" on the outputs bridged as for the linear DEM; their estimates are
-returned at the log's rows. Jittered stamps are refused for nonlinear models (their smoothers step by dt).
+returned at the log's rows. Jittered stamps: the unscented smoother integrates each step over its
+own length (its process noise scaled to it); nonlinear DEM refuses them.
 """
 
 from __future__ import annotations
@@ -126,11 +127,12 @@ def _nonlinear_with_gaps(model: ModelFile, log: Log):
         raise AttendInputError(f"{log.path}: expected at least 2 samples, got {len(log.time)}")
     dt = _sample_time(model, log)
     grid = sample_grid(log.time, dt, field=f"{log.path}: column {model.time_column!r}", labels=log.labels)
-    if not grid.uniform:
+    if not grid.uniform and model.method == "dem":
         raise AttendInputError(
-            f"{log.path}: {_first_gap(model, log)}; the estimators of nonlinear models step by dt, so their "
-            f"logs need time stamps on t0 + k dt (within {UNIFORM_TOLERANCE:g} dt; skipped samples are handled): "
-            "resample the log onto a uniform grid, or use a linear model (jitter is handled there)")
+            f"{log.path}: {_first_gap(model, log)}; nonlinear DEM needs time stamps on t0 + k dt (within "
+            f"{UNIFORM_TOLERANCE:g} dt; skipped samples are handled): use method \"ukf\" (the default), which "
+            "integrates each step over its own length, or resample the log")
+    steps = None if grid.uniform else np.diff(grid.time)
     outputs = log.matrix(model.output_columns, missing=True)
     if not np.isfinite(outputs).any():
         raise AttendInputError(f"{log.path}: every value of the output columns {', '.join(model.output_columns)} is "
@@ -165,7 +167,8 @@ def _nonlinear_with_gaps(model: ModelFile, log: Log):
                                    f"{model.path}: [observer] {message}") from None
         with np.errstate(over="ignore", invalid="ignore"):
             try:
-                estimate = observer.estimate(on_grid[part], signals[part])
+                estimate = observer.estimate(on_grid[part], signals[part],
+                                             None if steps is None else steps[part.start:part.stop - 1])
             except AmbiguousStartError as error:  # names the setting that decides: [observer] initial_state
                 raise AttendInputError(f"{model.path}: [observer] {_in_part(error, parts, number, log, grid)}") from None
             except AttendInputError as error:
@@ -175,7 +178,7 @@ def _nonlinear_with_gaps(model: ModelFile, log: Log):
         pieces.append((part, estimate))
     estimate = _at_log_rows(pieces, grid, log)
     _check_estimate(model, log, estimate)
-    text = summary(grid, outputs, bridged, model.method)
+    text = summary(grid, outputs, bridged, model.method, nonlinear=True)
     if len(parts) > 1:
         text += (f"; split at {len(parts) - 1} gap{'s' if len(parts) > 2 else ''} of more than {BRIDGED_GAP} samples "
                  "without outputs, each part from its own start (searched, or the file's initial_state for the "
@@ -247,14 +250,17 @@ def _check_estimate(model: ModelFile, log: Log, estimate) -> None:
                                "initial_state and initial_state_std with method = \"kalman\"")
 
 
-def summary(grid: SampleGrid, outputs: np.ndarray, bridged_inputs: int, method: str) -> str:
+def summary(grid: SampleGrid, outputs: np.ndarray, bridged_inputs: int, method: str, nonlinear: bool = False) -> str:
     """One line: samples missing, jitter handled, and how (per method). grid: the log's
     :class:`attend.models.sample_times.SampleGrid`; outputs: (N, m) the output columns (NaN:
     missing); bridged_inputs: how many missing measured-input values were interpolated; method:
-    the model file's [observer] method."""
+    the model file's [observer] method; nonlinear: a nonlinear model's (its smoother integrates each
+    jittered step over its own length)."""
     missing_rows = int(np.sum(~np.isfinite(outputs).all(axis=1)))
     if method == "dem":
         how = "resampled onto t0 + k dt"
+    elif nonlinear:
+        how = "each step integrated over its own length (RK4), its process noise scaled to it"
     else:
         how = (f"each step discretised exactly (continuous-time noise models of order "
                f"{len(GAUSSIAN_SPECTRUM_DENOMINATOR) - 1})")

@@ -202,12 +202,12 @@ def initial_components(centre, scale) -> tuple[np.ndarray, np.ndarray]:
 
 def search_start(system, dt: float, outputs, inputs=None, *, process_covariance, measurement_covariance,
                  input_variance=None, input_mean=None, known_inputs=None, substeps: int = 10, prior_mean=None,
-                 prior_scale=None, prior_dof: float = 1.0, extra_starts=()) -> StartSearch:
+                 prior_scale=None, prior_dof: float = 1.0, extra_starts=(), step_lengths=None) -> StartSearch:
     """Search x[0] for the unscented smoother (the module's steps 1-5).
 
     system: the NonlinearSystem; dt: sample time [s]; outputs (N, m); inputs, process_covariance,
-    measurement_covariance, input_variance, input_mean, known_inputs, substeps: the smoother's own
-    white-noise model (:func:`attend.perception.nonlinear_smoothers.unscented_kalman`); prior_mean:
+    measurement_covariance, input_variance, input_mean, known_inputs, substeps, step_lengths: the smoother's own
+    white-noise model and the log's steps (:func:`attend.perception.nonlinear_smoothers.unscented_kalman`); prior_mean:
     mu_0 (n,) (default 0); prior_scale: sigma_0 (n,) or a scalar > 0 (default 1) [state unit];
     prior_dof: the prior's degrees of freedom (1: heavy-tailed, inf: Gaussian; :class:`StartPrior`);
     extra_starts: more (mean (n,), std (n,)) starts for the bank and the anchors (e.g. DEM's).
@@ -230,7 +230,7 @@ def search_start(system, dt: float, outputs, inputs=None, *, process_covariance,
     # follow rk4_substeps, local error ~ 0.4^5 / 120 ~ 1e-4) is accurate enough for that
     options = dict(process_covariance=process_covariance, measurement_covariance=measurement_covariance,
                    input_variance=input_variance, input_mean=input_mean, known_inputs=known_inputs,
-                   substeps=max(1, int(np.ceil(substeps / SEARCH_SUBSTEP_FRACTION))))
+                   substeps=max(1, int(np.ceil(substeps / SEARCH_SUBSTEP_FRACTION))), step_lengths=step_lengths)
     # the bank only prunes (by PRUNE_NATS, generously) and ranks: at h rho <= 0.8 the estimates are those
     # of a bank at the smoother runs' 0.4 to the bit on the 22 logs of benchmarks/bench_nonlinear_start.py
     bank_options = dict(options, substeps=max(1, int(np.ceil(substeps / BANK_SUBSTEP_FRACTION))))
@@ -443,7 +443,7 @@ class _Bank:
         # x = 0: a model may be stiff only near 0
         self.model = _Model(system, dt, outputs, inputs, options["input_variance"], options["input_mean"],
                             options["process_covariance"], options["measurement_covariance"], centres[0], None,
-                            options["substeps"], options["known_inputs"], missing=True)
+                            options["substeps"], options["known_inputs"], missing=True, steps=options.get("step_lengths"))
         n, d = system.n_states, self.model.size
         self.mean = np.tile(self.model.m0, (len(centres), 1))
         self.mean[:, :n] = centres
@@ -500,12 +500,13 @@ class _Bank:
         """(the indices of the components left, best first; the samples run)."""
         model, y = self.model, self.model.y
         wm, wc = self.weights_mean, self.weights_cov
+        noise = model.step_noise()
         for k in range(len(y)):
             if k > 0:
                 moved = self._apply(model.transition_points, self._points(self.mean, self.cov), k)
                 self.mean = np.einsum("p,kpd->kd", wm, moved)
                 spread = moved - self.mean[:, None]
-                self.cov = np.einsum("p,kpi,kpj->kij", wc, spread, spread) + model.Qz
+                self.cov = np.einsum("p,kpi,kpj->kij", wc, spread, spread) + (noise if noise.ndim == 2 else noise[k])
             self._update(y[k], k)
             finite = np.isfinite(self.score) & np.all(np.isfinite(self.mean), axis=1) \
                 & np.all(np.isfinite(self.cov), axis=(1, 2))

@@ -237,9 +237,11 @@ class _Model:
 
     def __init__(self, system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
                  measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs=None,
-                 missing: bool = False):
+                 missing: bool = False, steps=None):
         """missing: NaN in ``outputs`` marks a missing value (the Kalman filters skip it); else every
-        output must be finite."""
+        output must be finite. steps: (N - 1,) the lengths [s] of the steps between samples (None:
+        dt each), for logs whose time stamps jitter: step k is integrated over its own length (RK4
+        with the sub-steps scaled by h_k / dt) and its noise scaled to it (:meth:`step_noise`)."""
         if not isinstance(system, NonlinearSystem):
             raise AttendInputError("system: expected an attend NonlinearSystem")
         self.system = system
@@ -304,6 +306,24 @@ class _Model:
         self.Qz[:n, :n] = self.Q
         if self.augmented:
             self.Qz[n:, n:] = self.Qu
+        self.steps = None
+        if steps is not None:
+            self.steps = np.asarray(steps, dtype=float).reshape(-1)
+            if self.steps.shape != (max(N - 1, 0),) or not np.all(np.isfinite(self.steps)) or np.any(self.steps <= 0):
+                raise AttendInputError(f"steps: expected {max(N - 1, 0)} step lengths > 0 [s] (one between each two "
+                                       f"samples), got shape {self.steps.shape}")
+
+    def step_noise(self):
+        """The process noise of each step: Qz (d, d) for a uniform log, else (N, d, d) with step k's
+        (from sample k - 1; row 0 unused) for its length h: Q (h / dt)^2 (the white-noise model holds
+        w over the step: q = h w) and the unknown inputs' random walk Qu h / dt."""
+        if self.steps is None:
+            return self.Qz
+        n, ratio = self.system.n_states, np.concatenate([[1.0], self.steps / self.dt])
+        noise = np.repeat(self.Qz[None], len(ratio), axis=0)
+        noise[:, :n, :n] *= (ratio**2)[:, None, None]
+        noise[:, n:, n:] *= ratio[:, None, None]
+        return noise
 
     def transition(self, z, k):
         """z[k] = F(z[k-1]) with the input of sample k - 1 (one point: :meth:`transition_points`)."""
@@ -325,7 +345,11 @@ class _Model:
     def transition_points(self, Z, k):
         """:meth:`transition` of every row of Z (P, size) (:func:`propagate_points`)."""
         x, u = self.split_points(Z, k - 1)
-        x_new = propagate_points(self.system, x, u, self.dt, self.substeps)
+        if self.steps is None:
+            x_new = propagate_points(self.system, x, u, self.dt, self.substeps)
+        else:  # a step of its own length h, with sub-steps no longer than dt / substeps
+            h = self.steps[k - 1]
+            x_new = propagate_points(self.system, x, u, h, max(1, int(np.ceil(self.substeps * h / self.dt - 1e-9))))
         return np.concatenate([x_new, u], axis=1) if self.augmented else x_new
 
     def observation_points(self, Z, k):
@@ -342,7 +366,8 @@ class _Model:
             input_std[:, self.known] = 0.0
         else:
             inputs, input_std = self.u, np.zeros_like(self.u)
-        return KalmanEstimate(np.arange(N) * self.dt, means[:, :n], inputs, std[:, :n], input_std,
+        time = np.arange(N) * self.dt if self.steps is None else np.concatenate([[0.0], np.cumsum(self.steps)])
+        return KalmanEstimate(time, means[:, :n], inputs, std[:, :n], input_std,
                               covs[:, :n, :n], float(ll))
 
 
@@ -410,7 +435,7 @@ def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
                     measurement_covariance=None, input_variance=None, input_mean=None, initial_mean=None,
                     initial_covariance=None, smooth: bool | int = True, substeps: int = 10,
                     noise_kernel_width: float | None = None, input_prior=None, spread_draws: int | None = 200,
-                    seed: int = 0, noise: NoiseModel | None = None) -> KalmanEstimate:
+                    seed: int = 0, noise: NoiseModel | None = None, step_lengths=None) -> KalmanEstimate:
     """Extended Kalman filter (``smooth=False``), filter + RTS smoother (``True``) or fixed-lag
     smoother (``smooth=L`` samples: row k uses y[0..k+L], e.g. the DEM estimator's delay).
 
@@ -428,11 +453,15 @@ def extended_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *,
     noise: an :class:`attend.models.NoiseModel` instead of process_covariance and
     measurement_covariance: Q = dt^2 inv(Pi_w), R = inv(Pi_z) (:func:`white_noise_options`; its kernel
     widths are not used: give noise_kernel_width for the error spread under coloured noise).
+    step_lengths: (N - 1,) the lengths [s] of the steps between samples when the log's time stamps jitter
+    (None: dt each): each step is integrated over its own length and its process noise scaled to it
+    (Q (h / dt)^2, an unknown input's random walk Qu h / dt); the error spread under coloured noise
+    takes the steps as dt (within the jitter: +-10 % in the noise's variance for +-5 % steps).
     """
     process_covariance, measurement_covariance = covariances_from_noise(
         system, dt, noise, process_covariance, measurement_covariance, "extended_kalman")
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
-                   measurement_covariance, initial_mean, initial_covariance, substeps, missing=True)
+                   measurement_covariance, initial_mean, initial_covariance, substeps, missing=True, steps=step_lengths)
     spread = _spread_settings(model, smooth, noise_kernel_width, input_prior, spread_draws)
     N, d = model.y.shape[0], model.size
     mf, Pf = np.empty((N, d)), np.empty((N, d, d))
@@ -460,7 +489,8 @@ def _extended_predict(model, mean, cov, k):
     Fz = finite_difference_jacobian(lambda Z: model.transition_points(Z.T, k).T, mean, vectorized=True)
     cross = cov @ Fz.T
     mean = model.transition(mean, k)
-    cov = Fz @ cov @ Fz.T + model.Qz
+    noise = model.step_noise()
+    cov = Fz @ cov @ Fz.T + (noise if noise.ndim == 2 else noise[k])
     return mean, cov, cross
 
 
@@ -502,7 +532,7 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
                      initial_covariance=None, smooth: bool | int = True, substeps: int = 10, alpha: float = 1.0,
                      beta: float = 2.0, kappa: float = 0.0, known_inputs=None, noise_kernel_width: float | None = None,
                      input_prior=None, spread_draws: int | None = 200, seed: int = 0,
-                     noise: NoiseModel | None = None, evidence_floor: float | None = None) -> KalmanEstimate:
+                     noise: NoiseModel | None = None, evidence_floor: float | None = None, step_lengths=None) -> KalmanEstimate:
     """Unscented Kalman filter (``smooth=False``), filter + unscented RTS smoother (``True``,
     Sarkka 2008) or fixed-lag smoother (``smooth=L`` samples).
 
@@ -529,14 +559,17 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
     (:func:`evidence_bound_per_sample`) is below it. None (default): never; also ignored for a spread
     (alpha, beta, kappa) with a negative covariance weight, where the bound does not hold (a sample
     adds at most that bound for its measured outputs, nothing where all are missing).
+    step_lengths: the lengths of the steps between samples of a jittered log (as :func:`extended_kalman`).
     """
     process_covariance, measurement_covariance = covariances_from_noise(
         system, dt, noise, process_covariance, measurement_covariance, "unscented_kalman")
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
-                   measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs, missing=True)
+                   measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs, missing=True,
+                   steps=step_lengths)
     spread = _spread_settings(model, smooth, noise_kernel_width, input_prior, spread_draws)
     record = {}
-    means, covs, ll = _unscented(model.transition_points, model.observation_points, model.y, model.m0, model.P0, model.Qz,
+    means, covs, ll = _unscented(model.transition_points, model.observation_points, model.y, model.m0, model.P0,
+                                 model.step_noise(),
                                  model.R, smooth, (alpha, beta, kappa), "unscented_kalman", record, evidence_floor)
     return model.result(means, _error_spread(model, smooth, spread, record, spread_draws, seed, covs), ll)
 
@@ -544,19 +577,20 @@ def unscented_kalman(system: NonlinearSystem, dt: float, outputs, inputs=None, *
 def unscented_innovation_terms(system: NonlinearSystem, dt: float, outputs, inputs=None, *, process_covariance,
                                measurement_covariance, input_variance=None, input_mean=None, initial_mean=None,
                                initial_covariance=None, substeps: int = 10, known_inputs=None, alpha: float = 1.0,
-                               beta: float = 2.0, kappa: float = 0.0) -> InnovationTerms:
+                               beta: float = 2.0, kappa: float = 0.0, step_lengths=None) -> InnovationTerms:
     """The unscented filter's prediction-error decomposition of log p(y): the sums over samples of
     log det S[k] and nu[k]' inv(S[k]) nu[k] and the number of outputs, an
     :class:`attend.perception.kalman_recursions.InnovationTerms` (the criterion of
     :func:`attend.perception.input_width.choose_input_width`). One filter pass, no smoother.
 
     system, dt [s], outputs (N, m), inputs (N, r) or None, process_covariance, measurement_covariance,
-    input_variance, input_mean, initial_mean, initial_covariance, substeps, known_inputs and the sigma-point
-    spread alpha, beta, kappa: as :func:`unscented_kalman`."""
+    input_variance, input_mean, initial_mean, initial_covariance, substeps, known_inputs, the sigma-point
+    spread alpha, beta, kappa and step_lengths: as :func:`unscented_kalman`."""
     model = _Model(system, dt, outputs, inputs, input_variance, input_mean, process_covariance,
-                   measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs, missing=True)
+                   measurement_covariance, initial_mean, initial_covariance, substeps, known_inputs, missing=True,
+                   steps=step_lengths)
     record = {}
-    _unscented(model.transition_points, model.observation_points, model.y, model.m0, model.P0, model.Qz, model.R,
+    _unscented(model.transition_points, model.observation_points, model.y, model.m0, model.P0, model.step_noise(), model.R,
                False, (alpha, beta, kappa), "unscented_kalman", record)
     return record["innovation_terms"]
 
@@ -660,7 +694,8 @@ def _nonnegative_weights(spread, d: int) -> bool:
 
 
 def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, record=None, floor=None):
-    """Unscented filter (+ RTS smoother) for z[k] = transition(z[k-1], k) + q, y[k] = observation(z[k], k) + r;
+    """Unscented filter (+ RTS smoother) for z[k] = transition(z[k-1], k) + q, y[k] = observation(z[k], k) + r
+    (Cov(q) = Qz (d, d), or Qz[k] of an (N, d, d) stack of the steps' own);
     transition and observation take the sigma points as rows (P, d) and return rows. record: a
     dict that receives the filter's statistical linearisation (:mod:`.error_spread`): the
     covariances Pf, Pp, cross (k -> k + 1), the output cross covariances Cy = Cov(z_k, y_k), the
@@ -681,7 +716,8 @@ def _unscented(transition, observation, y, m0, P0, Qz, R, smooth, spread, name, 
     quadratic = log_determinant = 0.0
     for k in steps(range(N), name):
         if k > 0:
-            mean, cov, cross[k - 1], Pf_points[k - 1] = _unscented_predict(transition, mean, cov, Qz, spread, k)
+            mean, cov, cross[k - 1], Pf_points[k - 1] = _unscented_predict(transition, mean, cov,
+                                                                           Qz if Qz.ndim == 2 else Qz[k], spread, k)
         mp[k], Pp[k] = mean, 0.5 * (cov + cov.T)
         mean, cov, step_ll, K[k], Cy[k], Pp_points[k], parts = _unscented_update(observation, mean, cov, R, spread,
                                                                                  y[k], k)

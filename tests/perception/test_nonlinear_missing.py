@@ -197,5 +197,5 @@ def test_steps_of_the_wrong_count_or_not_positive_are_refused():
 
     y = _log()
     for steps in (np.full(len(y), DT), np.concatenate([[0.0], np.full(len(y) - 2, DT)])):
-        with pytest.raises(AttendInputError, match="steps: expected 59 step lengths > 0"):
+        with pytest.raises(AttendInputError, match="step_lengths: expected 59 step lengths > 0"):
             unscented_kalman(_system(), DT, y, process_covariance=Q, measurement_covariance=R, step_lengths=steps)

@@ -310,7 +310,7 @@ class _Model:
         if steps is not None:
             self.steps = np.asarray(steps, dtype=float).reshape(-1)
             if self.steps.shape != (max(N - 1, 0),) or not np.all(np.isfinite(self.steps)) or np.any(self.steps <= 0):
-                raise AttendInputError(f"steps: expected {max(N - 1, 0)} step lengths > 0 [s] (one between each two "
+                raise AttendInputError(f"step_lengths: expected {max(N - 1, 0)} step lengths > 0 [s] (one between each two "
                                        f"samples), got shape {self.steps.shape}")
 
     def step_noise(self):

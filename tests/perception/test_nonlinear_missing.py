@@ -26,7 +26,7 @@ def _log(seed=0, samples=60):
     10 samples of both outputs."""
     rng = np.random.default_rng(seed)
     x, rows = np.array([1.0, 0.0]), []
-    transition = _rk4_matrix()
+    transition = _rk4_matrix_over(DT)
     for _ in range(samples):
         rows.append(C @ x + rng.normal(0, np.sqrt(np.diag(R))))
         x = transition @ x + rng.multivariate_normal(np.zeros(2), Q)
@@ -38,24 +38,19 @@ def _log(seed=0, samples=60):
     return y
 
 
-def _rk4_matrix():
-    """The RK4 transition of dx/dt = A x over DT in SUBSTEPS steps: a linear map, so the sigma points'
-    transition is exact for it."""
-    hA = A * DT / SUBSTEPS
-    step = np.eye(2) + hA + hA @ hA / 2 + hA @ hA @ hA / 6 + hA @ hA @ hA @ hA / 24
-    return np.linalg.matrix_power(step, SUBSTEPS)
-
-
-def _kalman(y, m0, P0):
-    """Kalman filter + RTS smoother of x[k] = F x[k-1] + q, y[k] = C x[k] + r, a missing value skipped:
-    (smoothed means, smoothed covariances, log-likelihood of the measured values)."""
-    F = _rk4_matrix()
+def _kalman(y, m0, P0, steps=None):
+    """Kalman filter + RTS smoother of x[k] = F_k x[k-1] + q_k, y[k] = C x[k] + r, a missing value
+    skipped: F_k the RK4 transition over step k (DT each, or ``steps``), Cov(q_k) = Q (h_k / DT)^2.
+    Returns (smoothed means, smoothed covariances, log-likelihood of the measured values)."""
     N = len(y)
+    lengths = np.full(N - 1, DT) if steps is None else np.asarray(steps)
+    transitions = [None] + [_rk4_matrix_over(h) for h in lengths]
     mf, Pf, mp, Pp = np.zeros((N, 2)), np.zeros((N, 2, 2)), np.zeros((N, 2)), np.zeros((N, 2, 2))
     mean, cov, ll = m0.copy(), P0.copy(), 0.0
     for k in range(N):
         if k:
-            mean, cov = F @ mean, F @ cov @ F.T + Q
+            F = transitions[k]
+            mean, cov = F @ mean, F @ cov @ F.T + Q * (lengths[k - 1] / DT) ** 2
         mp[k], Pp[k] = mean, cov
         seen = np.isfinite(y[k])
         if seen.any():
@@ -69,10 +64,19 @@ def _kalman(y, m0, P0):
         mf[k], Pf[k] = mean, cov
     ms, Ps = mf.copy(), Pf.copy()
     for k in range(N - 2, -1, -1):
-        G = Pf[k] @ F.T @ np.linalg.inv(Pp[k + 1])
+        G = Pf[k] @ transitions[k + 1].T @ np.linalg.inv(Pp[k + 1])
         ms[k] = mf[k] + G @ (ms[k + 1] - mp[k + 1])
         Ps[k] = Pf[k] + G @ (Ps[k + 1] - Pp[k + 1]) @ G.T
     return ms, Ps, ll
+
+
+def _rk4_matrix_over(h):
+    """The RK4 transition of dx/dt = A x over a step h in ceil(SUBSTEPS h / DT) steps (the sub-steps
+    the smoother takes for a step of its own length: SUBSTEPS for h = DT)."""
+    count = max(1, int(np.ceil(SUBSTEPS * h / DT - 1e-9)))
+    hA = A * h / count
+    step = np.eye(2) + hA + hA @ hA / 2 + hA @ hA @ hA / 6 + hA @ hA @ hA @ hA / 24
+    return np.linalg.matrix_power(step, count)
 
 
 @pytest.mark.parametrize("smoother, tolerance", [(unscented_kalman, 1e-9), (extended_kalman, 1e-6)])
@@ -144,14 +148,6 @@ def test_the_start_search_takes_missing_outputs():
 
 
 
-def _rk4_matrix_over(h):
-    """The RK4 transition of dx/dt = A x over a step h in ceil(SUBSTEPS h / DT) steps (the sub-steps
-    the smoother takes for a step of its own length)."""
-    count = max(1, int(np.ceil(SUBSTEPS * h / DT - 1e-9)))
-    hA = A * h / count
-    step = np.eye(2) + hA + hA @ hA / 2 + hA @ hA @ hA / 6 + hA @ hA @ hA @ hA / 24
-    return np.linalg.matrix_power(step, count)
-
 
 @pytest.mark.parametrize("smoother, tolerance", [(unscented_kalman, 1e-9), (extended_kalman, 1e-6)])
 def test_jittered_steps_give_the_kalman_smoother_of_each_steps_own_transition(smoother, tolerance):
@@ -162,29 +158,7 @@ def test_jittered_steps_give_the_kalman_smoother_of_each_steps_own_transition(sm
     steps = DT * (1.0 + np.random.default_rng(5).uniform(-0.05, 0.05, len(y) - 1))
     steps[20] = 1.4 * DT
     m0, P0 = np.array([0.5, 0.2]), np.diag([1.0, 1.0])
-    N = len(y)
-    mf, Pf, mp, Pp = np.zeros((N, 2)), np.zeros((N, 2, 2)), np.zeros((N, 2)), np.zeros((N, 2, 2))
-    mean, cov, ll = m0.copy(), P0.copy(), 0.0
-    transitions = [None] + [_rk4_matrix_over(h) for h in steps]
-    for k in range(N):
-        if k:
-            F = transitions[k]
-            mean, cov = F @ mean, F @ cov @ F.T + Q * (steps[k - 1] / DT) ** 2
-        mp[k], Pp[k] = mean, cov
-        seen = np.isfinite(y[k])
-        if seen.any():
-            H, Rs = C[seen], R[np.ix_(seen, seen)]
-            S = H @ cov @ H.T + Rs
-            K = cov @ H.T @ np.linalg.inv(S)
-            innovation = y[k, seen] - H @ mean
-            ll += -0.5 * (innovation @ np.linalg.solve(S, innovation) + np.linalg.slogdet(S)[1]
-                          + seen.sum() * np.log(2 * np.pi))
-            mean, cov = mean + K @ innovation, cov - K @ S @ K.T
-        mf[k], Pf[k] = mean, cov
-    ms = mf.copy()
-    for k in range(N - 2, -1, -1):
-        G = Pf[k] @ transitions[k + 1].T @ np.linalg.inv(Pp[k + 1])
-        ms[k] = mf[k] + G @ (ms[k + 1] - mp[k + 1])
+    ms, _, ll = _kalman(y, m0, P0, steps)
     result = smoother(_system(), DT, y, process_covariance=Q, measurement_covariance=R, initial_mean=m0,
                       initial_covariance=P0, substeps=SUBSTEPS, step_lengths=steps)
     np.testing.assert_allclose(result.states, ms, rtol=0, atol=tolerance * np.max(np.abs(ms)))

@@ -306,7 +306,7 @@ class _Model:
         self.Qz[:n, :n] = self.Q
         if self.augmented:
             self.Qz[n:, n:] = self.Qu
-        self.steps = None
+        self.steps, self._step_noise = None, None
         if steps is not None:
             self.steps = np.asarray(steps, dtype=float).reshape(-1)
             if self.steps.shape != (max(N - 1, 0),) or not np.all(np.isfinite(self.steps)) or np.any(self.steps <= 0):
@@ -319,11 +319,13 @@ class _Model:
         w over the step: q = h w) and the unknown inputs' random walk Qu h / dt."""
         if self.steps is None:
             return self.Qz
-        n, ratio = self.system.n_states, np.concatenate([[1.0], self.steps / self.dt])
-        noise = np.repeat(self.Qz[None], len(ratio), axis=0)
-        noise[:, :n, :n] *= (ratio**2)[:, None, None]
-        noise[:, n:, n:] *= ratio[:, None, None]
-        return noise
+        if self._step_noise is None:  # built once: the extended filter asks at every step
+            n, ratio = self.system.n_states, np.concatenate([[1.0], self.steps / self.dt])
+            noise = np.repeat(self.Qz[None], len(ratio), axis=0)
+            noise[:, :n, :n] *= (ratio**2)[:, None, None]
+            noise[:, n:, n:] *= ratio[:, None, None]
+            self._step_noise = noise
+        return self._step_noise
 
     def transition(self, z, k):
         """z[k] = F(z[k-1]) with the input of sample k - 1 (one point: :meth:`transition_points`)."""
